@@ -16,6 +16,7 @@ from rollfric.errors import InputError
 # module that registers subcommands, in the order --help lists them
 _SUBCOMMAND_MODULES = [
     "rollfric.cli_fit",
+    "sim.cli",
 ]
 
 

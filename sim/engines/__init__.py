@@ -1,0 +1,1 @@
+"""The simulation engines: reference (exact ODE), mujoco, pybullet."""

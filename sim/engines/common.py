@@ -1,0 +1,36 @@
+"""Kinematics shared by the engines (world frame of the team contract, SI units)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def centre_from_theta(theta, track_radius):
+    """Ball centre (N, 3) at angle theta: (L sin theta, -L cos theta, 0)."""
+    theta = np.asarray(theta, dtype=float)
+    return np.column_stack([track_radius * np.sin(theta), -track_radius * np.cos(theta),
+                            np.zeros_like(theta)])
+
+
+def theta_from_centre(position, velocity):
+    """(theta, theta_dot) of the ball centre projected on the x-y plane."""
+    x, y = position[:, 0], position[:, 1]
+    vx, vy = velocity[:, 0], velocity[:, 1]
+    theta = np.arctan2(x, -y)
+    theta_dot = (x * vy - y * vx) / (x * x + y * y)
+    return theta, theta_dot
+
+
+def slip_speed(position, velocity, angular_velocity, ball_radius):
+    """Speed of the ball's contact point (on the cylinder, outward from the axis) in m/s."""
+    rho = np.linalg.norm(position[:, :2], axis=1)
+    n_out = np.zeros_like(position)
+    n_out[:, 0] = position[:, 0] / rho
+    n_out[:, 1] = position[:, 1] / rho
+    v_contact = velocity + np.cross(angular_velocity, ball_radius * n_out)
+    return np.linalg.norm(v_contact, axis=1)
+
+
+def rolling_spin(theta_dot, track_radius, ball_radius):
+    """Angular velocity about +z of a ball rolling without slipping: -(L / r) theta'."""
+    return -(track_radius / ball_radius) * np.asarray(theta_dot, dtype=float)

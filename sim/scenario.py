@@ -1,0 +1,301 @@
+"""Scenario: everything that defines one simulated run, in SI units.
+
+A scenario file is TOML in bench units (mm, g, Hz, degrees), a superset of the lab setup file
+(``rollfric.setup``): every key is optional and defaults to the thesis's 10 mm ball::
+
+    [cylinder]
+    radius_mm = 85.3
+    [ball]
+    diameter_mm = 10.0
+    mass_g = 4.07612
+    [camera]
+    fps = 1000
+    pixel_size_mm = 0.1343
+    [environment]
+    gravity_m_s2 = 9.81
+    [motion]
+    mu = 0.0079
+    theta0_deg = 20.0
+    theta_dot0_deg_s = 0.0
+    seconds = 4.0
+    [engine]
+    name = "reference"      # reference | mujoco | pybullet
+    surface = "tangent"     # tangent (accurate) | mesh | heightfield (naive, biased)
+    seed = 0
+    [engine.options]        # engine settings, see sim.engines.<name>.DEFAULTS
+    timestep_s = 1e-4
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any
+
+import tomllib
+
+from rollfric.errors import InputError
+from rollfric.setup import THESIS_BALLS, THESIS_TROUGH_RADIUS, Setup
+
+ENGINES = ("reference", "mujoco", "pybullet")
+SURFACES = {
+    "reference": ("tangent",),
+    "mujoco": ("tangent", "mesh", "heightfield"),
+    "pybullet": ("tangent", "mesh", "heightfield"),
+}
+MAX_THETA0_DEG = 80.0
+
+
+class ScenarioError(InputError):
+    """A scenario that cannot be simulated (the message names the bad input)."""
+
+
+def _option_defaults(engine: str) -> dict:
+    if engine == "mujoco":
+        from sim.engines.mujoco_engine import DEFAULTS
+    elif engine == "pybullet":
+        from sim.engines.pybullet_engine import DEFAULTS
+    else:
+        from sim.engines.reference import DEFAULTS
+    return DEFAULTS
+
+
+@dataclasses.dataclass(frozen=True)
+class Scenario:
+    """One simulated run (SI units: m, kg, s, rad).
+
+    Defaults are the thesis's 10 mm ball on its 85.3 mm trough, mu = 0.0079, released at rest
+    at 20 degrees, 4 s sampled at 1000 Hz, exact reference engine.
+    """
+
+    ball_diameter: float = THESIS_BALLS["10mm"][0]
+    ball_mass: float = THESIS_BALLS["10mm"][1]
+    cylinder_radius: float = THESIS_TROUGH_RADIUS
+    mu: float = 0.0079
+    theta0: float = math.radians(20.0)
+    theta_dot0: float = 0.0
+    duration: float = 4.0
+    fps: float = 1000.0
+    engine: str = "reference"
+    surface: str = "tangent"
+    engine_options: dict = dataclasses.field(default_factory=dict, hash=False)
+    seed: int = 0
+    gravity: float = 9.81
+    pixel_size: float = 0.1343e-3
+
+    def __post_init__(self) -> None:
+        for name in ("ball_diameter", "ball_mass", "cylinder_radius", "duration", "fps",
+                     "gravity", "pixel_size"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                    or v <= 0:
+                raise ScenarioError(f"{name} must be a positive number, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        for name in ("mu", "theta0", "theta_dot0"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ScenarioError(f"{name} must be a finite number, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if self.mu < 0:
+            raise ScenarioError(f"mu must not be negative, got {self.mu!r}")
+        if self.ball_diameter >= 2 * self.cylinder_radius:
+            raise ScenarioError(
+                f"ball_diameter ({self.ball_diameter * 1e3:g} mm) must be smaller than the "
+                f"trough diameter (2 x cylinder_radius = {self.cylinder_radius * 2e3:g} mm)")
+        if abs(self.theta0) > math.radians(MAX_THETA0_DEG):
+            raise ScenarioError(
+                f"theta0 ({math.degrees(self.theta0):g} deg) is beyond +-{MAX_THETA0_DEG:g} deg: "
+                "the ball would leave the trough wall or slip")
+        if self.engine not in ENGINES:
+            raise ScenarioError(f"unknown engine {self.engine!r} (known: {', '.join(ENGINES)})")
+        if self.surface not in SURFACES[self.engine]:
+            raise ScenarioError(
+                f"surface {self.surface!r} is not offered by engine {self.engine!r} "
+                f"(known: {', '.join(SURFACES[self.engine])})")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ScenarioError(f"seed must be a non-negative integer, got {self.seed!r}")
+        if not isinstance(self.engine_options, dict):
+            raise ScenarioError(f"engine_options must be a table, got {self.engine_options!r}")
+        defaults = _option_defaults(self.engine)
+        for key, value in self.engine_options.items():
+            if key not in defaults:
+                raise ScenarioError(
+                    f"unknown option {key!r} for engine {self.engine!r} "
+                    f"(known: {', '.join(defaults) or 'none'})")
+            want = type(defaults[key])
+            if want is float and isinstance(value, int) and not isinstance(value, bool):
+                value = float(value)
+            if not isinstance(value, want) or (want is int and isinstance(value, bool)):
+                raise ScenarioError(f"engine option {key} must be {want.__name__}, "
+                                    f"got {value!r}")
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and value <= 0:
+                raise ScenarioError(f"engine option {key} must be positive, got {value!r}")
+        object.__setattr__(self, "engine_options", dict(sorted(self.engine_options.items())))
+        if self.n_samples < 2:
+            raise ScenarioError(f"duration x fps gives {self.n_samples} sample(s): need >= 2")
+
+    # ---- derived values
+    @property
+    def ball_radius(self) -> float:
+        return 0.5 * self.ball_diameter
+
+    @property
+    def track_radius(self) -> float:
+        """L = R - r, the radius of the ball centre's circle (m)."""
+        return self.cylinder_radius - self.ball_radius
+
+    @property
+    def n_samples(self) -> int:
+        return int(math.floor(self.duration * self.fps + 1e-9)) + 1
+
+    def times(self):
+        import numpy as np
+
+        return np.arange(self.n_samples, dtype=float) / self.fps
+
+    def options(self) -> dict:
+        """The engine settings actually used: defaults overridden by engine_options."""
+        out = dict(_option_defaults(self.engine))
+        out.update(self.engine_options)
+        return out
+
+    def setup(self, pixel_size: float | None = None) -> Setup:
+        """The lab setup (rollfric.setup.Setup) a camera filming this scenario would have."""
+        return Setup(cylinder_radius=self.cylinder_radius, ball_diameter=self.ball_diameter,
+                     ball_mass=self.ball_mass, fps=self.fps,
+                     pixel_size=self.pixel_size if pixel_size is None else pixel_size,
+                     gravity=self.gravity)
+
+    def replace(self, **changes) -> Scenario:
+        return dataclasses.replace(self, **changes)
+
+    @classmethod
+    def thesis(cls, ball: str = "10mm", **changes) -> Scenario:
+        """The thesis trough with one of its balls ("1.58mm", "10mm", "12.69mm")."""
+        try:
+            d, m = THESIS_BALLS[ball]
+        except KeyError:
+            raise ScenarioError(f"unknown thesis ball {ball!r} "
+                                f"(known: {', '.join(THESIS_BALLS)})") from None
+        return cls(ball_diameter=d, ball_mass=m, **changes)
+
+    # ---- dict forms
+    def to_dict(self) -> dict:
+        """SI form (field name -> value), exact round trip through from_dict."""
+        return {f.name: (dict(getattr(self, f.name)) if f.name == "engine_options"
+                         else getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Scenario:
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ScenarioError(f"unknown scenario field(s) {unknown} (known: {sorted(names)})")
+        return cls(**data)
+
+    def to_toml_dict(self) -> dict:
+        out = {
+            "cylinder": {"radius_mm": self.cylinder_radius * 1e3},
+            "ball": {"diameter_mm": self.ball_diameter * 1e3, "mass_g": self.ball_mass * 1e3},
+            "camera": {"fps": self.fps, "pixel_size_mm": self.pixel_size * 1e3},
+            "environment": {"gravity_m_s2": self.gravity},
+            "motion": {"mu": self.mu, "theta0_deg": math.degrees(self.theta0),
+                       "theta_dot0_deg_s": math.degrees(self.theta_dot0),
+                       "seconds": self.duration},
+            "engine": {"name": self.engine, "surface": self.surface, "seed": self.seed,
+                       "options": dict(self.engine_options)},
+        }
+        return out
+
+    @classmethod
+    def from_toml_dict(cls, data: dict, source: str = "scenario") -> Scenario:
+        return scenario_from_dict(data, source)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Scenario:
+        return load_scenario(path)
+
+
+_SCHEMA: dict[str, dict[str, tuple[str, float]]] = {
+    # section -> key -> (field, factor to SI)
+    "cylinder": {"radius_mm": ("cylinder_radius", 1e-3)},
+    "ball": {"diameter_mm": ("ball_diameter", 1e-3), "mass_g": ("ball_mass", 1e-3)},
+    "camera": {"fps": ("fps", 1.0), "pixel_size_mm": ("pixel_size", 1e-3)},
+    "environment": {"gravity_m_s2": ("gravity", 1.0)},
+    "motion": {"mu": ("mu", 1.0), "theta0_deg": ("theta0", math.pi / 180),
+               "theta_dot0_deg_s": ("theta_dot0", math.pi / 180),
+               "seconds": ("duration", 1.0)},
+}
+_ENGINE_KEYS = ("name", "surface", "seed", "options")
+
+
+def scenario_from_dict(data: dict, source: str = "scenario") -> Scenario:
+    """Build a Scenario from its TOML form, refusing unknown keys and non-numbers."""
+    kwargs: dict[str, Any] = {}
+    for section, table in data.items():
+        if section not in _SCHEMA and section != "engine":
+            raise ScenarioError(f"{source}: unknown section [{section}] "
+                                f"(known: {', '.join([*_SCHEMA, 'engine'])})")
+        if not isinstance(table, dict):
+            raise ScenarioError(f"{source}: [{section}] must be a table")
+        if section == "engine":
+            for key, value in table.items():
+                if key not in _ENGINE_KEYS:
+                    raise ScenarioError(f"{source}: unknown key engine.{key} "
+                                        f"(known: {', '.join(_ENGINE_KEYS)})")
+                field = {"name": "engine", "options": "engine_options"}.get(key, key)
+                kwargs[field] = value
+            continue
+        for key, value in table.items():
+            if key not in _SCHEMA[section]:
+                raise ScenarioError(f"{source}: unknown key {section}.{key} "
+                                    f"(known: {', '.join(_SCHEMA[section])})")
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ScenarioError(f"{source}: {section}.{key} must be a number, got {value!r}")
+            field, factor = _SCHEMA[section][key]
+            kwargs[field] = float(value) * factor
+    try:
+        return Scenario(**kwargs)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{source}: {exc}") from None
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read a scenario TOML file (mm, g, Hz, degrees; see the module docstring)."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            data = tomllib.load(f)
+    except FileNotFoundError:
+        raise ScenarioError(f"scenario file not found: {path}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    return scenario_from_dict(data, source=str(path))
+
+
+def dumps_scenario(scenario: Scenario) -> str:
+    """The scenario as TOML text (round-trips through load_scenario)."""
+    def fmt(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, float):
+            return repr(v)
+        if isinstance(v, int):
+            return str(v)
+        if isinstance(v, str):
+            return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        raise TypeError(v)
+
+    lines = []
+    d = scenario.to_toml_dict()
+    for section, table in d.items():
+        opts = table.pop("options", None) if section == "engine" else None
+        lines.append(f"[{section}]")
+        lines += [f"{k} = {fmt(v)}" for k, v in table.items()]
+        lines.append("")
+        if opts:
+            lines.append("[engine.options]")
+            lines += [f"{k} = {fmt(v)}" for k, v in opts.items()]
+            lines.append("")
+    return "\n".join(lines)

@@ -1,0 +1,148 @@
+"""Trajectory: the ground truth of one simulated run, sampled at the camera rate (SI units).
+
+World frame (team contract): origin on the cylinder axis in the plane of the ball centre,
+x right, y up, z along the axis towards the camera. Ball centre (L sin theta, -L cos theta, 0).
+Quaternions (w, x, y, z) and angular velocities are in the world frame.
+
+CSV columns (one row per camera frame, floats printed with 17 significant digits so the file
+round-trips exactly; NaN where an engine has no value)::
+
+    t_s, theta_rad, theta_dot_rad_s, x_m, y_m, z_m, qw, qx, qy, qz,
+    wx_rad_s, wy_rad_s, wz_rad_s, normal_force_n, slip_speed_m_s
+
+Next to ``NAME.csv`` a sidecar ``NAME.json`` holds the scenario (TOML form and SI form),
+the engine, its version and the settings used, and run diagnostics.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from sim.scenario import Scenario, ScenarioError, scenario_from_dict
+
+COLUMNS = ("t_s", "theta_rad", "theta_dot_rad_s", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz",
+           "wx_rad_s", "wy_rad_s", "wz_rad_s", "normal_force_n", "slip_speed_m_s")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Ground truth of one run: arrays of length N (camera frames)."""
+
+    t: np.ndarray  # (N,) s
+    theta: np.ndarray  # (N,) rad
+    theta_dot: np.ndarray  # (N,) rad/s
+    position: np.ndarray  # (N, 3) m, ball centre, world frame
+    quaternion: np.ndarray  # (N, 4) wxyz, world frame
+    angular_velocity: np.ndarray  # (N, 3) rad/s, world frame
+    normal_force: np.ndarray  # (N,) N (NaN where not available)
+    slip_speed: np.ndarray  # (N,) m/s, contact-point speed relative to the trough (NaN: n/a)
+    scenario: Scenario
+    meta: dict = dataclasses.field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = len(self.t)
+        shapes = {"theta": (n,), "theta_dot": (n,), "position": (n, 3), "quaternion": (n, 4),
+                  "angular_velocity": (n, 3), "normal_force": (n,), "slip_speed": (n,)}
+        for name, shape in shapes.items():
+            a = np.asarray(getattr(self, name), dtype=float)
+            if a.shape != shape:
+                raise ValueError(f"Trajectory.{name} has shape {a.shape}, expected {shape}")
+            object.__setattr__(self, name, a)
+        object.__setattr__(self, "t", np.asarray(self.t, dtype=float))
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def fps(self) -> float:
+        return self.scenario.fps
+
+    def setup(self):
+        return self.scenario.setup()
+
+    def table(self) -> np.ndarray:
+        """(N, 15) array in COLUMNS order."""
+        return np.column_stack([self.t, self.theta, self.theta_dot, self.position,
+                                self.quaternion, self.angular_velocity, self.normal_force,
+                                self.slip_speed]) + 0.0  # + 0.0 turns -0.0 into 0.0
+
+    def to_dataframe(self):
+        import pandas as pd
+
+        return pd.DataFrame(self.table(), columns=list(COLUMNS))
+
+    def sidecar(self) -> dict:
+        return {
+            "format": "rollfric-sim-trajectory/1",
+            "columns": list(COLUMNS),
+            "scenario": self.scenario.to_toml_dict(),
+            "scenario_si": self.scenario.to_dict(),
+            "meta": self.meta,
+        }
+
+    def to_csv(self, path: str | Path) -> Path:
+        """Write NAME.csv and its sidecar NAME.json atomically; returns the CSV path."""
+        path = Path(path)
+        buf = io.StringIO()
+        np.savetxt(buf, self.table(), fmt="%.17g", delimiter=",", header=",".join(COLUMNS),
+                   comments="")
+        _atomic_write(path, buf.getvalue())
+        _atomic_write(sidecar_path(path),
+                      json.dumps(self.sidecar(), indent=2, sort_keys=False, default=_jsonable)
+                      + "\n")
+        return path
+
+
+def sidecar_path(csv_path: str | Path) -> Path:
+    return Path(csv_path).with_suffix(".json")
+
+
+def _jsonable(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"not JSON serialisable: {type(obj)}")
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="\n") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def read_trajectory(path: str | Path) -> Trajectory:
+    """Read a trajectory CSV and its JSON sidecar (written by Trajectory.to_csv)."""
+    path = Path(path)
+    side = sidecar_path(path)
+    if not path.is_file():
+        raise ScenarioError(f"trajectory file not found: {path}")
+    if not side.is_file():
+        raise ScenarioError(f"trajectory sidecar not found: {side} (written next to the CSV)")
+    info = json.loads(side.read_text())
+    with path.open() as f:
+        header = f.readline().strip().split(",")
+    if tuple(header) != COLUMNS:
+        raise ScenarioError(f"{path}: unexpected columns {header} (expected {list(COLUMNS)})")
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if "scenario_si" in info:
+        scenario = Scenario.from_dict(info["scenario_si"])
+    else:
+        scenario = scenario_from_dict(info["scenario"], source=str(side))
+    return Trajectory(t=data[:, 0], theta=data[:, 1], theta_dot=data[:, 2],
+                      position=data[:, 3:6], quaternion=data[:, 6:10],
+                      angular_velocity=data[:, 10:13], normal_force=data[:, 13],
+                      slip_speed=data[:, 14], scenario=scenario, meta=info.get("meta", {}))
