@@ -1,0 +1,217 @@
+"""MuJoCo 4 engine: a free ball with rolling friction (condim 6) in the trough.
+
+Model units are millimetres, kilograms and seconds (gravity 9810 mm/s^2), converted to SI at the
+edge: MuJoCo raises every friction coefficient below 1e-5 to 1e-5 and its rolling coefficient is
+a length (mu * r), which for the 1.58 mm ball in metres (mu r ~ 1e-5 m) would be floored.
+Gravity points along -y so the model frame is the contract's world frame (in mm).
+
+Surfaces:
+
+- ``tangent`` (default, accurate): one thin box on a mocap body, re-posed before every step so
+  that its top face is tangent to the cylinder directly under the ball: one contact with the
+  exact cylinder geometry.
+- ``mesh``: the trough as the triangle mesh a user would export, one facet every
+  ``mesh_facet_deg`` degrees. MuJoCo collides with the convex hull of a mesh, so each facet is
+  its own convex slab (a box whose top face is the facet's two triangles).
+- ``heightfield``: an hfield sampled every ``heightfield_cell_mm`` along x.
+
+The contact is an explicit pair with condim 6 and friction (1, 1, mu r, mu r, mu r): sliding 1
+(in elliptic cones a large sliding coefficient weakens the rolling rows), torsional and rolling
+mu r. Other settings: elliptic cone, noslip iterations, stiff solref and a solimp width in mm.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from sim.engines.common import slip_speed, theta_from_centre
+
+DEFAULTS: dict = {
+    "timestep_s": 1e-4,
+    "noslip_iterations": 20,
+    "solref_timeconst_s": 1e-3,
+    "solreffriction_timeconst_s": 2e-3,
+    "solimp_width_mm": 1.0,
+    "cone": "elliptic",
+    "integrator": "Euler",
+    "mesh_facet_deg": 1.0,
+    "heightfield_cell_mm": 0.5,
+    "surface_extent_deg": 85.0,
+}
+
+_PAD_HALF_THICKNESS = 1.0  # mm
+
+
+def _steps_per_frame(timestep: float, fps: float) -> tuple[int, float]:
+    n = max(1, round(1.0 / (fps * timestep)))
+    return n, 1.0 / (fps * n)
+
+
+def build_xml(scenario, opts: dict) -> str:
+    R = scenario.cylinder_radius * 1e3
+    r = scenario.ball_radius * 1e3
+    L = R - r
+    m = scenario.ball_mass
+    g = scenario.gravity * 1e3
+    mur = scenario.mu * r  # rolling coefficient is a length (mm)
+    _, dt = _steps_per_frame(opts["timestep_s"], scenario.fps)
+    th0 = scenario.theta0
+    width = opts["solimp_width_mm"]
+    half_w = max(2.0 * r, 5.0)
+    surface = scenario.surface
+    assets, trough = "", ""
+    pair_geoms = []
+    if surface == "tangent":
+        trough = (f'<body name="pad" mocap="true" pos="0 {-(R + _PAD_HALF_THICKNESS)} 0">'
+                  f'<geom name="pad" type="box" size="{half_w} {_PAD_HALF_THICKNESS} {half_w}" '
+                  f'contype="0" conaffinity="0"/></body>')
+        pair_geoms = ["pad"]
+    elif surface == "mesh":
+        ext = math.radians(opts["surface_extent_deg"])
+        n = max(2, math.ceil(2 * ext / math.radians(opts["mesh_facet_deg"])))
+        edges = np.linspace(-ext, ext, n + 1)
+        parts = []
+        for i in range(n):
+            a0, a1 = edges[i], edges[i + 1]
+            mid, half = 0.5 * (a0 + a1), 0.5 * (a1 - a0)
+            half_chord = R * math.sin(half)
+            dist = R * math.cos(half) + _PAD_HALF_THICKNESS  # box centre from the axis
+            parts.append(
+                f'<geom name="f{i}" type="box" size="{half_chord!r} {_PAD_HALF_THICKNESS} '
+                f'{half_w}" pos="{dist * math.sin(mid)!r} {-dist * math.cos(mid)!r} 0" '
+                f'euler="0 0 {mid!r}" contype="0" conaffinity="0"/>')
+            pair_geoms.append(f"f{i}")
+        trough = "\n".join(parts)
+    else:  # heightfield
+        ext = math.radians(opts["surface_extent_deg"])
+        X = R * math.sin(ext)
+        ncol = max(3, int(round(2 * X / opts["heightfield_cell_mm"])) + 1)
+        x = np.linspace(-X, X, ncol)
+        h = R - np.sqrt(R * R - x * x)
+        top = float(h.max())
+        elev = np.tile(h / top, (3, 1))  # nrow = 3 rows along the cylinder axis
+        data = " ".join(repr(float(v)) for v in elev.ravel())
+        assets = (f'<hfield name="trough" nrow="3" ncol="{ncol}" '
+                  f'size="{X!r} {half_w} {top!r} {_PAD_HALF_THICKNESS}" elevation="{data}"/>')
+        # local z (elevation) -> world +y, local y -> world -z
+        trough = (f'<geom name="hf" type="hfield" hfield="trough" pos="0 {-R!r} 0" '
+                  f'quat="{math.cos(-math.pi / 4)!r} {math.sin(-math.pi / 4)!r} 0 0" '
+                  f'contype="0" conaffinity="0"/>')
+        pair_geoms = ["hf"]
+    pairs = "\n".join(
+        f'<pair geom1="ball" geom2="{gname}" condim="6" '
+        f'friction="1 1 {mur!r} {mur!r} {mur!r}" '
+        f'solref="{opts["solref_timeconst_s"]!r} 1" '
+        f'solreffriction="{opts["solreffriction_timeconst_s"]!r} 1" '
+        f'solimp="0.9 0.95 {width!r} 0.5 2"/>' for gname in pair_geoms)
+    return f"""<mujoco model="rollfric-trough">
+  <compiler angle="radian"/>
+  <option timestep="{dt!r}" gravity="0 {-g!r} 0" cone="{opts["cone"]}"
+          noslip_iterations="{opts["noslip_iterations"]}" integrator="{opts["integrator"]}"/>
+  <asset>{assets}</asset>
+  <worldbody>
+    <body name="ball" pos="{L * math.sin(th0)!r} {-L * math.cos(th0)!r} 0">
+      <freejoint name="ball"/>
+      <geom name="ball" type="sphere" size="{r!r}" mass="{m!r}" contype="0" conaffinity="0"/>
+    </body>
+    {trough}
+  </worldbody>
+  <contact>
+    {pairs}
+  </contact>
+</mujoco>
+"""
+
+
+def run(scenario, progress: bool = False):
+    import mujoco
+    from scipy.spatial.transform import Rotation
+    from tqdm import tqdm
+
+    from sim.trajectory import Trajectory
+
+    opts = scenario.options()
+    if opts["cone"] not in ("elliptic", "pyramidal"):
+        from sim.scenario import ScenarioError
+
+        raise ScenarioError(f"mujoco option cone must be elliptic or pyramidal, "
+                            f"got {opts['cone']!r}")
+    start = time.perf_counter()
+    model = mujoco.MjModel.from_xml_string(build_xml(scenario, opts))
+    data = mujoco.MjData(model)
+    R = scenario.cylinder_radius * 1e3
+    r = scenario.ball_radius * 1e3
+    L = R - r
+    th0, w0 = scenario.theta0, scenario.theta_dot0
+    data.qvel[0:3] = [L * w0 * math.cos(th0), L * w0 * math.sin(th0), 0.0]
+    data.qvel[3:6] = [0.0, 0.0, -(L / r) * w0]  # body frame = world frame at identity
+    n_sub, dt = _steps_per_frame(opts["timestep_s"], scenario.fps)
+    n = scenario.n_samples
+    qpos = np.empty((n, 7))
+    qvel = np.empty((n, 6))
+    normal = np.full(n, np.nan)
+    ncon = np.zeros(n, dtype=int)
+    tangent = scenario.surface == "tangent"
+    pad_dist = R + _PAD_HALF_THICKNESS
+    mocap_pos, mocap_quat = data.mocap_pos, data.mocap_quat
+    q = data.qpos
+    f6 = np.zeros(6)
+
+    def place_pad():
+        phi = math.atan2(q[0], -q[1])
+        mocap_pos[0, 0] = pad_dist * math.sin(phi)
+        mocap_pos[0, 1] = -pad_dist * math.cos(phi)
+        mocap_quat[0, 0] = math.cos(0.5 * phi)
+        mocap_quat[0, 3] = math.sin(0.5 * phi)
+
+    if tangent:
+        place_pad()
+    mujoco.mj_forward(model, data)
+
+    def record(i):
+        qpos[i] = data.qpos
+        qvel[i] = data.qvel
+        ncon[i] = data.ncon
+        if data.ncon:
+            total = 0.0
+            for k in range(data.ncon):
+                mujoco.mj_contactForce(model, data, k, f6)
+                total += f6[0]
+            normal[i] = total * 1e-3  # kg mm / s^2 -> N
+
+    record(0)
+    step = mujoco.mj_step
+    for i in tqdm(range(1, n), disable=not progress, desc="mujoco", unit="frame",
+                  mininterval=0.5):
+        if tangent:
+            for _ in range(n_sub):
+                place_pad()
+                step(model, data)
+        else:
+            step(model, data, nstep=n_sub)
+        record(i)
+    wall = time.perf_counter() - start
+
+    pos = qpos[:, 0:3] * 1e-3
+    vel = qvel[:, 0:3] * 1e-3
+    quat = qpos[:, 3:7] / np.linalg.norm(qpos[:, 3:7], axis=1, keepdims=True)
+    omega = Rotation.from_quat(quat, scalar_first=True).apply(qvel[:, 3:6])
+    theta, theta_dot = theta_from_centre(pos, vel)
+    meta = {
+        "engine": "mujoco",
+        "engine_version": f"mujoco {mujoco.__version__}",
+        "surface": scenario.surface,
+        "settings": {**opts, "timestep_s": dt, "steps_per_frame": n_sub, "units": "mm, kg, s",
+                     "condim": 6, "friction": [1, 1, scenario.mu * r, scenario.mu * r,
+                                               scenario.mu * r]},
+        "n_geoms": int(model.ngeom),
+        "max_contacts": int(ncon.max()),
+        "wall_time_s": wall,
+    }
+    return Trajectory(t=scenario.times(), theta=theta, theta_dot=theta_dot, position=pos,
+                      quaternion=quat, angular_velocity=omega, normal_force=normal,
+                      slip_speed=slip_speed(pos, vel, omega, scenario.ball_radius),
+                      scenario=scenario, meta=meta)
