@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from pathlib import Path
+
+import tomllib
 
 from rollfric.errors import InputError
 

@@ -1,0 +1,139 @@
+"""The small-angle analytic model of the thesis's first paper, and its conversions.
+
+With sin(theta) ~ theta and a constant rolling-resistance torque M, the equation of motion is
+
+    theta'' + omega^2 theta + eps sign(theta') = 0,
+    omega^2 = 5 g / (7 L),   eps = 5 M / (7 m r L),   L = R - r.
+
+Each half-swing is a cosine about the offset -sign(theta') eps / omega^2, so the amplitude
+drops linearly, by 2 eps / omega^2 per half-swing (Coulomb damping). With M = mu r m g (our
+convention, N ~ m g for small angles) eps = mu omega^2.
+
+The first paper splits a half-swing into a roll-down stage (from rest at theta_0 to the bottom,
+its eq. 7) and a climb stage (from the bottom with angular speed omega_m, its eq. 11), and
+defines its own coefficient (its eq. 13), which for small angles is 5/7 of ours: see
+:func:`paper1_mu_from_eps`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rollfric.eom import STANDARD_GRAVITY, omega_squared
+
+__all__ = [
+    "omega_squared", "eps_from_mu", "mu_from_eps", "paper1_mu_from_eps", "paper1_mu_from_mu",
+    "mu_from_paper1_mu", "roll_down", "climb", "solve_small_angle", "decay_per_half_swing",
+]
+
+
+def eps_from_mu(mu: float, track_radius: float, gravity: float = STANDARD_GRAVITY) -> float:
+    """Friction parameter eps (1/s^2) for mu in our convention (M = mu r N, N ~ m g)."""
+    return mu * omega_squared(track_radius, gravity)
+
+
+def mu_from_eps(eps: float, track_radius: float, gravity: float = STANDARD_GRAVITY) -> float:
+    """mu in our convention (M = mu r N) from the friction parameter eps (1/s^2)."""
+    return eps / omega_squared(track_radius, gravity)
+
+
+def paper1_mu_from_eps(eps: float, theta0: float, track_radius: float,
+                       gravity: float = STANDARD_GRAVITY) -> float:
+    """The first paper's coefficient (its eq. 13): tangential over normal force at the bottom.
+
+    mu_1 = 7 eps L / (g (17 - 10 cos theta0) - 14 eps theta0 L), theta0 the release angle.
+    For theta0 -> 0 this is eps L / g = (5/7) mu.
+    """
+    theta0 = abs(theta0)
+    L = track_radius
+    return 7 * eps * L / (gravity * (17 - 10 * math.cos(theta0)) - 14 * eps * theta0 * L)
+
+
+def paper1_mu_from_mu(mu: float, theta0: float, track_radius: float,
+                      gravity: float = STANDARD_GRAVITY) -> float:
+    """The first paper's coefficient for a ball released at theta0, given our mu."""
+    return paper1_mu_from_eps(eps_from_mu(mu, track_radius, gravity), theta0, track_radius,
+                              gravity)
+
+
+def mu_from_paper1_mu(mu_1: float, theta0: float, track_radius: float,
+                      gravity: float = STANDARD_GRAVITY) -> float:
+    """Our mu from the first paper's coefficient (inverse of its eq. 13)."""
+    theta0 = abs(theta0)
+    L = track_radius
+    # solve mu_1 (g (17 - 10 cos) - 14 eps theta0 L) = 7 eps L for eps
+    eps = mu_1 * gravity * (17 - 10 * math.cos(theta0)) / (7 * L + 14 * mu_1 * theta0 * L)
+    return mu_from_eps(eps, track_radius, gravity)
+
+
+def decay_per_half_swing(eps: float, omega2: float) -> float:
+    """Amplitude lost per half-swing in the small-angle model: 2 eps / omega^2 (rad)."""
+    return 2.0 * eps / omega2
+
+
+def roll_down(t, theta0: float, eps: float, omega2: float) -> np.ndarray:
+    """Paper 1, eq. 7: released from rest at theta0 at t = 0, until the bottom.
+
+    theta(t) = c + (theta0 - c) cos(omega t) with c = sign(theta0) eps / omega^2.
+    """
+    w = math.sqrt(omega2)
+    c = math.copysign(eps / omega2, theta0)
+    return c + (theta0 - c) * np.cos(w * np.asarray(t, dtype=float))
+
+
+def climb(t, omega_m: float, eps: float, omega2: float) -> np.ndarray:
+    """Paper 1, eq. 11: leaving the bottom at t = 0 with angular velocity omega_m (signed).
+
+    theta(t) = (omega_m / omega) sin(omega t) - sign(omega_m) (eps / omega^2) (1 - cos(omega t)).
+    """
+    w = math.sqrt(omega2)
+    t = np.asarray(t, dtype=float)
+    return (omega_m / w) * np.sin(w * t) - math.copysign(eps / omega2, omega_m) * (
+        1 - np.cos(w * t))
+
+
+def solve_small_angle(theta0: float, omega0: float, eps: float, omega2: float, t):
+    """Exact solution of theta'' + omega^2 theta + eps sign(theta') = 0 from t[0].
+
+    Half-swing by half-swing, with the sticking rule |theta| <= eps / omega^2 at a turning
+    point (the small-angle form of |tan theta| <= mu). Returns (theta, theta_dot, t_stop).
+    """
+    t = np.asarray(t, dtype=float)
+    w = math.sqrt(omega2)
+    d = eps / omega2
+    theta = np.empty_like(t)
+    theta_dot = np.empty_like(t)
+    t_now, th, om = float(t[0]), float(theta0), float(omega0)
+    filled = np.zeros(t.size, dtype=bool)
+    t_stop = math.inf
+    for _ in range(100000):
+        if om == 0.0:
+            if abs(th) <= d:
+                t_stop = t_now
+                break
+            s = -1.0 if th > 0 else 1.0
+        else:
+            s = math.copysign(1.0, om)
+        c = -s * d  # centre of this half-swing
+        amp = math.hypot(th - c, om / w)
+        phase = math.atan2(-om / w, th - c)  # theta = c + amp cos(w (t - t_now) + phase)
+        # next turning point: w (t - t_now) + phase = k pi with velocity sign s before it
+        # velocity = -amp w sin(.) has sign s on the way: the next multiple of pi after phase
+        k = math.floor(phase / math.pi) + 1
+        t_turn = t_now + (k * math.pi - phase) / w
+        sel = (t >= t_now) & (t <= t_turn) & ~filled
+        arg = w * (t[sel] - t_now) + phase
+        theta[sel] = c + amp * np.cos(arg)
+        theta_dot[sel] = -amp * w * np.sin(arg)
+        filled |= sel
+        th = c + amp * math.cos(k * math.pi)
+        om = 0.0
+        t_now = t_turn
+        if t_now > t[-1]:
+            break
+    rest = ~filled
+    theta[rest] = th
+    theta_dot[rest] = 0.0
+    return theta, theta_dot, t_stop

@@ -1,0 +1,78 @@
+"""``rollfric fit``: fit mu to an angle series in a CSV file."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "fit mu to a track (t_s, theta_rad) with the equation of motion"
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "fit", help=HELP, description=(
+            "Fit the rolling friction coefficient mu (M = mu r N) to an angle series theta(t). "
+            "TRACK.csv needs columns t_s and theta_rad (others are ignored; rows with an empty "
+            "theta_rad, e.g. frames where no ball was found, are left out). Writes a JSON file "
+            "with mu, mu_stderr, theta0_rad, omega0_rad_s, rms_residual_rad, method and more."),
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("track", metavar="TRACK.csv", help="CSV with columns t_s,theta_rad")
+    p.add_argument("--setup", required=True, metavar="SETUP.toml",
+                   help="lab setup file (cylinder radius, ball diameter and mass, camera)")
+    p.add_argument("--out", required=True, metavar="FIT.json", help="where to write the result")
+    p.add_argument("--method", default="lsq", choices=["lsq", "paper1_eps", "paper2_grid"],
+                   help="lsq: least squares of the equation of motion (default); paper1_eps: "
+                        "the first paper's analytic eps iteration (small ball, small angles); "
+                        "paper2_grid: the second paper's grid search (slow)")
+    p.add_argument("--offset", action="store_true",
+                   help="also fit a constant angle offset of the trough bottom")
+    p.add_argument("--model", default="coulomb", choices=["coulomb", "velocity"],
+                   help="friction model: constant mu, or mu0 + mu1 |theta'| (lsq only)")
+    p.add_argument("--plot", action="store_true",
+                   help="also write the angle-vs-model figure beside FIT.json (.png)")
+    p.set_defaults(func=run)
+
+
+def read_track(path):
+    """t_s and theta_rad columns of a track CSV, as float arrays (empty cells -> NaN)."""
+    import pandas as pd
+
+    from rollfric.errors import InputError
+
+    try:
+        df = pd.read_csv(path)
+    except FileNotFoundError:
+        raise InputError(f"track file not found: {path}") from None
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not a readable CSV file: {exc}") from None
+    missing = [c for c in ("t_s", "theta_rad") if c not in df.columns]
+    if missing:
+        raise InputError(f"{path}: missing column(s) {', '.join(missing)} "
+                         f"(found: {', '.join(map(str, df.columns))})")
+    try:
+        t = pd.to_numeric(df["t_s"], errors="raise").to_numpy(float)
+        theta = pd.to_numeric(df["theta_rad"], errors="raise").to_numpy(float)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"{path}: non-numeric value in t_s or theta_rad: {exc}") from None
+    return t, theta
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from rollfric.fit import fit_mu, save_fit
+    from rollfric.setup import load_setup
+
+    setup = load_setup(args.setup)
+    t, theta = read_track(args.track)
+    kw = {"model": args.model} if args.method == "lsq" else {}
+    result = fit_mu(t, theta, setup, method=args.method, offset=args.offset, **kw)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    save_fit(result, out)
+    if args.plot:
+        from rollfric.plots import plot_fit
+
+        plot_fit(t, theta, result, out.with_suffix(".png"))
+    print(f"mu = {result.mu:.6f} +- {result.mu_stderr:.2g} ({result.method}), "
+          f"rms residual {result.rms_residual:.3g} rad, {result.n_samples} samples -> {out}")
+    return 0

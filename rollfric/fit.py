@@ -1,0 +1,311 @@
+"""Estimate mu from an angle series theta(t).
+
+The default method (``"lsq"``) is a least-squares fit of the Lagrange equation of motion
+(:mod:`rollfric.eom`) to theta(t), with mu, theta(t0) and theta'(t0) free, optionally also a
+constant angle offset (the trough's bottom is never exactly where the camera says it is) and
+the velocity term mu1 of mu(theta') = mu0 + mu1 |theta'|. It starts itself from the data:
+turning points of the low-passed series, mu from the amplitude lost per half-swing
+(2 mu per half-swing in the small-angle limit), theta'(t0) from the filtered derivative.
+
+The thesis's own procedures are offered beside it for comparison (:mod:`rollfric.thesis`):
+``"paper1_eps"`` (the first paper's analytic eps iteration for a small ball at small angles)
+and ``"paper2_grid"`` (the second paper's grid search around a first estimate).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+from scipy import optimize, signal
+
+from rollfric import eom, filtering
+from rollfric.errors import InputError
+from rollfric.setup import Setup
+
+METHODS = ("lsq", "paper1_eps", "paper2_grid")
+MIN_SAMPLES = 50
+
+
+@dataclasses.dataclass(frozen=True)
+class FitResult:
+    """The outcome of one fit. Angles in rad, rates in rad/s, times in s."""
+
+    method: str
+    mu: float
+    mu_stderr: float
+    theta0: float  # theta at t0 (rad), including the offset
+    omega0: float  # theta' at t0 (rad/s)
+    t0: float
+    rms_residual: float  # rad
+    relative_error: float  # thesis eq. 14: sum |model - data| / sum |data|
+    n_samples: int  # samples used (finite)
+    t: np.ndarray = dataclasses.field(repr=False)
+    curve: np.ndarray = dataclasses.field(repr=False)  # model theta at t
+    offset: float = 0.0  # angle of the trough bottom in the camera's frame (rad)
+    mu1: float = 0.0  # s/rad, velocity term (model "velocity")
+    stderr: dict = dataclasses.field(default_factory=dict)
+    extra: dict = dataclasses.field(default_factory=dict)
+    seconds: float = 0.0
+
+    def to_dict(self) -> dict:
+        """The JSON form written to fit.json (no arrays)."""
+        out = {
+            "method": self.method,
+            "mu": self.mu,
+            "mu_stderr": self.mu_stderr,
+            "theta0_rad": self.theta0,
+            "omega0_rad_s": self.omega0,
+            "t0_s": self.t0,
+            "offset_rad": self.offset,
+            "mu1_s_rad": self.mu1,
+            "rms_residual_rad": self.rms_residual,
+            "relative_error": self.relative_error,
+            "n_samples": self.n_samples,
+            "stderr": dict(self.stderr),
+            "fit_seconds": self.seconds,
+        }
+        out.update(self.extra)
+        return out
+
+
+def model_theta(t, mu, theta0, omega0, setup: Setup, *, offset=0.0, mu1=0.0):
+    """theta(t) of the equation of motion started at t[0] (fast integrator), plus offset."""
+    th, _, _ = eom.solve(theta0 - offset, omega0, mu, t, track_radius=setup.track_radius,
+                         gravity=setup.gravity, mu1=mu1)
+    return th + offset
+
+
+def _clean(t, theta):
+    t = np.asarray(t, dtype=float)
+    theta = np.asarray(theta, dtype=float)
+    if t.ndim != 1 or t.shape != theta.shape:
+        raise InputError(f"t and theta must be 1-D arrays of one length, got shapes "
+                         f"{t.shape} and {theta.shape}")
+    good = np.isfinite(t) & np.isfinite(theta)
+    if good.sum() < MIN_SAMPLES:
+        raise InputError(f"only {int(good.sum())} usable samples of theta(t); at least "
+                         f"{MIN_SAMPLES} are needed to fit mu")
+    tg = t[good]
+    if np.any(np.diff(tg) <= 0):
+        raise InputError("times t_s must be strictly increasing")
+    return t, theta, good
+
+
+def _sample_rate(t: np.ndarray) -> float:
+    dt = np.median(np.diff(t))
+    return 1.0 / dt
+
+
+def turning_points(theta_smooth: np.ndarray, fps: float) -> np.ndarray:
+    """Indices of the turning points (extrema) of a low-passed angle series.
+
+    Extrema are peaks of |theta - centre| separated by at least a quarter of the dominant
+    period, so locator noise near a turning point gives one extremum, not several.
+    """
+    f0 = filtering.dominant_frequency(theta_smooth, fps)
+    distance = max(1, int(0.25 * fps / max(f0, 1e-3)))
+    centre = np.median(theta_smooth)
+    peaks_hi, _ = signal.find_peaks(theta_smooth - centre, distance=distance)
+    peaks_lo, _ = signal.find_peaks(centre - theta_smooth, distance=distance)
+    idx = np.sort(np.concatenate([peaks_hi, peaks_lo]))
+    # keep alternating extrema only (a max followed by a min ...)
+    keep = []
+    for i in idx:
+        if keep and (theta_smooth[i] > centre) == (theta_smooth[keep[-1]] > centre):
+            if abs(theta_smooth[i] - centre) > abs(theta_smooth[keep[-1]] - centre):
+                keep[-1] = i
+            continue
+        keep.append(i)
+    return np.asarray(keep, dtype=int)
+
+
+def initial_guess(t, theta, setup: Setup) -> dict:
+    """Self-start: mu from the amplitude decay per half-swing, theta0/omega0 from the data.
+
+    Amplitudes are half the swing between consecutive turning points (so a constant angle
+    offset cancels); in the small-angle limit each half-swing loses 2 mu.
+    """
+    t, theta, good = _clean(t, theta)
+    fps = _sample_rate(t[good])
+    # uniform resampling over gaps for the filter
+    tt = t[good]
+    grid = np.arange(tt[0], tt[-1] + 0.5 / fps, 1.0 / fps)
+    x = np.interp(grid, tt, theta[good])
+    smooth = filtering.lowpass(x, fps)
+    tp = turning_points(smooth, fps)
+    mu0 = 0.0
+    offset = float(np.median(smooth))
+    if tp.size >= 3:
+        swings = np.abs(np.diff(smooth[tp]))  # peak-to-peak of consecutive half-swings
+        # each half-swing loses 2 mu of amplitude; the peak-to-peak of consecutive swings
+        # (a_k + a_{k+1}) drops by 4 mu from one to the next
+        drops = -np.diff(swings)
+        drops = drops[swings[1:] > 0.02 * swings[0]]
+        if drops.size:
+            mu0 = max(float(np.median(drops)) / 4.0, 0.0)
+        offset = float(np.mean(0.5 * (smooth[tp[:-1]] + smooth[tp[1:]])))
+    elif tp.size == 2:
+        a0, a1 = abs(smooth[tp[0]] - offset), abs(smooth[tp[1]] - offset)
+        mu0 = max((a0 - a1) / 2.0, 0.0)
+    # theta and theta' at t0 from a local quadratic on the raw samples (the zero-phase filter
+    # is least reliable at the ends of the series)
+    n_head = min(int(good.sum()), max(10, int(0.03 * fps)))
+    coef = np.polynomial.polynomial.polyfit(tt[:n_head] - tt[0], theta[good][:n_head], 2)
+    return {
+        "mu": mu0,
+        "theta0": float(coef[0]),
+        "omega0": float(coef[1]),
+        "offset": offset,
+        "turning_points_s": grid[tp],
+        "fps": fps,
+    }
+
+
+def _relative_error(model, data):
+    return float(np.sum(np.abs(model - data)) / np.sum(np.abs(data)))
+
+
+def _stderr(jac: np.ndarray, res: np.ndarray) -> np.ndarray:
+    """Standard errors from the Jacobian and the residual variance (Gauss-Newton)."""
+    dof = max(res.size - jac.shape[1], 1)
+    s2 = float(res @ res) / dof
+    try:
+        cov = np.linalg.inv(jac.T @ jac) * s2
+    except np.linalg.LinAlgError:
+        return np.full(jac.shape[1], np.nan)
+    return np.sqrt(np.clip(np.diag(cov), 0, None))
+
+
+def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulomb",
+            guess: dict | None = None) -> FitResult:
+    """Least-squares fit of the equation of motion (see module docstring).
+
+    ``offset``: also fit a constant angle offset of the trough bottom.
+    ``model``: "coulomb" (constant mu) or "velocity" (mu0 + mu1 |theta'|).
+    """
+    if model not in ("coulomb", "velocity"):
+        raise InputError(f"unknown friction model {model!r} (coulomb, velocity)")
+    start = time.perf_counter()
+    t, theta, good = _clean(t, theta)
+    tg, yg = t[good], theta[good]
+    g0 = guess or initial_guess(t, theta, setup)
+    # name, start, lower, upper, typical scale
+    params = [("mu", g0["mu"], 0.0, 1.0, 1e-3),
+              ("theta0", g0["theta0"], -math.pi / 2, math.pi / 2, 1e-3),
+              ("omega0", g0["omega0"], -np.inf, np.inf, 1e-2)]
+    if offset:
+        params.append(("offset", g0["offset"], -0.5, 0.5, 1e-3))
+    if model == "velocity":
+        params.append(("mu1", 0.0, 0.0, np.inf, 1e-3))
+    names = [p[0] for p in params]
+    lower = np.array([p[2] for p in params])
+    upper = np.array([p[3] for p in params])
+    scale = np.array([p[4] for p in params])
+    x0 = np.clip(np.array([p[1] for p in params], dtype=float), lower, upper)
+
+    def unpack(x):
+        p = dict(zip(names, x, strict=True))
+        return (p["mu"], p["theta0"], p["omega0"], p.get("offset", 0.0), p.get("mu1", 0.0))
+
+    def residual(x):
+        mu, th0, om0, off, mu1 = unpack(x)
+        return model_theta(tg, mu, th0, om0, setup, offset=off, mu1=mu1) - yg
+
+    sol = optimize.least_squares(residual, x0, bounds=(lower, upper), x_scale=scale,
+                                 diff_step=1e-7, xtol=1e-12, ftol=1e-12, gtol=1e-12,
+                                 max_nfev=400)
+    x, res = sol.x, sol.fun
+    err = _stderr(sol.jac, res)
+    polished = False
+    mu, th0, om0, off, mu1 = unpack(x)
+    _, _, t_stop = eom.solve(th0 - off, om0, mu, tg, track_radius=setup.track_radius,
+                             gravity=setup.gravity, mu1=mu1)
+    if t_stop < tg[-1]:
+        # The ball comes to rest inside the record: the cost has a kink where the number of
+        # half-swings before the stop changes, and a gradient method can stall on it.
+        # Polish derivative-free in a box of a few standard errors, then keep the better.
+        step = np.maximum(np.nan_to_num(5 * err, nan=0.0), 1e-3 * scale)
+
+        def cost(z):
+            xx = np.clip(x + z * step, lower, upper)
+            r = residual(xx)
+            return float(r @ r)
+
+        simplex = np.vstack([np.zeros(len(x)), np.eye(len(x))])
+        nm = optimize.minimize(cost, np.zeros(len(x)), method="Nelder-Mead",
+                               options={"initial_simplex": simplex, "xatol": 1e-4,
+                                        "fatol": 1e-14 * max(float(res @ res), 1e-30),
+                                        "maxfev": 400 * len(x)})
+        if nm.fun < float(res @ res):
+            x = np.clip(x + nm.x * step, lower, upper)
+            res = residual(x)
+            jac = optimize.approx_fprime(x, residual, 1e-7 * np.maximum(np.abs(x), scale))
+            err = _stderr(jac, res)
+            polished = True
+        mu, th0, om0, off, mu1 = unpack(x)
+    stderr = dict(zip(names, (float(e) for e in err), strict=True))
+    curve = np.full_like(t, np.nan)
+    curve[good] = res + yg
+    return FitResult(
+        method="lsq",
+        mu=float(mu),
+        mu_stderr=stderr["mu"],
+        theta0=float(th0),
+        omega0=float(om0),
+        t0=float(tg[0]),
+        rms_residual=float(np.sqrt(np.mean(res**2))),
+        relative_error=_relative_error(curve[good], yg),
+        n_samples=int(good.sum()),
+        t=t,
+        curve=curve,
+        offset=float(off),
+        mu1=float(mu1),
+        stderr=stderr,
+        extra={"model": model, "nfev": int(sol.nfev), "converged": bool(sol.success),
+               "polished": polished,
+               "mu_initial": float(g0["mu"])},
+        seconds=time.perf_counter() - start,
+    )
+
+
+def fit_mu(t, theta, setup: Setup, *, method: str = "lsq", offset: bool = False,
+           model: str = "coulomb", **kwargs) -> FitResult:
+    """Fit mu (M = mu r N) to theta(t); ``method`` is one of :data:`METHODS`.
+
+    NaN samples (frames without a ball) are left out. Raises InputError for too few samples.
+    """
+    if method == "lsq":
+        return fit_lsq(t, theta, setup, offset=offset, model=model, **kwargs)
+    from rollfric import thesis
+
+    if method == "paper1_eps":
+        return thesis.fit_paper1_eps(t, theta, setup, **kwargs)
+    if method == "paper2_grid":
+        return thesis.fit_paper2_grid(t, theta, setup, offset=offset, **kwargs)
+    raise InputError(f"unknown fit method {method!r} (known: {', '.join(METHODS)})")
+
+
+def _json_safe(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return _json_safe(value.item())
+    return value
+
+
+def save_fit(result: FitResult, path, **extra) -> None:
+    """Write ``result.to_dict()`` plus ``extra`` keys as JSON (NaN becomes null)."""
+    import json
+    import os
+    from pathlib import Path
+
+    path = Path(path)
+    data = _json_safe({**result.to_dict(), **extra})
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(json.dumps(data, indent=2) + "\n")
+    os.replace(tmp, path)

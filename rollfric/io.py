@@ -1,0 +1,345 @@
+"""Reading recordings: frames streamed one at a time, never the whole sequence in memory.
+
+A recording is one of
+
+- a multi-page TIFF (``.tif``/``.tiff``), one grayscale page per frame (tifffile);
+- a folder of image files (PNG, TIFF, BMP, JPEG, ...), frames sorted by file name (OpenCV);
+- a video file (``.avi``, ``.mp4``, ``.mkv``, ``.mov``), read in order (OpenCV VideoCapture);
+- a Zarr store (a directory, e.g. ``rec.zarr``) holding an array ``frames`` (T, H, W), or read by
+  the first ``rollfric.zarr_readers`` entry point that accepts it (the project's contract).
+
+Every reader returns a *FrameSource*: ``len(src)``, ``src[i]`` -> one (H, W) uint8 or uint16
+frame, and the attributes ``shape`` (T, H, W), ``dtype``, ``fps`` (float or None),
+``background`` ((H, W) array or None) and ``attrs`` (dict). Colour images are converted to
+grayscale. Bad input (unreadable, truncated, mixed frame sizes, unsupported depth) raises
+:class:`RecordingError`, naming the file and the frame.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import math
+from pathlib import Path
+
+import numpy as np
+
+from rollfric.errors import InputError
+
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg", ".pgm", ".ppm", ".jp2",
+                  ".webp")
+VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov", ".m4v", ".mpg", ".mpeg", ".wmv")
+TIFF_SUFFIXES = (".tif", ".tiff")
+ZARR_ENTRY_POINT_GROUP = "rollfric.zarr_readers"
+
+
+class RecordingError(InputError):
+    """A recording (or background image) that cannot be read as a sequence of frames."""
+
+
+def _to_gray(img: np.ndarray, what: str) -> np.ndarray:
+    """One (H, W) uint8/uint16 frame from whatever an image reader returned."""
+    import cv2
+
+    if img.ndim == 3 and img.shape[2] in (3, 4):
+        code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+        img = cv2.cvtColor(img, code)
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.ndim != 2:
+        raise RecordingError(f"{what}: expected a 2-D grayscale image, got shape {img.shape}")
+    if img.dtype not in (np.uint8, np.uint16):
+        raise RecordingError(f"{what}: unsupported pixel type {img.dtype} (8 or 16 bit wanted)")
+    return img
+
+
+class _Source:
+    """Common part of the readers: shape, dtype, frame-size check."""
+
+    fps: float | None = None
+    background: np.ndarray | None = None
+
+    def __init__(self, name: str, n: int, hw: tuple[int, int], dtype) -> None:
+        self.name = name
+        self.shape = (int(n), int(hw[0]), int(hw[1]))
+        self.dtype = np.dtype(dtype)
+        self.attrs: dict = {}
+        if n == 0:
+            raise RecordingError(f"{name}: the recording holds no frames")
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def _index(self, i: int) -> int:
+        i = int(i)
+        if i < 0:
+            i += len(self)
+        if not 0 <= i < len(self):
+            raise IndexError(f"frame {i} out of range (0..{len(self) - 1})")
+        return i
+
+    def _check(self, img: np.ndarray, i: int) -> np.ndarray:
+        img = _to_gray(img, f"{self.name} frame {i}")
+        if img.shape != self.shape[1:]:
+            raise RecordingError(
+                f"{self.name}: frames of mixed sizes: frame {i} is {img.shape[1]}x{img.shape[0]}"
+                f" px, frame 0 is {self.shape[2]}x{self.shape[1]} px")
+        if img.dtype != self.dtype:
+            raise RecordingError(f"{self.name}: frames of mixed bit depth: frame {i} is "
+                                 f"{img.dtype}, frame 0 is {self.dtype}")
+        return img
+
+    def __iter__(self):
+        for i in range(len(self)):
+            yield self[i]
+
+
+class TiffSource(_Source):
+    """A multi-page TIFF, one page a frame (or a single page holding a (T, H, W) stack)."""
+
+    def __init__(self, path: Path) -> None:
+        import tifffile
+
+        try:
+            self._tif = tifffile.TiffFile(path)
+            pages = self._tif.pages
+            n = len(pages)
+            first = pages.first
+            shape = tuple(first.shape)
+        except Exception as exc:  # tifffile raises several types for broken files
+            raise RecordingError(f"{path}: not a readable TIFF file ({exc})") from None
+        self._stack = None
+        if n == 1 and len(shape) == 3 and shape[-1] not in (3, 4):
+            # one page holding a whole (T, H, W) stack: memory-map it if possible
+            try:
+                self._stack = self._tif.asarray(out="memmap")
+            except Exception:
+                self._stack = self._tif.asarray()
+            n, hw = self._stack.shape[0], self._stack.shape[1:]
+        else:
+            hw = shape[:2]
+        super().__init__(str(path), n, hw, first.dtype)
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        i = self._index(i)
+        if self._stack is not None:
+            return self._check(np.asarray(self._stack[i]), i)
+        try:
+            page = self._tif.pages[i]
+            img = page.asarray()
+        except Exception as exc:
+            raise RecordingError(f"{self.name}: cannot read frame {i} (truncated or corrupt "
+                                 f"file? {exc})") from None
+        return self._check(img, i)
+
+
+class FolderSource(_Source):
+    """A folder of image files, frames in the order of the sorted file names."""
+
+    def __init__(self, path: Path) -> None:
+        files = sorted(p for p in path.iterdir()
+                       if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+        if not files:
+            raise RecordingError(f"{path}: the folder holds no image files "
+                                 f"({', '.join(IMAGE_SUFFIXES)})")
+        self.files = files
+        first = _imread(files[0])
+        super().__init__(str(path), len(files), first.shape, first.dtype)
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        i = self._index(i)
+        return self._check(_imread(self.files[i]), i)
+
+
+def _imread(path: Path) -> np.ndarray:
+    import cv2
+
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise RecordingError(f"{path}: unreadable image file (corrupt, truncated or not an "
+                             "image)")
+    return _to_gray(img, str(path))
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """One grayscale image (e.g. a background), 8 or 16 bit; a TIFF stack gives its first page."""
+    path = Path(path)
+    if not path.exists():
+        raise RecordingError(f"{path}: no such file")
+    if path.suffix.lower() in TIFF_SUFFIXES:
+        import tifffile
+
+        try:
+            with tifffile.TiffFile(path) as tif:
+                img = tif.pages.first.asarray()
+        except Exception as exc:
+            raise RecordingError(f"{path}: not a readable TIFF file ({exc})") from None
+        return _to_gray(img, str(path))
+    if path.suffix.lower() == ".npy":
+        try:
+            return _to_gray(np.load(path), str(path))
+        except ValueError as exc:
+            raise RecordingError(f"{path}: not a readable .npy image ({exc})") from None
+    return _imread(path)
+
+
+class VideoSource(_Source):
+    """A video file read in order with OpenCV (seeks only when asked out of order)."""
+
+    def __init__(self, path: Path) -> None:
+        import cv2
+
+        self._cv2 = cv2
+        self._path = path
+        self._cap = cv2.VideoCapture(str(path))
+        if not self._cap.isOpened():
+            raise RecordingError(f"{path}: OpenCV cannot open this video file")
+        n = int(round(self._cap.get(cv2.CAP_PROP_FRAME_COUNT)))
+        ok, frame = self._cap.read()
+        if not ok or frame is None or n <= 0:
+            raise RecordingError(f"{path}: the video holds no readable frames")
+        frame = _to_gray(frame, f"{path} frame 0")
+        self._next = 1
+        self._last = (0, frame)
+        super().__init__(str(path), n, frame.shape, frame.dtype)
+        fps = self._cap.get(cv2.CAP_PROP_FPS)
+        self.fps = float(fps) if fps and math.isfinite(fps) and fps > 0 else None
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        i = self._index(i)
+        if self._last[0] == i:
+            return self._last[1]
+        if i != self._next:
+            self._cap.set(self._cv2.CAP_PROP_POS_FRAMES, i)
+        ok, frame = self._cap.read()
+        if not ok or frame is None:
+            raise RecordingError(f"{self.name}: cannot read frame {i} of {len(self)} (truncated "
+                                 "or corrupt video?)")
+        frame = self._check(frame, i)
+        self._next = i + 1
+        self._last = (i, frame)
+        return frame
+
+
+class ZarrArraySource(_Source):
+    """A Zarr store with an array ``frames`` (T, H, W) uint8/uint16 (optional ``background``)."""
+
+    def __init__(self, group, path: Path) -> None:
+        arr = group["frames"]
+        if arr.ndim != 3:
+            raise RecordingError(f"{path}: array 'frames' must be (T, H, W), got shape "
+                                 f"{arr.shape}")
+        if np.dtype(arr.dtype) not in (np.uint8, np.uint16):
+            raise RecordingError(f"{path}: array 'frames' has dtype {arr.dtype} "
+                                 "(uint8 or uint16 wanted)")
+        self._arr = arr
+        super().__init__(str(path), arr.shape[0], arr.shape[1:], arr.dtype)
+        self.attrs = dict(group.attrs)
+        fps = self.attrs.get("fps")
+        self.fps = float(fps) if isinstance(fps, (int, float)) and fps > 0 else None
+        if "background" in group:
+            self.background = np.asarray(group["background"][...])
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        i = self._index(i)
+        try:
+            img = np.asarray(self._arr[i])
+        except Exception as exc:
+            raise RecordingError(f"{self.name}: cannot read frame {i} ({exc})") from None
+        return self._check(img, i)
+
+
+def zarr_reader_entry_points() -> list:
+    """The installed ``rollfric.zarr_readers`` entry points, sorted by name."""
+    eps = importlib.metadata.entry_points(group=ZARR_ENTRY_POINT_GROUP)
+    return sorted(eps, key=lambda ep: ep.name)
+
+
+def _open_zarr(path: Path):
+    import zarr
+
+    try:
+        group = zarr.open_group(str(path), mode="r")
+    except Exception as exc:
+        raise RecordingError(f"{path}: not a readable Zarr store ({exc})") from None
+    if "frames" in group:
+        return ZarrArraySource(group, path)
+    tried = []
+    for ep in zarr_reader_entry_points():
+        tried.append(ep.name)
+        try:
+            opener = ep.load()
+        except Exception as exc:
+            raise RecordingError(f"{path}: the Zarr reader '{ep.name}' ({ep.value}) cannot be "
+                                 f"loaded: {exc}") from None
+        src = opener(group)
+        if src is not None:
+            return _WrappedSource(src, f"{path} (reader {ep.name})", group)
+    raise RecordingError(
+        f"{path}: Zarr store without an array 'frames', and no '{ZARR_ENTRY_POINT_GROUP}' "
+        f"reader accepted it (tried: {', '.join(tried) or 'none installed'})")
+
+
+class _WrappedSource(_Source):
+    """A FrameSource from an entry point, with rollfric's frame checks around it."""
+
+    def __init__(self, src, name: str, group) -> None:
+        self._src = src
+        shape = tuple(int(v) for v in src.shape)
+        if len(shape) != 3 or len(src) != shape[0]:
+            raise RecordingError(f"{name}: reader gave inconsistent shape {shape} for "
+                                 f"{len(src)} frames")
+        super().__init__(name, shape[0], shape[1:], src.dtype)
+        self.fps = getattr(src, "fps", None)
+        bg = getattr(src, "background", None)
+        self.background = None if bg is None else np.asarray(bg)
+        attrs = dict(group.attrs)
+        attrs.update(dict(getattr(src, "attrs", None) or {}))
+        self.attrs = attrs
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        i = self._index(i)
+        return self._check(np.asarray(self._src[i]), i)
+
+
+def open_recording(path: str | Path):
+    """Open a recording (TIFF stack, image folder, video file or Zarr store) as a FrameSource."""
+    path = Path(path)
+    if not path.exists():
+        raise RecordingError(f"{path}: no such file or folder")
+    if path.is_dir():
+        if (path / "zarr.json").exists() or (path / ".zgroup").exists() \
+                or path.suffix.lower() == ".zarr":
+            return _open_zarr(path)
+        return FolderSource(path)
+    suffix = path.suffix.lower()
+    if suffix in TIFF_SUFFIXES:
+        return TiffSource(path)
+    if suffix in VIDEO_SUFFIXES:
+        return VideoSource(path)
+    raise RecordingError(f"{path}: unknown recording format '{suffix}' (TIFF stack, folder of "
+                         f"images, video {', '.join(VIDEO_SUFFIXES)}, or Zarr store)")
+
+
+def median_background(source, max_frames: int = 41) -> np.ndarray:
+    """Per-pixel median of up to ``max_frames`` frames spread evenly over the recording.
+
+    Frames are streamed; at most ``max_frames`` are held at once, so memory stays bounded.
+    Valid as a background only when the ball moves by more than its diameter in that sample.
+    """
+    n = len(source)
+    k = min(n, max(3, int(max_frames)))
+    idx = np.unique(np.linspace(0, n - 1, k).round().astype(int))
+    stack = np.empty((len(idx),) + tuple(source.shape[1:]), dtype=source.dtype)
+    for j, i in enumerate(idx):
+        stack[j] = source[int(i)]
+    med = np.median(stack, axis=0)
+    return np.rint(med).astype(source.dtype)
+
+
+def check_background(background: np.ndarray, source, what: str = "background") -> np.ndarray:
+    """The background as a 2-D array of the frames' size, or RecordingError."""
+    bg = _to_gray(np.asarray(background), what)
+    if bg.shape != tuple(source.shape[1:]):
+        raise RecordingError(f"{what} is {bg.shape[1]}x{bg.shape[0]} px but the frames are "
+                             f"{source.shape[2]}x{source.shape[1]} px")
+    return bg

@@ -1,0 +1,463 @@
+"""Ball locators: the thesis's two, and the sub-pixel silhouette-circle fit (the default).
+
+All work on one frame and its background (same size), in pixels with x right, y down and the
+origin at the centre of the top-left pixel. Each returns a :class:`Location`.
+
+- ``locate_small_thesis`` (thesis paper 1, sec. 3): background subtraction, a 15 x 15 window
+  summed over a sub-image, the brightest pixel inside the best window. Integer pixels.
+- ``locate_large_thesis`` (thesis paper 2, sec. 4, steps 1-7): sub-image around the specular
+  spots, the quarter of the ball chosen by the side, binarisation and Canny, a rough centre from
+  the edge and the known diameter (eq. 12), then the candidate in the 15 x 15 neighbourhood
+  whose circle of the known radius crosses most radial intensity jumps (eqs. 13-15).
+- ``locate_subpixel`` (beyond the thesis): sub-pixel edge points of the ball silhouette along
+  rays from the current centre, a robust geometric circle fit (Tukey-weighted, known or free
+  radius) that drops rays whose edge contrast or background is spoiled (shadows, specular
+  spots, contact with the trough, occluders), and a per-frame quality: the estimated standard
+  error of the centre in pixels from the fit residuals.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import cv2
+import numpy as np
+
+METHODS = ("subpixel", "thesis-large", "thesis-small")
+
+
+@dataclasses.dataclass(frozen=True)
+class Location:
+    """One frame's answer: centre (px), fitted radius (px), found flag and quality."""
+
+    x: float = math.nan
+    y: float = math.nan
+    r: float = math.nan
+    found: bool = False
+    sigma: float = math.nan  # estimated standard error of the centre (px); nan if unknown
+    inlier_frac: float = math.nan  # fraction of edge rays kept by the robust fit
+    reason: str = ""  # why not found
+
+    @staticmethod
+    def missing(reason: str) -> Location:
+        return Location(reason=reason)
+
+
+# --------------------------------------------------------------------------------------------
+# helpers
+
+
+def _full_scale(dtype) -> float:
+    return 65535.0 if np.dtype(dtype) == np.uint16 else 255.0
+
+
+def _crop(img: np.ndarray, x0: int, y0: int, x1: int, y1: int):
+    """img[y0:y1, x0:x1] clipped to the image; returns (crop, x0, y0) of the clipped box."""
+    h, w = img.shape
+    x0c, y0c, x1c, y1c = max(0, x0), max(0, y0), min(w, x1), min(h, y1)
+    if x1c <= x0c or y1c <= y0c:
+        return None, x0c, y0c
+    return img[y0c:y1c, x0c:x1c], x0c, y0c
+
+
+def relative_image(frame: np.ndarray, background: np.ndarray) -> np.ndarray:
+    """Background subtraction: frame - background as float32 (signed; the thesis's relative
+    image up to its sign)."""
+    return frame.astype(np.float32) - background.astype(np.float32)
+
+
+def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
+                min_contrast: float | None = None) -> tuple[float, float] | None:
+    """Full-frame search: the place where the background-subtracted image differs most over a
+    ball-sized disk. Returns a rough centre (px), or None when nothing ball-like differs.
+
+    ``min_contrast`` (DN): the mean |frame - background| over the ball that counts as a ball;
+    default max(1 % of full scale, 6 x the frame's robust noise level).
+    """
+    diff = cv2.absdiff(frame, background)
+    f = max(1, int(r_px // 3))
+    small = cv2.resize(diff, (diff.shape[1] // f, diff.shape[0] // f),
+                       interpolation=cv2.INTER_AREA).astype(np.float32) if f > 1 \
+        else diff.astype(np.float32)
+    k = max(1, int(round(1.4 * r_px / f)))
+    score = cv2.blur(small, (k, k), borderType=cv2.BORDER_CONSTANT)
+    _, vmax, _, loc = cv2.minMaxLoc(score)
+    if min_contrast is None:
+        noise = 1.4826 * float(np.median(small)) * math.sqrt(f * f)  # per-pixel noise estimate
+        min_contrast = max(0.01 * _full_scale(frame.dtype), 6.0 * noise / max(1.0, k))
+    # a ball fills ~0.5 of the box; require a clear mean difference
+    if vmax < 0.5 * min_contrast:
+        return None
+    cx = (loc[0] + 0.5) * f - 0.5
+    cy = (loc[1] + 0.5) * f - 0.5
+    # refine: centroid of the strongly different pixels near that place
+    half = int(math.ceil(1.6 * r_px)) + f
+    sub, x0, y0 = _crop(diff, int(cx) - half, int(cy) - half, int(cx) + half + 1,
+                        int(cy) + half + 1)
+    if sub is None:
+        return None
+    subf = sub.astype(np.float32)
+    thr = 0.5 * float(subf.max())
+    mask = subf > thr
+    if mask.sum() < 3:
+        return cx, cy
+    ys, xs = np.nonzero(mask)
+    return float(xs.mean() + x0), float(ys.mean() + y0)
+
+
+# --------------------------------------------------------------------------------------------
+# thesis, paper 1: the small-ball locator
+
+
+def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
+                        roi: tuple[int, int, int, int] | None = None, window: int = 15,
+                        polarity: str = "bright") -> Location:
+    """Thesis paper 1: sum the relative image over a ``window`` x ``window`` window traversing
+    the sub-image ``roi`` = (x0, y0, x1, y1) (default: the whole frame); the centre is the
+    brightest pixel in the window of largest sum.
+
+    ``polarity``: "bright" (the ball is a bright spot: frame - background), "dark"
+    (background - frame) or "abs" (|frame - background|).
+    """
+    h, w = frame.shape
+    x0, y0, x1, y1 = (0, 0, w, h) if roi is None else roi
+    fr, x0, y0 = _crop(frame, x0, y0, x1, y1)
+    if fr is None:
+        return Location.missing("search region outside the frame")
+    bg = background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]]
+    rel = relative_image(fr, bg)
+    if polarity == "dark":
+        rel = -rel
+    elif polarity == "abs":
+        rel = np.abs(rel)
+    elif polarity != "bright":
+        raise ValueError(f"polarity must be bright, dark or abs, got {polarity!r}")
+    sums = cv2.boxFilter(rel, -1, (window, window), normalize=False,
+                         borderType=cv2.BORDER_CONSTANT)
+    _, smax, _, (bx, by) = cv2.minMaxLoc(sums)
+    if smax <= 0:
+        return Location.missing("no bright spot in the search region")
+    half = window // 2
+    sub, sx0, sy0 = _crop(rel, bx - half, by - half, bx + half + 1, by + half + 1)
+    _, vmax, _, (px, py) = cv2.minMaxLoc(sub)
+    return Location(x=float(px + sx0 + x0), y=float(py + sy0 + y0), found=True)
+
+
+# --------------------------------------------------------------------------------------------
+# thesis, paper 2: the large-ball locator
+
+
+def _circle_known_radius(xs, ys, r, cx, cy, iters=20):
+    """Least-squares centre of points on a circle of known radius r (eq. 12), Gauss-Newton."""
+    for _ in range(iters):
+        dx, dy = xs - cx, ys - cy
+        d = np.hypot(dx, dy)
+        d[d == 0] = 1e-9
+        res = d - r
+        jac = np.stack([-dx / d, -dy / d], axis=1)
+        step, *_ = np.linalg.lstsq(jac, -res, rcond=None)
+        cx, cy = cx + step[0], cy + step[1]
+        if abs(step[0]) + abs(step[1]) < 1e-6:
+            break
+    return cx, cy
+
+
+def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, *,
+                        side: int = 1, guess: tuple[float, float] | None = None,
+                        threshold: float | None = None, neighbourhood: int = 15,
+                        step: float = 0.025) -> Location:
+    """Thesis paper 2, steps 1-7, for a ball of radius ``r_px`` (px).
+
+    ``side`` is the sign of theta (+1 right of the bottom: the upper-left quarter is used,
+    -1: the upper-right). ``guess`` is where to look for the specular spots (default: the whole
+    frame via :func:`coarse_find`). ``threshold`` is the binarisation threshold on
+    |frame - background| (default: Otsu's threshold on the quarter) and also the intensity jump
+    that counts in step 6. Ties in step 6 are averaged.
+    """
+    rel_full_abs = None
+    if guess is None:
+        guess = coarse_find(frame, background, r_px)
+        if guess is None:
+            return Location.missing("no ball-like change in the frame")
+    # step 1: the specular spots near the guess -> 101 x 101 (for the 10 mm ball) sub-image
+    half_s = int(round(1.3 * r_px))
+    fr, x0, y0 = _crop(frame, int(round(guess[0])) - half_s, int(round(guess[1])) - half_s,
+                       int(round(guess[0])) + half_s + 1, int(round(guess[1])) + half_s + 1)
+    if fr is None:
+        return Location.missing("search region outside the frame")
+    rel = relative_image(fr, background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]])
+    spots = cv2.blur(rel, (3, 3))
+    _, _, _, (sx, sy) = cv2.minMaxLoc(spots)
+    scx, scy = sx + x0, sy + y0
+    half = int(round(r_px + 13))  # 50 for the 10 mm ball: the thesis's 101 x 101
+    # step 2: background subtraction on the sub-image
+    fr, x0, y0 = _crop(frame, scx - half, scy - half, scx + half + 1, scy + half + 1)
+    if fr is None or min(fr.shape) < half:
+        return Location.missing("ball too close to the frame border")
+    rel = relative_image(fr, background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]])
+    rel_full_abs = np.abs(rel)
+    # step 3: the upper-left quarter when theta > 0, the upper-right one when theta < 0
+    cxl, cyl = scx - x0, scy - y0
+    qy0, qy1 = max(0, cyl - half), cyl + 1
+    if side >= 0:
+        qx0, qx1 = max(0, cxl - half), cxl + 1
+    else:
+        qx0, qx1 = cxl, min(rel.shape[1], cxl + half + 1)
+    quarter = rel_full_abs[qy0:qy1, qx0:qx1]
+    if quarter.size < 16:
+        return Location.missing("ball quarter outside the frame")
+    # step 4: mask the (dark) part near the centre, binarise, Canny
+    yy, xx = np.mgrid[qy0:qy1, qx0:qx1]
+    inner = np.hypot(xx - cxl, yy - cyl) < 0.7 * r_px
+    if threshold is None:
+        q8 = cv2.normalize(quarter, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
+        t8, _ = cv2.threshold(q8, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+        qmin, qmax = float(quarter.min()), float(quarter.max())
+        threshold = qmin + (t8 + 0.5) / 255.0 * (qmax - qmin)
+    binary = ((quarter > threshold) | inner).astype(np.uint8) * 255
+    edges = cv2.Canny(binary, 50, 150)
+    ey, ex = np.nonzero(edges)
+    # keep edge points that can belong to the ball (not the quarter's cut lines)
+    d = np.hypot(ex + qx0 - cxl, ey + qy0 - cyl)
+    keep = (d > 0.6 * r_px) & (d < 1.5 * r_px)
+    ex, ey = ex[keep] + qx0, ey[keep] + qy0
+    if len(ex) < 5:
+        return Location.missing("no ball edge in the chosen quarter")
+    # step 5: rough centre from the edge and the known diameter (eq. 12)
+    rcx, rcy = _circle_known_radius(ex.astype(float), ey.astype(float), r_px, float(cxl),
+                                    float(cyl))
+    if not (np.isfinite(rcx) and np.isfinite(rcy)):
+        return Location.missing("rough centre fit failed")
+    # step 6: count radial intensity jumps on circles centred in the 15 x 15 neighbourhood
+    nh = neighbourhood // 2
+    c0x, c0y = int(round(rcx)), int(round(rcy))
+    offs = np.arange(-nh, nh + 1)
+    cand_x = (c0x + offs)[None, :].repeat(len(offs), 0).ravel()
+    cand_y = (c0y + offs)[:, None].repeat(len(offs), 1).ravel()
+    rho = np.arange(0.0, 2 * math.pi, step)
+    cos, sin = np.cos(rho), np.sin(rho)
+    hh, ww = rel.shape
+    x1 = np.rint(cand_x[:, None] + r_px * cos).astype(int)
+    y1 = np.rint(cand_y[:, None] + r_px * sin).astype(int)
+    x2 = np.rint(cand_x[:, None] + (r_px + 1) * cos).astype(int)
+    y2 = np.rint(cand_y[:, None] + (r_px + 1) * sin).astype(int)
+    same = (x1 == x2) & (y1 == y2)
+    x2 = np.where(same, np.rint(cand_x[:, None] + (r_px + 2) * cos).astype(int), x2)
+    y2 = np.where(same, np.rint(cand_y[:, None] + (r_px + 2) * sin).astype(int), y2)
+    inside = (x1 >= 0) & (x1 < ww) & (y1 >= 0) & (y1 < hh) & (x2 >= 0) & (x2 < ww) \
+        & (y2 >= 0) & (y2 < hh)
+    i1 = rel[np.clip(y1, 0, hh - 1), np.clip(x1, 0, ww - 1)]
+    i2 = rel[np.clip(y2, 0, hh - 1), np.clip(x2, 0, ww - 1)]
+    jumps = ((np.abs(i1 - i2) > threshold) & inside).sum(axis=1)
+    best = jumps.max()
+    if best == 0:
+        return Location.missing("no intensity jumps around the rough centre")
+    win = jumps == best
+    # step 7: back to frame coordinates
+    return Location(x=float(cand_x[win].mean() + x0), y=float(cand_y[win].mean() + y0),
+                    r=float(r_px), found=True, inlier_frac=float(best) / len(rho))
+
+
+# --------------------------------------------------------------------------------------------
+# the sub-pixel locator
+
+
+@dataclasses.dataclass(frozen=True)
+class SubpixelOptions:
+    """Tuning of :func:`locate_subpixel` (defaults suit balls of 3-60 px radius)."""
+
+    radius: str = "free"  # "free": fit the radius too; "known": use r_px
+    ds: float = 0.25  # sample step along a ray (px)
+    edge_half: float = 2.5  # half-width of the window integrated across the edge (px)
+    level_len: float = 2.0  # length of the inside/outside level windows (px)
+    min_rays: int = 12
+    min_inlier_frac: float = 0.35
+    max_radius_dev: float = 0.15  # fitted radius within this fraction of r_px
+    tukey_c: float = 4.685
+    sigma_floor: float = 0.03  # px: residual scale floor of the robust fit
+    passes: int = 3
+
+
+def _n_rays(r_px: float) -> int:
+    return int(min(180, max(32, round(2 * math.pi * r_px / 2.0))))
+
+
+def _fit_circle(xs, ys, r_known, free, opts: SubpixelOptions, w0=None):
+    """Robust geometric circle fit (Tukey biweight IRLS). Returns cx, cy, r, weights, resid."""
+    # algebraic (Kasa) start on the pre-weighted points
+    wts = np.ones_like(xs) if w0 is None else w0.copy()
+    sel = wts > 0
+    a = np.stack([xs[sel], ys[sel], np.ones(sel.sum())], axis=1)
+    b = xs[sel] ** 2 + ys[sel] ** 2
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    cx, cy = 0.5 * sol[0], 0.5 * sol[1]
+    r = math.sqrt(max(sol[2] + cx * cx + cy * cy, 1e-12)) if free else r_known
+    res = np.zeros_like(xs)
+    for it in range(30):
+        dx, dy = xs - cx, ys - cy
+        d = np.sqrt(dx * dx + dy * dy)
+        d[d == 0] = 1e-9
+        res = d - r
+        if it > 0 or w0 is None:
+            good = wts > 0
+            scale = 1.4826 * np.median(np.abs(res[good] - np.median(res[good]))) \
+                if good.sum() > 3 else opts.sigma_floor
+            scale = max(scale, opts.sigma_floor)
+            u = res / (opts.tukey_c * scale)
+            wts = np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
+            if w0 is not None:
+                wts = wts * (w0 > 0)
+        sw = np.sqrt(wts)
+        if free:
+            jac = np.stack([-dx / d, -dy / d, -np.ones_like(d)], axis=1)
+        else:
+            jac = np.stack([-dx / d, -dy / d], axis=1)
+        step, *_ = np.linalg.lstsq(jac * sw[:, None], -res * sw, rcond=None)
+        cx += step[0]
+        cy += step[1]
+        if free:
+            r += step[2]
+        if abs(step[0]) + abs(step[1]) < 1e-5 and it > 2:
+            break
+    dx, dy = xs - cx, ys - cy
+    res = np.sqrt(dx * dx + dy * dy) - r
+    return cx, cy, r, wts, res
+
+
+def _edge_points(rel: np.ndarray, cx: float, cy: float, r: float, w: float,
+                 opts: SubpixelOptions):
+    """Sub-pixel silhouette edge along rays from (cx, cy) (ROI coordinates).
+
+    Returns x, y of edge points, the ray contrasts and a validity mask.
+    """
+    n = _n_rays(r)
+    phi = (np.arange(n) + 0.5) * (2 * math.pi / n)
+    cos, sin = np.cos(phi).astype(np.float32), np.sin(phi).astype(np.float32)
+    m = opts.edge_half + opts.level_len + opts.ds
+    s = np.arange(max(0.5, r - w - m), r + w + m + opts.ds / 2, opts.ds, dtype=np.float32)
+    mapx = cx + cos[:, None] * s[None, :]
+    mapy = cy + sin[:, None] * s[None, :]
+    prof = cv2.remap(rel, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=np.nan)
+    hh, ww = rel.shape
+    in_img = (mapx >= 0) & (mapx <= ww - 1) & (mapy >= 0) & (mapy <= hh - 1)
+    prof = np.where(in_img, prof, np.nan)
+    ns = len(s)
+    nl = max(2, int(round(opts.level_len / opts.ds)))
+    ne = int(round(opts.edge_half / opts.ds))
+    # contrast per ray from the ends of the search band (inside minus outside)
+    k_in = s < r - 0.5 * w - 1.0
+    k_out = s > r + 0.5 * w + 1.0
+    if k_in.sum() < 2:
+        k_in = s < r - 1.0
+    if k_out.sum() < 2:
+        k_out = s > r + 1.0
+    with np.errstate(all="ignore"):
+        a = np.nanmedian(prof[:, k_in], axis=1)
+        b = np.nanmedian(prof[:, k_out], axis=1)
+    c = a - b
+    sgn = np.sign(c)
+    sgn[sgn == 0] = 1
+    g = (prof - 0.5 * (a + b)[:, None]) * sgn[:, None]  # > 0 inside, < 0 outside
+    cross = (g[:, :-1] >= 0) & (g[:, 1:] < 0)
+    drop = np.where(cross, g[:, :-1] - g[:, 1:], -np.inf)
+    # only crossings whose integration window fits in the profile
+    lo, hi = nl + ne, ns - nl - ne - 1
+    drop[:, :lo] = -np.inf
+    drop[:, hi:] = -np.inf
+    k = np.argmax(drop, axis=1)
+    valid = np.isfinite(drop[np.arange(n), k])
+    k = np.clip(k, lo, max(lo, hi - 1))
+    rows = np.arange(n)[:, None]
+    # levels just outside the integration window; the edge from the integral (area) of the
+    # normalised profile across the window: exact for a sampled step
+    i_in = k[:, None] - ne - nl + np.arange(nl)[None, :]
+    i_out = k[:, None] + 1 + ne + np.arange(nl)[None, :]
+    i_win = k[:, None] - ne + np.arange(2 * ne + 2)[None, :]
+    with np.errstate(all="ignore"):
+        a2 = prof[rows, np.clip(i_in, 0, ns - 1)].mean(axis=1)
+        b2 = prof[rows, np.clip(i_out, 0, ns - 1)].mean(axis=1)
+        b2_sd = prof[rows, np.clip(i_out, 0, ns - 1)].std(axis=1)
+        win = prof[rows, np.clip(i_win, 0, ns - 1)]
+        frac = (win - b2[:, None]) / (a2 - b2)[:, None]
+        # trapezoid integral over the window (samples ds apart)
+        integral = opts.ds * (frac[:, 1:-1].sum(axis=1) + 0.5 * (frac[:, 0] + frac[:, -1]))
+    s_start = s[np.clip(k - ne, 0, ns - 1)]
+    s_edge = s_start + integral
+    contrast = a2 - b2
+    valid &= np.isfinite(s_edge) & np.isfinite(contrast) & (np.sign(contrast) == sgn)
+    valid &= (s_edge > s_start) & (s_edge < s_start + (2 * ne + 1) * opts.ds)
+    xs = cx + cos * s_edge
+    ys = cy + sin * s_edge
+    return xs.astype(float), ys.astype(float), np.abs(contrast), b2_sd, valid
+
+
+def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
+                    guess: tuple[float, float] | None = None, search: float | None = None,
+                    opts: SubpixelOptions = SubpixelOptions(),
+                    noise: float | None = None) -> Location:
+    """Sub-pixel centre of the ball of radius about ``r_px`` px.
+
+    ``guess``: where the ball centre is expected (from tracking); ``search``: how far (px) the
+    edge may be from the guessed circle (default 0.3 r + 2). Without a guess, a full-frame
+    search (:func:`coarse_find`) comes first. ``noise``: pixel noise (DN) used to reject
+    low-contrast rays (default: estimated from the rays).
+    """
+    if guess is None:
+        guess = coarse_find(frame, background, r_px)
+        if guess is None:
+            return Location.missing("no ball-like change in the frame")
+        search = max(search or 0.0, 0.5 * r_px + 2)
+    w = search if search is not None else 0.3 * r_px + 2.0
+    w = max(w, 1.5)
+    h, wd = frame.shape
+    cx, cy = float(guess[0]), float(guess[1])
+    if not (-r_px < cx < wd - 1 + r_px and -r_px < cy < h - 1 + r_px):
+        return Location.missing("predicted centre outside the frame")
+    r = float(r_px)
+    loc = Location.missing("no edge found")
+    for p in range(opts.passes):
+        half = int(math.ceil(r + w + opts.edge_half + opts.level_len + 2))
+        x0, y0 = int(math.floor(cx)) - half, int(math.floor(cy)) - half
+        fr, x0c, y0c = _crop(frame, x0, y0, x0 + 2 * half + 2, y0 + 2 * half + 2)
+        if fr is None:
+            return Location.missing("ball outside the frame")
+        bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
+        rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
+        xs, ys, con, out_sd, valid = _edge_points(rel, cx - x0c, cy - y0c, r, w, opts)
+        if valid.sum() < opts.min_rays:
+            return Location.missing("too few edge points (ball missing, occluded or at the "
+                                    "border)")
+        # reject rays whose contrast is much weaker than the ball's typical one (shadow, the
+        # trough contact, occluder) or whose outside is not flat (shadow gradient, spot)
+        cmed = np.median(con[valid])
+        nz = noise if noise is not None else float(np.median(out_sd[valid]))
+        if cmed < max(4.0 * nz, 0.004 * _full_scale(frame.dtype)):
+            return Location.missing("ball edge contrast below the noise")
+        w0 = (valid & (con > 0.5 * cmed) & (con < 2.0 * cmed)
+              & (out_sd < max(0.15 * cmed, 3.0 * nz))).astype(float)
+        if w0.sum() < opts.min_rays:
+            return Location.missing("too few clean edge points (shadows or occlusion)")
+        free = opts.radius == "free"
+        fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_px, free, opts, w0)
+        inl = wts > 0
+        n_in = int(inl.sum())
+        if n_in < opts.min_rays or not math.isfinite(fcx):
+            return Location.missing("robust circle fit failed")
+        if abs(fr_ - r_px) > opts.max_radius_dev * r_px:
+            return Location.missing(f"fitted radius {fr_:.2f} px is not the ball's "
+                                    f"{r_px:.2f} px")
+        shift = math.hypot(fcx + x0c - cx, fcy + y0c - cy)
+        cx, cy, r = fcx + x0c, fcy + y0c, (fr_ if free else r_px)
+        # residual scale and formal centre error from the inliers
+        rms = math.sqrt(float(np.sum(wts * res * res) / max(np.sum(wts), 1e-12)))
+        frac = n_in / len(xs)
+        loc = Location(x=cx, y=cy, r=r, found=frac >= opts.min_inlier_frac,
+                       sigma=rms * math.sqrt(2.0 / n_in), inlier_frac=frac,
+                       reason="" if frac >= opts.min_inlier_frac else
+                       f"only {100 * frac:.0f} % of the edge fits a circle")
+        w = min(w, max(1.5, 2.0 * shift + 1.0))
+        if shift < 0.02 and p > 0:
+            break
+    return loc
