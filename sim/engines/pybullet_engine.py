@@ -1,0 +1,190 @@
+"""PyBullet 3.2 engine: a sphere with rolling friction in the trough (SI units, DIRECT client).
+
+Surfaces:
+
+- ``tangent`` (default, accurate): a static plane re-posed before every stepSimulation so that it
+  is tangent to the cylinder directly under the ball: one contact with the exact geometry.
+- ``mesh``: the trough as a concave triangle mesh (GEOM_FORCE_CONCAVE_TRIMESH), one facet every
+  ``mesh_facet_deg`` degrees.
+- ``heightfield``: a GEOM_HEIGHTFIELD sampled every ``heightfield_cell_mm`` along x.
+
+Friction: Bullet combines rolling friction as rollA * lateralB + rollB * lateralA and limits the
+rolling torque to that value times the normal force (a length), so the ball gets
+rollingFriction = mu r / lateral_friction and the trough lateralFriction = lateral_friction,
+rollingFriction = 0 (combined: mu r). The ball's maximum joint velocity is raised (the default
+100 rad/s makes the 1.58 mm ball slip), damping and sleeping are off, contactSlop is 0.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from sim.engines.common import slip_speed, theta_from_centre
+
+DEFAULTS: dict = {
+    "timestep_s": 2.5e-4,
+    "solver_iterations": 50,
+    "lateral_friction": 1.0,
+    "max_angular_velocity_rad_s": 1e5,
+    "mesh_facet_deg": 1.0,
+    "heightfield_cell_mm": 0.5,
+    "surface_extent_deg": 85.0,
+}
+
+
+def _steps_per_frame(timestep: float, fps: float) -> tuple[int, float]:
+    n = max(1, round(1.0 / (fps * timestep)))
+    return n, 1.0 / (fps * n)
+
+
+def _quat_mul(a, b):
+    """Hamilton product of (x, y, z, w) quaternions."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz)
+
+
+_Z_TO_Y = (-math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4))  # rot x by -90 deg (xyzw)
+
+
+def _build_trough(p, client, scenario, opts):
+    """Create the trough body; returns its id."""
+    R = scenario.cylinder_radius
+    half_w = max(2.0 * scenario.ball_diameter, 5e-3)
+    ext = math.radians(opts["surface_extent_deg"])
+    if scenario.surface == "tangent":
+        shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=client)
+        return p.createMultiBody(0.0, shape, basePosition=[0, -R, 0],
+                                 baseOrientation=_Z_TO_Y, physicsClientId=client)
+    if scenario.surface == "mesh":
+        n = max(2, math.ceil(2 * ext / math.radians(opts["mesh_facet_deg"])))
+        a = np.linspace(-ext, ext, n + 1)
+        verts = []
+        for zz in (-half_w, half_w):
+            verts += [[R * math.sin(ai), -R * math.cos(ai), zz] for ai in a]
+        idx = []
+        m = n + 1
+        for i in range(n):
+            # two triangles per facet, wound so the normal points towards the axis
+            idx += [i, m + i, i + 1, i + 1, m + i, m + i + 1]
+        shape = p.createCollisionShape(p.GEOM_MESH, vertices=verts, indices=idx,
+                                       flags=p.GEOM_FORCE_CONCAVE_TRIMESH,
+                                       physicsClientId=client)
+        return p.createMultiBody(0.0, shape, physicsClientId=client)
+    # heightfield: local z up -> world y; Bullet centres the height range on the origin
+    X = R * math.sin(ext)
+    dx = opts["heightfield_cell_mm"] * 1e-3
+    nx = 2 * int(math.ceil(X / dx)) + 1
+    x = (np.arange(nx) - (nx - 1) / 2) * dx
+    x = np.clip(x, -R * 0.999, R * 0.999)
+    h = R - np.sqrt(R * R - x * x)
+    ny = 3
+    dy = half_w
+    data = np.tile(h, ny)  # index ix + iy * nx
+    shape = p.createCollisionShape(p.GEOM_HEIGHTFIELD, meshScale=[dx, dy, 1.0],
+                                   heightfieldData=data.tolist(), numHeightfieldRows=nx,
+                                   numHeightfieldColumns=ny, physicsClientId=client)
+    top = float(h.max())
+    return p.createMultiBody(0.0, shape, basePosition=[0, -R + 0.5 * top, 0],
+                             baseOrientation=_Z_TO_Y, physicsClientId=client)
+
+
+def run(scenario, progress: bool = False):
+    import pybullet as p
+    from tqdm import tqdm
+
+    from sim.trajectory import Trajectory
+
+    opts = scenario.options()
+    start = time.perf_counter()
+    client = p.connect(p.DIRECT)
+    try:
+        n_sub, dt = _steps_per_frame(opts["timestep_s"], scenario.fps)
+        p.setGravity(0, -scenario.gravity, 0, physicsClientId=client)
+        p.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0,
+                                    numSolverIterations=int(opts["solver_iterations"]),
+                                    contactSlop=0.0, deterministicOverlappingPairs=1,
+                                    physicsClientId=client)
+        R, r = scenario.cylinder_radius, scenario.ball_radius
+        L = R - r
+        th0, w0 = scenario.theta0, scenario.theta_dot0
+        lat = opts["lateral_friction"]
+        trough = _build_trough(p, client, scenario, opts)
+        p.changeDynamics(trough, -1, lateralFriction=lat, rollingFriction=0.0,
+                         spinningFriction=0.0, restitution=0.0, physicsClientId=client)
+        sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=r, physicsClientId=client)
+        ball = p.createMultiBody(scenario.ball_mass, sphere,
+                                 basePosition=[L * math.sin(th0), -L * math.cos(th0), 0],
+                                 physicsClientId=client)
+        p.changeDynamics(ball, -1, lateralFriction=1.0, rollingFriction=scenario.mu * r / lat,
+                         spinningFriction=0.0, restitution=0.0, linearDamping=0.0,
+                         angularDamping=0.0,
+                         maxJointVelocity=float(opts["max_angular_velocity_rad_s"]),
+                         activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING,
+                         physicsClientId=client)
+        p.resetBaseVelocity(ball, [L * w0 * math.cos(th0), L * w0 * math.sin(th0), 0.0],
+                            [0.0, 0.0, -(L / r) * w0], physicsClientId=client)
+        n = scenario.n_samples
+        pos = np.empty((n, 3))
+        quat = np.empty((n, 4))
+        vel = np.empty((n, 3))
+        omega = np.empty((n, 3))
+        normal = np.full(n, np.nan)
+        ncon = np.zeros(n, dtype=int)
+        tangent = scenario.surface == "tangent"
+        get_pose, reset_pose = p.getBasePositionAndOrientation, p.resetBasePositionAndOrientation
+        step = p.stepSimulation
+
+        def place_plane():
+            (x, y, _), _q = get_pose(ball, physicsClientId=client)
+            phi = math.atan2(x, -y)
+            qz = (0.0, 0.0, math.sin(0.5 * phi), math.cos(0.5 * phi))
+            reset_pose(trough, [R * math.sin(phi), -R * math.cos(phi), 0.0],
+                       _quat_mul(qz, _Z_TO_Y), physicsClientId=client)
+
+        def record(i):
+            pp, qq = get_pose(ball, physicsClientId=client)
+            v, w = p.getBaseVelocity(ball, physicsClientId=client)
+            pos[i] = pp
+            quat[i] = (qq[3], qq[0], qq[1], qq[2])
+            vel[i] = v
+            omega[i] = w
+            contacts = p.getContactPoints(bodyA=ball, physicsClientId=client)
+            ncon[i] = len(contacts)
+            if contacts:
+                normal[i] = sum(c[9] for c in contacts)
+
+        if tangent:
+            place_plane()
+        record(0)
+        for i in tqdm(range(1, n), disable=not progress, desc="pybullet", unit="frame",
+                      mininterval=0.5):
+            for _ in range(n_sub):
+                if tangent:
+                    place_plane()
+                step(physicsClientId=client)
+            record(i)
+    finally:
+        p.disconnect(physicsClientId=client)
+    wall = time.perf_counter() - start
+    # before the first step there are no contact points yet: the sample at t = 0 has none
+    theta, theta_dot = theta_from_centre(pos, vel)
+    meta = {
+        "engine": "pybullet",
+        "engine_version": f"pybullet {p.getAPIVersion()} (bullet build API version)",
+        "surface": scenario.surface,
+        "settings": {**opts, "timestep_s": dt, "steps_per_frame": n_sub, "units": "m, kg, s",
+                     "ball_rolling_friction_m": scenario.mu * r / lat,
+                     "combined_rolling_friction_m": scenario.mu * r},
+        "max_contacts": int(ncon.max()),
+        "wall_time_s": wall,
+    }
+    return Trajectory(t=scenario.times(), theta=theta, theta_dot=theta_dot, position=pos,
+                      quaternion=quat, angular_velocity=omega, normal_force=normal,
+                      slip_speed=slip_speed(pos, vel, omega, r), scenario=scenario, meta=meta)
