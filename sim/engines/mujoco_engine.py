@@ -75,7 +75,7 @@ def build_xml(scenario, opts: dict) -> str:
         edges = np.linspace(-ext, ext, n + 1)
         parts = []
         for i in range(n):
-            a0, a1 = edges[i], edges[i + 1]
+            a0, a1 = float(edges[i]), float(edges[i + 1])
             mid, half = 0.5 * (a0 + a1), 0.5 * (a1 - a0)
             half_chord = R * math.sin(half)
             dist = R * math.cos(half) + _PAD_HALF_THICKNESS  # box centre from the axis
