@@ -17,8 +17,8 @@ from scipy import signal
 
 from rollfric.errors import InputError
 
-DEFAULT_ORDER = 4
-DEFAULT_RIPPLE_DB = 0.1
+DEFAULT_ORDER = 5  # odd: unit gain at 0 Hz (even orders sit at -ripple)
+DEFAULT_RIPPLE_DB = 0.001  # two passes: at most 0.03 % gain error in the pass band
 MIN_SAMPLES = 32
 
 
