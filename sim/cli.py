@@ -58,24 +58,21 @@ def _parse_option(text: str):
 
 
 def scenario_from_args(args):
-    import math
-
-    from sim.scenario import Scenario, load_scenario
+    from sim.scenario import Scenario, load_scenario, to_si
 
     base = load_scenario(args.scenario) if args.scenario else Scenario()
     changes: dict = {}
     if args.ball:
         t = Scenario.thesis(args.ball)
         changes.update(ball_diameter=t.ball_diameter, ball_mass=t.ball_mass)
-    simple = {"mu": ("mu", 1.0), "ball_diameter_mm": ("ball_diameter", 1e-3),
-              "ball_mass_g": ("ball_mass", 1e-3), "cylinder_radius_mm": ("cylinder_radius", 1e-3),
-              "theta0_deg": ("theta0", math.pi / 180),
-              "theta_dot0_deg_s": ("theta_dot0", math.pi / 180),
-              "seconds": ("duration", 1.0), "fps": ("fps", 1.0)}
-    for arg, (field, factor) in simple.items():
+    simple = {"mu": ("mu", ""), "ball_diameter_mm": ("ball_diameter", "mm"),
+              "ball_mass_g": ("ball_mass", "g"), "cylinder_radius_mm": ("cylinder_radius", "mm"),
+              "theta0_deg": ("theta0", "deg"), "theta_dot0_deg_s": ("theta_dot0", "deg"),
+              "seconds": ("duration", ""), "fps": ("fps", "")}
+    for arg, (field, unit) in simple.items():
         value = getattr(args, arg)
         if value is not None:
-            changes[field] = value * factor
+            changes[field] = to_si(value, unit)
     if args.seed is not None:
         changes["seed"] = args.seed
     if args.engine and args.engine != base.engine:

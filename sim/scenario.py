@@ -217,15 +217,24 @@ class Scenario:
         return load_scenario(path)
 
 
-_SCHEMA: dict[str, dict[str, tuple[str, float]]] = {
-    # section -> key -> (field, factor to SI)
-    "cylinder": {"radius_mm": ("cylinder_radius", 1e-3)},
-    "ball": {"diameter_mm": ("ball_diameter", 1e-3), "mass_g": ("ball_mass", 1e-3)},
-    "camera": {"fps": ("fps", 1.0), "pixel_size_mm": ("pixel_size", 1e-3)},
-    "environment": {"gravity_m_s2": ("gravity", 1.0)},
-    "motion": {"mu": ("mu", 1.0), "theta0_deg": ("theta0", math.pi / 180),
-               "theta_dot0_deg_s": ("theta_dot0", math.pi / 180),
-               "seconds": ("duration", 1.0)},
+def to_si(value: float, unit: str) -> float:
+    """Bench unit -> SI: mm and g divide by 1000 (exact for typed decimals), deg -> rad."""
+    if unit in ("mm", "g"):
+        return float(value) / 1000.0
+    if unit == "deg":
+        return math.radians(value)
+    return float(value)
+
+
+_SCHEMA: dict[str, dict[str, tuple[str, str]]] = {
+    # section -> key -> (field, unit name: "mm"/"g" divide by 1000, "deg" to radians)
+    "cylinder": {"radius_mm": ("cylinder_radius", "mm")},
+    "ball": {"diameter_mm": ("ball_diameter", "mm"), "mass_g": ("ball_mass", "g")},
+    "camera": {"fps": ("fps", ""), "pixel_size_mm": ("pixel_size", "mm")},
+    "environment": {"gravity_m_s2": ("gravity", "")},
+    "motion": {"mu": ("mu", ""), "theta0_deg": ("theta0", "deg"),
+               "theta_dot0_deg_s": ("theta_dot0", "deg"),
+               "seconds": ("duration", "")},
 }
 _ENGINE_KEYS = ("name", "surface", "seed", "options")
 
@@ -253,8 +262,8 @@ def scenario_from_dict(data: dict, source: str = "scenario") -> Scenario:
                                     f"(known: {', '.join(_SCHEMA[section])})")
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ScenarioError(f"{source}: {section}.{key} must be a number, got {value!r}")
-            field, factor = _SCHEMA[section][key]
-            kwargs[field] = float(value) * factor
+            field, unit = _SCHEMA[section][key]
+            kwargs[field] = to_si(value, unit)
     try:
         return Scenario(**kwargs)
     except ScenarioError as exc:
