@@ -1,0 +1,222 @@
+"""``rollfric bench``: speed and accuracy of every stage beside the baseline a user would pick.
+
+One run, one machine, the same inputs for a method and its baseline. Every row names its
+baseline and gives the ratio (speed-up, or accuracy gain) over it: this machine is shared and
+noisy, so ratios are the headline and absolute times are medians of repeats.
+
+Sections: fitting (least squares vs the thesis's grid search and eps iteration), simulation
+(each engine's accurate contact vs the naive mesh surface), rendering (tile renderer vs plain
+full-frame pyrender of the same scene), recognition (default locator vs the thesis's locators,
+OpenCV HoughCircles and scikit-image RANSAC circle fit, beside the Cramer-Rao bound), and the
+default ``rollfric validate`` case end to end.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import platform
+import statistics
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclasses.dataclass
+class Row:
+    """One line of the table: a measured value beside its baseline."""
+
+    section: str
+    item: str
+    value: float
+    unit: str
+    baseline: str = ""
+    baseline_value: float = math.nan
+    gain: float = math.nan  # > 1: better than the baseline (speed-up or error ratio)
+    gain_kind: str = ""  # "speed-up" or "accuracy"
+    note: str = ""
+
+
+def median_time(fn, repeats: int, warmup: bool = True) -> tuple[float, object]:
+    """Median wall time of ``repeats`` calls of fn (after a warm-up call) and its result."""
+    if warmup:
+        fn()
+    times = []
+    for _ in range(max(repeats, 1)):
+        t0 = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), result
+
+
+# --------------------------------------------------------------------------------- fitting
+def bench_fit(quick: bool) -> list[Row]:
+    """Least-squares fit vs the thesis's grid search (paper 2) and eps iteration (paper 1)."""
+    from rollfric import eom
+    from rollfric.fit import fit_mu, initial_guess
+    from rollfric.setup import thesis_setup
+    from rollfric.thesis import PAPER2_GRID, fit_paper2_grid
+
+    rows = []
+    t = np.arange(4000) / 1000.0
+    cases = [("10mm", 0.0079, 20.0)] if quick else [
+        ("10mm", 0.0079, 20.0), ("12.69mm", 0.0065, 20.0), ("1.58mm", 0.0164, 12.0)]
+    sigma = math.radians(0.02)
+    for ball, mu, th0 in cases:
+        setup = thesis_setup(ball)
+        truth, _, _ = eom.solve_reference(math.radians(th0), 0.0, mu, t,
+                                          track_radius=setup.track_radius)
+        noisy = truth + np.random.default_rng(0).normal(0, sigma, t.size)
+        label = f"{ball}, mu {mu}, theta0 {th0:g} deg, 4000 samples"
+        sec_lsq, r_clean = median_time(lambda s=setup, y=truth: fit_mu(t, y, s), 5)
+        r_noisy = fit_mu(t, noisy, setup)
+        # the grid search, from the same self-started first estimate
+        first = initial_guess(t, noisy, setup)
+        if quick:
+            # time 1/21 of the grid (one mu value) and scale to the whole grid
+            n_mu = 2 * round(PAPER2_GRID["mu"][0] / PAPER2_GRID["mu"][1]) + 1
+            t0 = time.perf_counter()
+            fit_paper2_grid(t, noisy, setup, first=first, grid={"mu": (0.0, 1.0)})
+            sec_grid = (time.perf_counter() - t0) * n_mu
+            r_grid = None
+            grid_note = "grid time extrapolated from 1 of its 21 mu values (--quick)"
+        else:
+            t0 = time.perf_counter()
+            r_grid = fit_paper2_grid(t, noisy, setup, first=first)
+            sec_grid = time.perf_counter() - t0
+            grid_note = "28413 Runge-Kutta solutions"
+        rows.append(Row("fitting", f"lsq fit time ({label})", sec_lsq, "s",
+                        "thesis grid search (paper 2)", sec_grid, sec_grid / sec_lsq, "speed-up",
+                        grid_note))
+        err_clean = abs(r_clean.mu / mu - 1)
+        err_noisy = abs(r_noisy.mu / mu - 1)
+        rows.append(Row("fitting", f"lsq mu error, noiseless ({label})", err_clean, "rel"))
+        if r_grid is not None:
+            err_grid = abs(r_grid.mu / mu - 1)
+            rows.append(Row("fitting", f"lsq mu error, 0.02 deg noise ({label})", err_noisy,
+                            "rel", "thesis grid search", err_grid,
+                            err_grid / max(err_noisy, 1e-12), "accuracy",
+                            "grid resolution in mu is 1e-4"))
+        else:
+            rows.append(Row("fitting", f"lsq mu error, 0.02 deg noise ({label})", err_noisy,
+                            "rel", note=f"mu_stderr {r_noisy.mu_stderr / mu:.1e} rel"))
+    # paper 1 on its own ground: the small ball at a small angle
+    setup = thesis_setup("1.58mm")
+    mu = 0.0229  # the paper's eps = 1.9012 1/s^2 in our convention
+    truth, _, _ = eom.solve_reference(math.radians(12.07), 0.0, mu, t,
+                                      track_radius=setup.track_radius)
+    noisy = truth + np.random.default_rng(1).normal(0, sigma, t.size)
+    sec_p1, r_p1 = median_time(lambda: fit_mu(t, noisy, setup, method="paper1_eps"), 1)
+    sec_l, r_l = median_time(lambda: fit_mu(t, noisy, setup), 1)
+    e_p1, e_l = abs(r_p1.mu / mu - 1), abs(r_l.mu / mu - 1)
+    rows.append(Row("fitting", "lsq mu error vs paper 1's eps iteration (1.58mm, 12.07 deg, "
+                    "0.02 deg noise)", e_l, "rel", "paper 1 eps iteration", e_p1,
+                    e_p1 / max(e_l, 1e-12), "accuracy",
+                    f"times: lsq {sec_l:.3f} s, paper 1 {sec_p1:.3f} s; paper 1 is "
+                    "biased by its sin(theta) ~ theta model"))
+    return rows
+
+
+# ------------------------------------------------------------------------------ simulation
+def bench_sim(quick: bool) -> list[Row]:
+    """Seconds for 4 s of motion per engine (accurate contact) and mu bias vs the naive mesh."""
+    import sim
+    from rollfric.fit import fit_mu
+
+    rows = []
+    base = sim.Scenario()
+    ref = sim.simulate(base)
+    for engine in ("reference", "mujoco", "pybullet"):
+        sc = dataclasses.replace(base, engine=engine)
+        sec, traj = median_time(lambda sc=sc: sim.simulate(sc), 1 if quick else 3)
+        setup = sc.setup()
+        mu_fit = fit_mu(traj.t, traj.theta, setup).mu
+        err = abs(mu_fit / sc.mu - 1)
+        dev = np.degrees(np.max(np.abs(traj.theta - ref.theta)))
+        note = f"max angle error vs reference {dev:.3f} deg"
+        if engine == "reference":
+            rows.append(Row("simulation", "reference ODE: 4 s of motion", sec, "s",
+                            "real time (4 s)", sc.duration, sc.duration / sec, "speed-up",
+                            f"mu recovered to {err:.1e} rel"))
+            continue
+        naive = dataclasses.replace(sc, surface="mesh")
+        sec_n, traj_n = median_time(lambda n=naive: sim.simulate(n), 1, warmup=False)
+        err_n = abs(fit_mu(traj_n.t, traj_n.theta, setup).mu / sc.mu - 1)
+        rows.append(Row("simulation", f"{engine} tangent contact: 4 s of motion", sec, "s",
+                        f"{engine} concave mesh", sec_n, sec_n / sec, "speed-up", note))
+        rows.append(Row("simulation", f"{engine} tangent contact: mu bias", err, "rel",
+                        f"{engine} concave mesh", err_n, err_n / max(err, 1e-12), "accuracy",
+                        "10mm ball, mu 0.0079, theta0 20 deg"))
+    return rows
+
+
+# --------------------------------------------------------------------------------- report
+def machine() -> dict:
+    cpu = platform.processor()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cpu": cpu or "unknown", "cores": os.cpu_count(), "python": platform.python_version(),
+            "platform": platform.platform()}
+
+
+def _fmt(v: float) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return ""
+    if v == 0:
+        return "0"
+    if abs(v) >= 100:
+        return f"{v:.0f}"
+    if abs(v) >= 0.01:
+        return f"{v:.3g}"
+    return f"{v:.2e}"
+
+
+def to_markdown(rows: list[Row], meta: dict) -> str:
+    lines = [f"Benchmark of {meta['date']} on {meta['machine']['cpu']} "
+             f"({meta['machine']['cores']} cores){' --quick' if meta['quick'] else ''}.",
+             "", "| section | measured | value | unit | baseline | baseline value | gain | note |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        gain = f"{_fmt(r.gain)}x {r.gain_kind}" if math.isfinite(r.gain) else ""
+        lines.append(f"| {r.section} | {r.item} | {_fmt(r.value)} | {r.unit} | {r.baseline} | "
+                     f"{_fmt(r.baseline_value)} | {gain} | {r.note} |")
+    return "\n".join(lines) + "\n"
+
+
+SECTIONS = {
+    "fitting": bench_fit,
+    "simulation": bench_sim,
+}  # keys match validation.cli_bench.SECTION_NAMES
+
+
+def run_bench(out: str | Path, *, quick: bool = False, sections=None, progress: bool = True):
+    """Run the chosen sections (all by default); write bench.md and bench.json into out."""
+    from tqdm.auto import tqdm
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    names = list(sections or SECTIONS)
+    rows: list[Row] = []
+    timings = {}
+    for name in tqdm(names, desc="bench", disable=not progress):
+        t0 = time.perf_counter()
+        rows.extend(SECTIONS[name](quick))
+        timings[name] = time.perf_counter() - t0
+    meta = {"date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            "machine": machine(), "quick": quick, "section_seconds": timings}
+    md = to_markdown(rows, meta)
+    (out / "bench.md").write_text(md)
+    data = {"meta": meta, "rows": [
+        {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+         for k, v in dataclasses.asdict(r).items()} for r in rows]}
+    (out / "bench.json").write_text(json.dumps(data, indent=2) + "\n")
+    return rows, meta

@@ -1,0 +1,37 @@
+"""``rollfric bench``: register the subcommand (argparse only; work in validation.bench)."""
+
+from __future__ import annotations
+
+import argparse
+
+SECTION_NAMES = ("fitting", "simulation", "rendering", "recognition", "end-to-end")
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "bench", help="speed and accuracy of every stage beside its baseline",
+        description=(
+            "Measure, in one run on this machine, every stage beside the baseline a user would "
+            "pick instead: the least-squares fit vs the thesis's grid search; each physics "
+            "engine's exact tangent contact vs a naive triangle mesh; the tile renderer vs "
+            "plain full-frame pyrender; the default locator vs the thesis's locators, OpenCV "
+            "HoughCircles and scikit-image RANSAC beside the Cramer-Rao bound; and the default "
+            "validate case end to end. Writes OUT/bench.md (a Markdown table) and "
+            "OUT/bench.json. Times are medians of repeats; ratios are the headline."),
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--out", default="bench-out", metavar="DIR", help="output directory")
+    p.add_argument("--quick", action="store_true",
+                   help="smaller inputs and fewer repeats (under 2 minutes, for CI smoke runs)")
+    p.add_argument("--only", nargs="+", choices=SECTION_NAMES, metavar="SECTION",
+                   help=f"run only these sections ({', '.join(SECTION_NAMES)})")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from validation.bench import run_bench
+
+    rows, meta = run_bench(args.out, quick=args.quick, sections=args.only)
+    print((Path(args.out) / "bench.md").read_text())
+    return 0
