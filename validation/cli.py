@@ -1,0 +1,174 @@
+"""``rollfric validate`` and ``rollfric sweep`` (argparse only; the pipeline loads in the handlers)."""
+
+from __future__ import annotations
+
+import argparse
+
+_VALIDATE_HELP = """\
+The main job: run one case end to end -- scenario -> sim (ground-truth trajectory) -> synth
+(rendered 1000 Hz camera frames with a sensor model) -> rollfric (locate the ball, angles, fit
+mu) -> metrics against the truth -- print a short summary and write a report directory (the
+angle-vs-model plot, the centre-error histogram and error vs time, overlay frames, metrics.json,
+the track and the truth).
+
+Without CASE.toml it runs the built-in default: the thesis's 10 mm ball, mu = 0.0079, released
+at 20 deg, thesis lighting (two lamps beside the camera), the "realistic" 8-bit sensor noise,
+the full 1280 x 1024 thesis camera, 1.5 s of 1000 Hz frames (~1.5 min on a 2-core CPU).
+
+CASE.toml has the sections [scenario] (the sim scenario form: [scenario.ball], [scenario.motion],
+[scenario.engine], ...), [render] (lighting, noise, motion_blur, [render.sensor],
+[render.camera], ...) and [measure] (locator, fit, offset); see README "validation". A plain
+sim scenario file (top-level [ball], [motion], ...) is accepted too. Flags override the file.
+
+Metrics: mu_true, mu_recovered, mu_bias_rel (against the configured mu), mu_engine (the same
+fitter on the engine's ground-truth theta(t)), mu_engine_bias_rel, mu_pipeline_bias_rel (the
+measurement against mu_engine: the pipeline's own bias), mu_stderr, mu_true_within_stderr,
+center_rms_px / center_max_px / center_bias_x_px / center_bias_y_px (located centre minus
+the rendered silhouette's centre), theta_rms_rad, found_fraction, and per-stage timings.
+"""
+
+_SWEEP_HELP = """\
+Run a grid (or list) of validation cases on Dask distributed and collect one row per case
+(parameters and metrics as columns) in DIR/results.parquet and DIR/results.csv, with plots of
+the metrics against each swept parameter in DIR/plots/.
+
+Every finished case is written at once to DIR/parts/<case_id>.parquet (case_id: a hash of the
+case's full parameters), so an interrupted or crashed sweep loses nothing: run the same command
+again and it resumes with the cases not yet done. A failed case is recorded with its error (and
+retried on resume only with --retry-failed); a worker that dies is replaced and its case re-run.
+
+By default a local cluster of worker processes (one renderer each, PYOPENGL_PLATFORM=egl) is
+started; --scheduler ADDRESS uses an existing cluster instead (its workers must see DIR when
+--keep-recordings is used). Example studies ship with the package: `rollfric sweep --list`.
+
+SWEEP.toml:
+  [sweep]   name, mode = "grid" | "list", seeds = N (repeat each case with render seeds 0..N-1)
+  [base]    a case (same sections as `rollfric validate`'s CASE.toml)
+  [grid]    "dotted.key" = [values...]   e.g. "render.sensor.read_noise" = [0, 8, 20]
+  [[cases]] "dotted.key" = value ...     (mode = "list": one table per case)
+"""
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "validate", help="the main job: one case end to end against the truth, with a report",
+        description=_VALIDATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("case", nargs="?", metavar="CASE.toml",
+                   help="case (or plain scenario) TOML file; default: the built-in case")
+    p.add_argument("--engine", choices=["reference", "mujoco", "pybullet"],
+                   help="physics engine for the ground truth (default: the case's, reference)")
+    p.add_argument("--seconds", type=float, help="duration of the recording (s)")
+    p.add_argument("--mu", type=float, help="configured rolling friction coefficient")
+    p.add_argument("--lighting", help="synth lighting preset (thesis, dim, harsh, uneven, flat)")
+    p.add_argument("--noise", help="synth sensor preset (none, realistic, noisy, 12bit, dark)")
+    p.add_argument("--seed", type=int, help="seed of the sensor noise (render.seed)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override any case key, e.g. render.motion_blur=8 (repeatable)")
+    p.add_argument("--out", default="rollfric-report", metavar="DIR",
+                   help="report directory")
+    p.add_argument("--keep-recording", action="store_true",
+                   help="keep the rendered recording in DIR/recording.zarr")
+    p.add_argument("--json", action="store_true",
+                   help="print the metrics as one JSON object instead of the summary")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=handle_validate)
+
+    s = subparsers.add_parser(
+        "sweep", help="many validation cases on Dask, one table row per case, with plots",
+        description=_SWEEP_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("sweep", nargs="?", metavar="SWEEP.toml",
+                   help="sweep file, or the name of a shipped study (see --list)")
+    s.add_argument("--out", metavar="DIR", help="results directory (required to run)")
+    s.add_argument("--scheduler", metavar="ADDRESS",
+                   help="address of an existing Dask scheduler (default: a local cluster)")
+    s.add_argument("--workers", type=int, default=2,
+                   help="worker processes of the local cluster")
+    s.add_argument("--keep-recordings", action="store_true",
+                   help="keep every case's recording under DIR/recordings/ with index.csv")
+    s.add_argument("--retry-failed", action="store_true",
+                   help="on resume, run again the cases recorded as failed")
+    s.add_argument("--list", action="store_true", help="list the shipped example sweeps")
+    s.add_argument("--dry-run", action="store_true",
+                   help="print the cases (id and parameters) without running them")
+    s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.set_defaults(func=handle_sweep)
+
+
+def _parse_set(items: list[str]) -> dict:
+    import tomllib
+
+    from rollfric.errors import InputError
+
+    out = {}
+    for item in items:
+        if "=" not in item:
+            raise InputError(f"--set {item!r}: expected KEY=VALUE")
+        key, text = (x.strip() for x in item.split("=", 1))
+        try:
+            value = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text  # a bare word: a string
+        out[key] = value
+    return out
+
+
+def handle_validate(args) -> int:
+    import json
+    import os
+
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    from validation import case as case_mod
+    from validation import e2e, report
+
+    overrides = _parse_set(args.set)
+    if args.engine:
+        overrides["scenario.engine.name"] = args.engine
+    if args.seconds is not None:
+        overrides["scenario.motion.seconds"] = args.seconds
+    if args.mu is not None:
+        overrides["scenario.motion.mu"] = args.mu
+    if args.lighting:
+        overrides["render.lighting"] = args.lighting
+    if args.noise:
+        overrides["render.noise"] = args.noise
+    if args.seed is not None:
+        overrides["render.seed"] = args.seed
+    base = case_mod.load_case_dict(args.case) if args.case else case_mod.default_case_dict()
+    case = case_mod.case_from_dict(case_mod.apply_overrides(base, overrides),
+                                   source=args.case or "built-in case")
+    result = e2e.run_case(case, keep_recording=args.keep_recording, report_dir=args.out,
+                          progress=not args.no_progress and not args.json)
+    report.write_report(result, args.out)
+    if args.json:
+        print(json.dumps(report.json_safe(result.metrics), sort_keys=True))
+    else:
+        print(report.summary_text(result, args.out))
+    return 0
+
+
+def handle_sweep(args) -> int:
+    import os
+
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    from rollfric.errors import InputError
+    from validation import sweep as sweep_mod
+
+    if args.list:
+        for name, path, doc in sweep_mod.shipped_sweeps():
+            print(f"{name:14s} {doc}   ({path})")
+        return 0
+    if not args.sweep:
+        raise InputError("give a SWEEP.toml (or a shipped study name, see --list)")
+    spec = sweep_mod.load_sweep(args.sweep)
+    if args.dry_run:
+        for c in spec.cases:
+            print(c.case_id, " ".join(f"{k}={v!r}" for k, v in c.params.items()))
+        print(f"{len(spec.cases)} case(s)")
+        return 0
+    if not args.out:
+        raise InputError("--out DIR is required to run a sweep")
+    summary = sweep_mod.run_sweep(spec, args.out, scheduler=args.scheduler,
+                                  n_workers=args.workers, keep_recordings=args.keep_recordings,
+                                  retry_failed=args.retry_failed, progress=not args.no_progress)
+    print(summary.text())
+    return 0 if summary.n_failed == 0 else 1
