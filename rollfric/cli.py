@@ -17,6 +17,7 @@ from rollfric.errors import InputError
 _SUBCOMMAND_MODULES = [
     "rollfric.cli_fit",
     "sim.cli",
+    "validation.cli",
     "validation.cli_bench",
 ]
 
