@@ -22,6 +22,7 @@ import dataclasses
 import math
 
 import cv2
+import numba
 import numpy as np
 
 METHODS = ("subpixel", "thesis-large", "thesis-small")
@@ -267,7 +268,8 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
 class SubpixelOptions:
     """Tuning of :func:`locate_subpixel` (defaults suit balls of 3-60 px radius)."""
 
-    radius: str = "free"  # "free": fit the radius too; "known": use r_px
+    radius: str = "auto"  # "free": fit the radius too; "known": use r_px; "auto": free when
+    # r_px >= 12 (enough edge points to afford it), known below
     ds: float = 0.25  # sample step along a ray (px)
     edge_half: float = 2.5  # half-width of the window integrated across the edge (px)
     level_len: float = 2.0  # length of the inside/outside level windows (px)
@@ -280,117 +282,215 @@ class SubpixelOptions:
 
 
 def _n_rays(r_px: float) -> int:
-    return int(min(180, max(32, round(2 * math.pi * r_px / 2.0))))
+    return int(min(128, max(48, round(2 * math.pi * r_px / 2.5))))
 
 
-def _fit_circle(xs, ys, r_known, free, opts: SubpixelOptions, w0=None):
-    """Robust geometric circle fit (Tukey biweight IRLS). Returns cx, cy, r, weights, resid."""
-    # algebraic (Kasa) start on the pre-weighted points
-    wts = np.ones_like(xs) if w0 is None else w0.copy()
-    sel = wts > 0
-    a = np.stack([xs[sel], ys[sel], np.ones(sel.sum())], axis=1)
-    b = xs[sel] ** 2 + ys[sel] ** 2
-    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
-    cx, cy = 0.5 * sol[0], 0.5 * sol[1]
-    r = math.sqrt(max(sol[2] + cx * cx + cy * cy, 1e-12)) if free else r_known
-    res = np.zeros_like(xs)
+@numba.njit(cache=True)
+def _profiles(rel, cx, cy, s0, ds, ns, n):
+    """Bilinear samples of rel along n rays from (cx, cy) at s0 + j ds; NaN outside rel."""
+    h, w = rel.shape
+    prof = np.empty((n, ns), np.float64)
+    for i in range(n):
+        phi = (i + 0.5) * (2.0 * np.pi / n)
+        c, sn = np.cos(phi), np.sin(phi)
+        for j in range(ns):
+            t = s0 + j * ds
+            x = cx + c * t
+            y = cy + sn * t
+            if x < 0.0 or y < 0.0 or x > w - 1 or y > h - 1:
+                prof[i, j] = np.nan
+                continue
+            ix = min(int(x), w - 2)
+            iy = min(int(y), h - 2)
+            fx = x - ix
+            fy = y - iy
+            prof[i, j] = ((1 - fy) * ((1 - fx) * rel[iy, ix] + fx * rel[iy, ix + 1])
+                          + fy * ((1 - fx) * rel[iy + 1, ix] + fx * rel[iy + 1, ix + 1]))
+    return prof
+
+
+@numba.njit(cache=True)
+def _edges(prof, s0, ds, r, w, ne, nl):
+    """Per ray: the steepest step of the ball's polarity in [r - w, r + w], then the edge
+    position from the integral of the normalised profile across a window of 2 ne + 2 samples
+    (exact for a sampled step), with the inside/outside levels from nl samples either side.
+
+    Returns s_edge, contrast (inside - outside, signed by polarity), outside std, valid."""
+    n, ns = prof.shape
+    # polarity: inside minus outside at the ends of the band, median over rays
+    diffs = np.empty(n)
+    m = 0
+    for i in range(n):
+        a = 0.0
+        b = 0.0
+        for j in range(nl):
+            a += prof[i, j]
+            b += prof[i, ns - 1 - j]
+        if np.isfinite(a) and np.isfinite(b):
+            diffs[m] = (a - b) / nl
+            m += 1
+    s_edge = np.full(n, np.nan)
+    con = np.full(n, np.nan)
+    osd = np.full(n, np.nan)
+    valid = np.zeros(n, np.bool_)
+    if m < 3:
+        return s_edge, con, osd, valid
+    sgn = 1.0 if np.median(diffs[:m]) >= 0 else -1.0
+    lo = max(ne + nl, int(np.floor((r - w - s0) / ds)))
+    hi = min(ns - ne - nl - 3, int(np.ceil((r + w - s0) / ds)))
+    kbs = np.full(n, -1)
+    a_in = np.full(n, np.nan)
+    b_out = np.full(n, np.nan)
+    for i in range(n):
+        best = -np.inf
+        kb = -1
+        for k in range(lo, hi + 1):
+            g = sgn * ((prof[i, k - 1] + prof[i, k]) - (prof[i, k + 1] + prof[i, k + 2]))
+            if g > best:  # NaN never wins
+                best = g
+                kb = k
+        if kb < 0:
+            continue
+        a = 0.0
+        b = 0.0
+        b2 = 0.0
+        for j in range(nl):
+            a += prof[i, kb - ne - 1 - j]
+            v = prof[i, kb + ne + 2 + j]
+            b += v
+            b2 += v * v
+        a /= nl
+        b /= nl
+        kbs[i] = kb
+        a_in[i] = a
+        b_out[i] = b
+        osd[i] = np.sqrt(max(b2 / nl - b * b, 0.0))
+    # the ball's inside level: per ray, unless a spot or shading spoils it (then the median)
+    fin = np.isfinite(a_in) & np.isfinite(b_out)
+    if fin.sum() < 3:
+        return s_edge, con, osd, valid
+    a_med = np.median(a_in[fin])
+    c_med = np.median(np.abs(a_in[fin] - b_out[fin]))
+    sd_med = np.median(osd[fin])
+    spoiled = np.abs(a_in - a_med) > 0.08 * c_med + 3.0 * sd_med
+    # drop those rays when enough clean ones remain, else use the median inside level
+    drop = (fin & ~spoiled).sum() >= 0.5 * fin.sum()
+    for i in range(n):
+        kb = kbs[i]
+        if kb < 0 or not fin[i]:
+            continue
+        a = a_in[i]
+        if spoiled[i]:
+            if drop:
+                continue
+            a = a_med
+        b = b_out[i]
+        c = a - b
+        if c * sgn <= 0:
+            continue
+        acc = 0.0
+        nw = 2 * ne + 2
+        for j in range(nw):
+            f = (prof[i, kb - ne + j] - b) / c
+            acc += 0.5 * f if (j == 0 or j == nw - 1) else f
+        se = s0 + (kb - ne) * ds + ds * acc
+        if not np.isfinite(se) or se <= s0 + (kb - ne) * ds or se >= s0 + (kb + ne + 1) * ds:
+            continue
+        s_edge[i] = se
+        con[i] = abs(c)
+        valid[i] = True
+    return s_edge, con, osd, valid
+
+
+@numba.njit(cache=True)
+def _solve3(m, v):
+    det = (m[0, 0] * (m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1])
+           - m[0, 1] * (m[1, 0] * m[2, 2] - m[1, 2] * m[2, 0])
+           + m[0, 2] * (m[1, 0] * m[2, 1] - m[1, 1] * m[2, 0]))
+    out = np.empty(3)
+    if det == 0.0 or not np.isfinite(det):
+        out[:] = np.nan
+        return out
+    for c in range(3):
+        mm = m.copy()
+        for r in range(3):
+            mm[r, c] = v[r]
+        out[c] = (mm[0, 0] * (mm[1, 1] * mm[2, 2] - mm[1, 2] * mm[2, 1])
+                  - mm[0, 1] * (mm[1, 0] * mm[2, 2] - mm[1, 2] * mm[2, 0])
+                  + mm[0, 2] * (mm[1, 0] * mm[2, 1] - mm[1, 1] * mm[2, 0])) / det
+    return out
+
+
+@numba.njit(cache=True)
+def _fit_circle(xs, ys, r_known, free, tukey_c, sigma_floor):
+    """Robust geometric circle fit: algebraic (Kasa) start, then Gauss-Newton on the
+    point-to-circle distances with Tukey biweights (scale from the MAD, floored at
+    sigma_floor). Returns cx, cy, r, weights, residuals."""
+    n = len(xs)
+    ata = np.zeros((3, 3))
+    atb = np.zeros(3)
+    for i in range(n):
+        row = (xs[i], ys[i], 1.0)
+        z = xs[i] * xs[i] + ys[i] * ys[i]
+        for p in range(3):
+            atb[p] += row[p] * z
+            for q in range(3):
+                ata[p, q] += row[p] * row[q]
+    sol = _solve3(ata, atb)
+    cx = 0.5 * sol[0]
+    cy = 0.5 * sol[1]
+    r = np.sqrt(max(sol[2] + cx * cx + cy * cy, 1e-12)) if free else r_known
+    wts = np.ones(n)
+    res = np.zeros(n)
+    d = np.zeros(n)
+    if not (np.isfinite(cx) and np.isfinite(cy)):
+        return np.nan, np.nan, np.nan, wts, res
     for it in range(30):
-        dx, dy = xs - cx, ys - cy
-        d = np.sqrt(dx * dx + dy * dy)
-        d[d == 0] = 1e-9
-        res = d - r
-        if it > 0 or w0 is None:
-            good = wts > 0
-            scale = 1.4826 * np.median(np.abs(res[good] - np.median(res[good]))) \
-                if good.sum() > 3 else opts.sigma_floor
-            scale = max(scale, opts.sigma_floor)
-            u = res / (opts.tukey_c * scale)
-            wts = np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
-            if w0 is not None:
-                wts = wts * (w0 > 0)
-        sw = np.sqrt(wts)
-        if free:
-            jac = np.stack([-dx / d, -dy / d, -np.ones_like(d)], axis=1)
+        for i in range(n):
+            d[i] = max(np.hypot(xs[i] - cx, ys[i] - cy), 1e-9)
+            res[i] = d[i] - r
+        good = res[wts > 0]
+        if len(good) < 3:
+            return np.nan, np.nan, np.nan, wts, res
+        med = np.median(good)
+        scale = max(1.4826 * np.median(np.abs(good - med)), sigma_floor)
+        jtj = np.zeros((3, 3))
+        jtr = np.zeros(3)
+        wsum = 0.0
+        for i in range(n):
+            u = (res[i] - med) / (tukey_c * scale)
+            wi = (1.0 - u * u) ** 2 if abs(u) < 1.0 else 0.0
+            wts[i] = wi
+            wsum += wi
+            j0 = -(xs[i] - cx) / d[i]
+            j1 = -(ys[i] - cy) / d[i]
+            jj = (j0, j1, -1.0)
+            for p in range(3):
+                jtr[p] += wi * jj[p] * res[i]
+                for q in range(3):
+                    jtj[p, q] += wi * jj[p] * jj[q]
+        if wsum < 3.0:
+            return np.nan, np.nan, np.nan, wts, res
+        if not free:  # 2 x 2 system
+            det = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
+            if det == 0.0:
+                return np.nan, np.nan, np.nan, wts, res
+            s0 = -(jtj[1, 1] * jtr[0] - jtj[0, 1] * jtr[1]) / det
+            s1 = -(-jtj[1, 0] * jtr[0] + jtj[0, 0] * jtr[1]) / det
+            s2 = 0.0
         else:
-            jac = np.stack([-dx / d, -dy / d], axis=1)
-        step, *_ = np.linalg.lstsq(jac * sw[:, None], -res * sw, rcond=None)
-        cx += step[0]
-        cy += step[1]
-        if free:
-            r += step[2]
-        if abs(step[0]) + abs(step[1]) < 1e-5 and it > 2:
+            st = _solve3(jtj, -jtr)
+            s0, s1, s2 = st[0], st[1], st[2]
+        if not (np.isfinite(s0) and np.isfinite(s1) and np.isfinite(s2)):
+            return np.nan, np.nan, np.nan, wts, res
+        cx += s0
+        cy += s1
+        r += s2
+        if abs(s0) + abs(s1) + abs(s2) < 1e-6 and it > 1:
             break
-    dx, dy = xs - cx, ys - cy
-    res = np.sqrt(dx * dx + dy * dy) - r
+    for i in range(n):
+        res[i] = np.hypot(xs[i] - cx, ys[i] - cy) - r
     return cx, cy, r, wts, res
-
-
-def _edge_points(rel: np.ndarray, cx: float, cy: float, r: float, w: float,
-                 opts: SubpixelOptions):
-    """Sub-pixel silhouette edge along rays from (cx, cy) (ROI coordinates).
-
-    Returns x, y of edge points, the ray contrasts and a validity mask.
-    """
-    n = _n_rays(r)
-    phi = (np.arange(n) + 0.5) * (2 * math.pi / n)
-    cos, sin = np.cos(phi).astype(np.float32), np.sin(phi).astype(np.float32)
-    m = opts.edge_half + opts.level_len + opts.ds
-    s = np.arange(max(0.5, r - w - m), r + w + m + opts.ds / 2, opts.ds, dtype=np.float32)
-    mapx = cx + cos[:, None] * s[None, :]
-    mapy = cy + sin[:, None] * s[None, :]
-    prof = cv2.remap(rel, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                     borderValue=np.nan)
-    hh, ww = rel.shape
-    in_img = (mapx >= 0) & (mapx <= ww - 1) & (mapy >= 0) & (mapy <= hh - 1)
-    prof = np.where(in_img, prof, np.nan)
-    ns = len(s)
-    nl = max(2, int(round(opts.level_len / opts.ds)))
-    ne = int(round(opts.edge_half / opts.ds))
-    # contrast per ray from the ends of the search band (inside minus outside)
-    k_in = s < r - 0.5 * w - 1.0
-    k_out = s > r + 0.5 * w + 1.0
-    if k_in.sum() < 2:
-        k_in = s < r - 1.0
-    if k_out.sum() < 2:
-        k_out = s > r + 1.0
-    with np.errstate(all="ignore"):
-        a = np.nanmedian(prof[:, k_in], axis=1)
-        b = np.nanmedian(prof[:, k_out], axis=1)
-    c = a - b
-    sgn = np.sign(c)
-    sgn[sgn == 0] = 1
-    g = (prof - 0.5 * (a + b)[:, None]) * sgn[:, None]  # > 0 inside, < 0 outside
-    cross = (g[:, :-1] >= 0) & (g[:, 1:] < 0)
-    drop = np.where(cross, g[:, :-1] - g[:, 1:], -np.inf)
-    # only crossings whose integration window fits in the profile
-    lo, hi = nl + ne, ns - nl - ne - 1
-    drop[:, :lo] = -np.inf
-    drop[:, hi:] = -np.inf
-    k = np.argmax(drop, axis=1)
-    valid = np.isfinite(drop[np.arange(n), k])
-    k = np.clip(k, lo, max(lo, hi - 1))
-    rows = np.arange(n)[:, None]
-    # levels just outside the integration window; the edge from the integral (area) of the
-    # normalised profile across the window: exact for a sampled step
-    i_in = k[:, None] - ne - nl + np.arange(nl)[None, :]
-    i_out = k[:, None] + 1 + ne + np.arange(nl)[None, :]
-    i_win = k[:, None] - ne + np.arange(2 * ne + 2)[None, :]
-    with np.errstate(all="ignore"):
-        a2 = prof[rows, np.clip(i_in, 0, ns - 1)].mean(axis=1)
-        b2 = prof[rows, np.clip(i_out, 0, ns - 1)].mean(axis=1)
-        b2_sd = prof[rows, np.clip(i_out, 0, ns - 1)].std(axis=1)
-        win = prof[rows, np.clip(i_win, 0, ns - 1)]
-        frac = (win - b2[:, None]) / (a2 - b2)[:, None]
-        # trapezoid integral over the window (samples ds apart)
-        integral = opts.ds * (frac[:, 1:-1].sum(axis=1) + 0.5 * (frac[:, 0] + frac[:, -1]))
-    s_start = s[np.clip(k - ne, 0, ns - 1)]
-    s_edge = s_start + integral
-    contrast = a2 - b2
-    valid &= np.isfinite(s_edge) & np.isfinite(contrast) & (np.sign(contrast) == sgn)
-    valid &= (s_edge > s_start) & (s_edge < s_start + (2 * ne + 1) * opts.ds)
-    xs = cx + cos * s_edge
-    ys = cy + sin * s_edge
-    return xs.astype(float), ys.astype(float), np.abs(contrast), b2_sd, valid
 
 
 def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
@@ -416,47 +516,64 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
     if not (-r_px < cx < wd - 1 + r_px and -r_px < cy < h - 1 + r_px):
         return Location.missing("predicted centre outside the frame")
     r = float(r_px)
+    # window sizes scale down for small balls
+    edge_half = min(opts.edge_half, max(1.5, 0.25 * r_px))
+    level_len = min(opts.level_len, max(0.75, 0.2 * r_px))
+    n = _n_rays(r_px)
+    if opts.radius not in ("auto", "free", "known"):
+        raise ValueError(f"radius must be auto, free or known, got {opts.radius!r}")
+    free = opts.radius == "free" or (opts.radius == "auto" and r_px >= 12)
     loc = Location.missing("no edge found")
     for p in range(opts.passes):
-        half = int(math.ceil(r + w + opts.edge_half + opts.level_len + 2))
+        ds = opts.ds if w <= 3.0 else 2 * opts.ds  # coarse sampling while the search is wide
+        ne = max(2, int(round(edge_half / ds)))
+        nl = max(2, int(round(level_len / ds)))
+        m = (ne + nl + 3) * ds
+        s0 = max(0.5, r - w - m)
+        ns = int(math.ceil((r + w + m - s0) / ds)) + 1
+        half = int(math.ceil(s0 + ns * ds)) + 2
         x0, y0 = int(math.floor(cx)) - half, int(math.floor(cy)) - half
         fr, x0c, y0c = _crop(frame, x0, y0, x0 + 2 * half + 2, y0 + 2 * half + 2)
         if fr is None:
             return Location.missing("ball outside the frame")
         bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
         rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
-        xs, ys, con, out_sd, valid = _edge_points(rel, cx - x0c, cy - y0c, r, w, opts)
+        lcx, lcy = cx - x0c, cy - y0c
+        prof = _profiles(rel, lcx, lcy, s0, ds, ns, n)
+        s_edge, con, out_sd, valid = _edges(prof, s0, ds, r, w, ne, nl)
         if valid.sum() < opts.min_rays:
             return Location.missing("too few edge points (ball missing, occluded or at the "
                                     "border)")
         # reject rays whose contrast is much weaker than the ball's typical one (shadow, the
         # trough contact, occluder) or whose outside is not flat (shadow gradient, spot)
-        cmed = np.median(con[valid])
+        cmed = float(np.median(con[valid]))
         nz = noise if noise is not None else float(np.median(out_sd[valid]))
         if cmed < max(4.0 * nz, 0.004 * _full_scale(frame.dtype)):
             return Location.missing("ball edge contrast below the noise")
-        w0 = (valid & (con > 0.5 * cmed) & (con < 2.0 * cmed)
-              & (out_sd < max(0.15 * cmed, 3.0 * nz))).astype(float)
-        if w0.sum() < opts.min_rays:
+        keep = (valid & (con > 0.5 * cmed) & (con < 2.0 * cmed)
+                & (out_sd < max(0.15 * cmed, 3.0 * nz)))
+        if keep.sum() < opts.min_rays:
             return Location.missing("too few clean edge points (shadows or occlusion)")
-        free = opts.radius == "free"
-        fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_px, free, opts, w0)
-        inl = wts > 0
-        n_in = int(inl.sum())
+        phi = (np.flatnonzero(keep) + 0.5) * (2 * math.pi / n)
+        xs = lcx + np.cos(phi) * s_edge[keep]
+        ys = lcy + np.sin(phi) * s_edge[keep]
+        fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_px, free, opts.tukey_c,
+                                              opts.sigma_floor)
+        n_in = int((wts > 0).sum())
         if n_in < opts.min_rays or not math.isfinite(fcx):
             return Location.missing("robust circle fit failed")
         if abs(fr_ - r_px) > opts.max_radius_dev * r_px:
             return Location.missing(f"fitted radius {fr_:.2f} px is not the ball's "
                                     f"{r_px:.2f} px")
-        shift = math.hypot(fcx + x0c - cx, fcy + y0c - cy)
-        cx, cy, r = fcx + x0c, fcy + y0c, (fr_ if free else r_px)
+        shift = math.hypot(fcx - lcx, fcy - lcy)
+        cx, cy, r = fcx + x0c, fcy + y0c, float(fr_)
         # residual scale and formal centre error from the inliers
-        rms = math.sqrt(float(np.sum(wts * res * res) / max(np.sum(wts), 1e-12)))
-        frac = n_in / len(xs)
-        loc = Location(x=cx, y=cy, r=r, found=frac >= opts.min_inlier_frac,
-                       sigma=rms * math.sqrt(2.0 / n_in), inlier_frac=frac,
-                       reason="" if frac >= opts.min_inlier_frac else
-                       f"only {100 * frac:.0f} % of the edge fits a circle")
+        rms = math.sqrt(float(np.sum(wts * res * res) / max(float(np.sum(wts)), 1e-12)))
+        frac = n_in / n
+        ok = frac >= opts.min_inlier_frac
+        loc = Location(x=cx, y=cy, r=r, found=ok, sigma=rms * math.sqrt(2.0 / n_in),
+                       inlier_frac=frac,
+                       reason="" if ok else f"only {100 * frac:.0f} % of the edge fits a circle")
         w = min(w, max(1.5, 2.0 * shift + 1.0))
         if shift < 0.02 and p > 0:
             break
