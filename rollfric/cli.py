@@ -16,6 +16,7 @@ from rollfric.errors import InputError
 # module that registers subcommands, in the order --help lists them
 _SUBCOMMAND_MODULES = [
     "rollfric.cli_fit",
+    "rollfric.cli_measure",
     "sim.cli",
     "validation.cli",
     "validation.cli_bench",
