@@ -1,0 +1,116 @@
+"""``rollfric measure``: from a recording to track.csv and fit.json."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "locate the ball in a recording, write its track and fit mu"
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "measure", help=HELP, description=(
+            "Measure rolling friction from a recording: locate the ball in every frame "
+            "(background subtraction, then a locator), compute theta about the cylinder centre "
+            "(from setup center_px, else from the trough contour in the background), and fit mu "
+            "(M = mu r N) with the equation of motion. RECORDING is a multi-page TIFF, a folder "
+            "of images (sorted by name), a video file, or a Zarr store (array 'frames', or read "
+            "by a rollfric.zarr_readers entry point). Writes OUT/track.csv (frame,t_s,x_px,"
+            "y_px,theta_rad,found; empty coordinates where no ball was found) and OUT/fit.json "
+            "(as 'rollfric fit', plus n_frames and n_found); with --plot also OUT/fit.png and "
+            "OUT/overlays.png. Nothing is written when the input is bad (exit status 2)."),
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("recording", metavar="RECORDING", help="TIFF stack, image folder, video, "
+                   "or Zarr store")
+    p.add_argument("--setup", metavar="SETUP.toml", default=None,
+                   help="lab setup file; may be omitted for a Zarr recording whose attrs hold "
+                        "'setup'")
+    p.add_argument("--background", metavar="BG", default=None,
+                   help="background image without the ball (default: the recording's own, else "
+                        "the per-pixel median of --median-frames frames)")
+    p.add_argument("--median-frames", type=int, default=41,
+                   help="frames in the median background when none is given")
+    p.add_argument("--method", default="subpixel",
+                   choices=["subpixel", "thesis-large", "thesis-small"],
+                   help="ball locator: subpixel (robust silhouette circle fit, default), "
+                        "thesis-large (paper 2 steps 1-7), thesis-small (paper 1, 15x15 window)")
+    p.add_argument("--angle", default="atan2", choices=["atan2", "arcsin"],
+                   help="theta = atan2(x - xc, y - yc), or the thesis's arcsin((x - xc) / L)")
+    p.add_argument("--fit-method", default="lsq", choices=["lsq", "paper1_eps", "paper2_grid"],
+                   help="how mu is fitted (see rollfric fit)")
+    p.add_argument("--offset", action="store_true",
+                   help="also fit a constant angle offset of the trough bottom")
+    p.add_argument("--plot", action="store_true",
+                   help="also write fit.png (angle vs model) and overlays.png")
+    p.add_argument("--overlay-frames", default=None, metavar="I,J,...",
+                   help="frames drawn in overlays.png (default: 6 spread over the found ones)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.set_defaults(func=run)
+
+
+def _log(msg: str) -> None:
+    import sys
+
+    print(f"rollfric measure: {msg}", file=sys.stderr)
+
+
+def run(args) -> int:
+    import os
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    from rollfric.errors import InputError
+    from rollfric.fit import save_fit
+    from rollfric.track import TRACK_COLUMNS, measure
+
+    frames = None
+    if args.overlay_frames:
+        try:
+            frames = [int(v) for v in args.overlay_frames.split(",") if v.strip()]
+        except ValueError:
+            raise InputError(f"--overlay-frames must be frame numbers like 0,100,200, got "
+                             f"{args.overlay_frames!r}") from None
+    if args.median_frames < 3:
+        raise InputError(f"--median-frames must be at least 3, got {args.median_frames}")
+    track, result = measure(args.recording, args.setup, args.background, method=args.method,
+                            angle=args.angle, fit_method=args.fit_method, offset=args.offset,
+                            progress=not args.no_progress, median_frames=args.median_frames,
+                            log=_log)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} exists and is not a folder")
+    parent = out.resolve().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
+    try:
+        csv = track[TRACK_COLUMNS].copy()
+        csv.to_csv(tmp / "track.csv", index=False, float_format="%.6f", na_rep="")
+        extra = {"n_frames": int(track.attrs["n_frames"]), "n_found": int(track.attrs["n_found"]),
+                 "locator": track.attrs["locator"], "angle": track.attrs["angle"],
+                 "center_px": track.attrs["center_px"],
+                 "center_source": track.attrs["center_source"],
+                 "background": track.attrs["background"],
+                 "ball_radius_px": track.attrs["ball_radius_px"],
+                 "median_sigma_px": float(track["sigma_px"].median())
+                 if track["sigma_px"].notna().any() else None,
+                 "recording": track.attrs["recording"]}
+        save_fit(result, tmp / "fit.json", **extra)
+        if args.plot:
+            from rollfric.io import open_recording
+            from rollfric.overlay import plot_overlays
+            from rollfric.plots import plot_fit
+
+            plot_fit(track["t_s"].to_numpy(), track["theta_rad"].to_numpy(), result,
+                     tmp / "fit.png")
+            plot_overlays(open_recording(args.recording), track, tmp / "overlays.png",
+                          frames=frames)
+        out.mkdir(exist_ok=True)
+        for f in sorted(tmp.iterdir()):
+            os.replace(f, out / f.name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    print(f"mu = {result.mu:.6f} +- {result.mu_stderr:.2g} ({result.method}); ball found in "
+          f"{track.attrs['n_found']} of {track.attrs['n_frames']} frames -> {out}")
+    return 0

@@ -1,0 +1,74 @@
+"""Overlay figures: the located ball circle and centre drawn on chosen frames (the thesis's
+validation figure, paper 2 Figs. 9-10)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def choose_frames(track, k: int = 6) -> list[int]:
+    """k frames spread over those where the ball was found."""
+    found = track.index[track["found"] == 1].to_numpy()
+    if len(found) == 0:
+        return []
+    pick = np.unique(np.linspace(0, len(found) - 1, min(k, len(found))).round().astype(int))
+    return [int(track.loc[found[i], "frame"]) for i in pick]
+
+
+def plot_overlays(source, track, path, *, frames: list[int] | None = None,
+                  r_px: float | None = None, zoom: float = 2.5) -> Path:
+    """One PNG: each chosen frame cropped around the ball, with the fitted circle (radius from
+    the track, else ``r_px``), the centre, and the direction to the cylinder centre."""
+    frames = choose_frames(track) if frames is None else list(frames)
+    bad = [f for f in frames if not 0 <= int(f) < len(track)]
+    if bad:
+        from rollfric.errors import InputError
+
+        raise InputError(f"overlay frame(s) {bad} outside the recording's 0..{len(track) - 1}")
+    if not frames:
+        frames = [0]
+    center = track.attrs.get("center_px")
+    r_default = r_px or track.attrs.get("ball_radius_px", 10.0)
+    ncol = min(3, len(frames))
+    nrow = math.ceil(len(frames) / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4 * ncol, 4 * nrow), squeeze=False)
+    for ax in axes.ravel():
+        ax.axis("off")
+    for ax, f in zip(axes.ravel(), frames, strict=False):
+        img = np.asarray(source[int(f)])
+        row = track.loc[track["frame"] == f].iloc[0]
+        h, w = img.shape
+        if row["found"] == 1:
+            x, y = float(row["x_px"]), float(row["y_px"])
+            r = float(row["r_px"]) if "r_px" in row and np.isfinite(row["r_px"]) else r_default
+        else:
+            x, y, r = w / 2, h / 2, r_default
+        half = zoom * r_default
+        ax.imshow(img, cmap="gray", interpolation="nearest", vmin=0,
+                  vmax=float(np.iinfo(img.dtype).max))
+        ax.set_xlim(x - half, x + half)
+        ax.set_ylim(y + half, y - half)
+        if row["found"] == 1:
+            t = np.linspace(0, 2 * np.pi, 361)
+            ax.plot(x + r * np.cos(t), y + r * np.sin(t), "-", color="lime", lw=1.0)
+            ax.plot([x], [y], "+", color="red", ms=12, mew=1.5)
+            if center is not None:
+                ax.plot([x, center[0]], [y, center[1]], ":", color="cyan", lw=0.8)
+            ax.set_title(f"frame {f}: ({x:.2f}, {y:.2f}) px\n"
+                         f"theta = {math.degrees(float(row['theta_rad'])):.3f} deg", fontsize=9)
+        else:
+            ax.set_title(f"frame {f}: ball not found", fontsize=9)
+        ax.axis("on")
+        ax.tick_params(labelsize=7)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

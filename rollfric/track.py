@@ -1,0 +1,283 @@
+"""From a recording to the track theta(t) and mu: the streaming measurement loop.
+
+``measure(recording, setup, background=None, method="subpixel")`` reads the frames one at a
+time, locates the ball in each (tracking it with a small region of interest predicted from the
+previous frames, a full-frame search when it is lost), turns centres into angles about the
+cylinder centre, and fits mu with :func:`rollfric.fit.fit_mu`.
+
+Angles: theta = atan2(x - xc, y - yc) with image y down (positive right of the bottom), or the
+thesis's theta = arcsin((x - xc) / L_px) with L = R - r (``angle="arcsin"``).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import pandas as pd
+
+from rollfric import io, locate
+from rollfric.cylinder import find_cylinder_center
+from rollfric.errors import InputError
+from rollfric.setup import Setup, SetupError, setup_from_dict
+
+TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found"]
+ANGLES = ("atan2", "arcsin")
+
+
+def ball_radius_px(setup: Setup) -> float:
+    return setup.ball_radius / setup.pixel_size
+
+
+def angles(x, y, center, *, method: str = "atan2", track_radius_px: float | None = None):
+    """theta (rad) of ball centres (x, y) px about the cylinder centre (xc, yc) px.
+
+    "atan2": atan2(x - xc, y - yc) (image y down: y > yc below the axis). "arcsin": the
+    thesis's arcsin((x - xc) / L_px), L_px = (R - r) / pixel size, needs ``track_radius_px``.
+    """
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    xc, yc = center
+    if method == "atan2":
+        return np.arctan2(x - xc, y - yc)
+    if method == "arcsin":
+        if not track_radius_px:
+            raise ValueError("arcsin angles need track_radius_px")
+        return np.arcsin(np.clip((x - xc) / track_radius_px, -1.0, 1.0))
+    raise InputError(f"unknown angle method {method!r} (known: {', '.join(ANGLES)})")
+
+
+def setup_from_recording(source) -> Setup:
+    """The setup stored in a Zarr recording's attrs ("setup": the lab-file dict)."""
+    data = source.attrs.get("setup") if hasattr(source, "attrs") else None
+    if data is None:
+        raise SetupError(f"{source.name}: no setup given (--setup) and the recording holds "
+                         "none in its attrs")
+    if isinstance(data, str):
+        import json
+
+        import tomllib
+
+        try:
+            data = json.loads(data)
+        except ValueError:
+            data = tomllib.loads(data)
+    return setup_from_dict(dict(data), source=f"{source.name} attrs['setup']")
+
+
+def check_setup_fits(setup: Setup, shape: tuple[int, int, int]) -> None:
+    """Refuse a setup whose ball cannot be seen in frames of this size."""
+    _, h, w = shape
+    r = ball_radius_px(setup)
+    if r < 1.5:
+        raise SetupError(f"the setup's ball is {2 * r:.2f} px across (diameter "
+                         f"{setup.ball_diameter * 1e3:g} mm / pixel {setup.pixel_size * 1e3:g} "
+                         "mm): too small to locate")
+    if 2 * r >= min(h, w):
+        raise SetupError(f"the setup's ball is {2 * r:.0f} px across but the frames are "
+                         f"{w}x{h} px: check ball.diameter_mm and camera.pixel_size_mm")
+    if setup.center_px is not None:
+        xc, yc = setup.center_px
+        L = setup.track_radius / setup.pixel_size
+        # nearest and farthest frame points from the axis: the track circle must cross the frame
+        nx, ny = min(max(xc, 0), w - 1), min(max(yc, 0), h - 1)
+        near = math.hypot(nx - xc, ny - yc)
+        far = max(math.hypot(cx - xc, cy - yc) for cx in (0, w - 1) for cy in (0, h - 1))
+        if not (near - r <= L <= far + r):
+            raise SetupError(f"with center_px = ({xc:g}, {yc:g}) and a track radius of "
+                             f"{L:.0f} px the ball never appears in the {w}x{h} px frames: "
+                             "check center_px, cylinder.radius_mm and camera.pixel_size_mm")
+
+
+def _predict(hist: list, i: int):
+    """Predicted centre at frame i from the last found centres [(frame, x, y), ...]."""
+    if not hist or i - hist[-1][0] > 3:
+        return None
+    if len(hist) >= 3 and hist[-1][0] == i - 1 and hist[-2][0] == i - 2 and hist[-3][0] == i - 3:
+        (_, x1, y1), (_, x2, y2), (_, x3, y3) = hist[-1], hist[-2], hist[-3]
+        return 3 * x1 - 3 * x2 + x3, 3 * y1 - 3 * y2 + y3
+    if len(hist) >= 2 and hist[-2][0] == hist[-1][0] - 1:
+        (f1, x1, y1), (_, x2, y2) = hist[-1], hist[-2]
+        k = i - f1
+        return x1 + k * (x1 - x2), y1 + k * (y1 - y2)
+    return hist[-1][1], hist[-1][2]
+
+
+def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None):
+    """One frame with the chosen locator: ROI search at ``guess``, full frame when lost."""
+    if method == "subpixel":
+        kw = {"opts": opts} if opts is not None else {}
+        loc = None
+        if guess is not None:
+            loc = locate.locate_subpixel(frame, bg, r_px, guess=guess, **kw)
+        if loc is None or not loc.found:
+            loc = locate.locate_subpixel(frame, bg, r_px, guess=None, **kw)
+        return loc
+    if method == "thesis-large":
+        if guess is None:
+            guess = locate.coarse_find(frame, bg, r_px)
+            if guess is None:
+                return locate.Location.missing("no ball-like change in the frame")
+        side = 1 if guess[0] >= center[0] else -1
+        return locate.locate_large_thesis(frame, bg, r_px, side=side, guess=guess)
+    if method == "thesis-small":
+        roi = None
+        if guess is not None:
+            m = int(math.ceil(2 * r_px + 20))
+            roi = (int(guess[0]) - m, int(guess[1]) - m, int(guess[0]) + m + 1,
+                   int(guess[1]) + m + 1)
+        loc = locate.locate_small_thesis(frame, bg, roi=roi)
+        if roi is not None and not loc.found:
+            loc = locate.locate_small_thesis(frame, bg)
+        return loc
+    raise InputError(f"unknown locator {method!r} (known: {', '.join(locate.METHODS)})")
+
+
+def resolve_background(source, background, *, median_frames: int = 41, log=None):
+    """(background array, description): the given image, the recording's own, or the median."""
+    if background is not None:
+        if isinstance(background, np.ndarray):
+            return io.check_background(background, source), "given array"
+        bg = io.read_image(background)
+        return io.check_background(bg, source, f"background {background}"), str(background)
+    if getattr(source, "background", None) is not None:
+        return io.check_background(source.background, source, "the recording's background"), \
+            "stored in the recording"
+    if log:
+        log(f"no background given: using the per-pixel median of "
+            f"{min(len(source), median_frames)} frames spread over the recording")
+    bg = io.median_background(source, median_frames)
+    return bg, f"per-pixel median of {min(len(source), median_frames)} frames"
+
+
+def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
+                    angle: str = "atan2", center: tuple[float, float] | None = None,
+                    progress: bool = True, opts=None) -> pd.DataFrame:
+    """Locate the ball in every frame of ``source``; one row a frame (see TRACK_COLUMNS), plus
+    r_px, sigma_px (estimated centre error) and inlier_frac where the locator gives them."""
+    from tqdm import tqdm
+
+    if method not in locate.METHODS:
+        raise InputError(f"unknown locator {method!r} (known: {', '.join(locate.METHODS)})")
+    n, h, w = source.shape
+    r_px = ball_radius_px(setup)
+    L_px = setup.track_radius / setup.pixel_size
+    if center is None:
+        center = setup.center_px
+    rows = np.full((n, 6), np.nan)
+    hist: list = []
+    bar = tqdm(total=n, desc="locating ball", unit="frame", disable=not progress,
+               file=sys.stderr, mininterval=0.5)
+    for i in range(n):
+        frame = source[i]
+        loc = locate_frame(frame, background, r_px, method, _predict(hist, i), center,
+                           opts=opts)
+        ok = (loc.found and math.isfinite(loc.x) and -0.5 <= loc.x <= w - 0.5
+              and -0.5 <= loc.y <= h - 0.5)
+        if ok:
+            dist = math.hypot(loc.x - center[0], loc.y - center[1])
+            ok = abs(dist - L_px) <= 0.15 * L_px
+        if ok:
+            hist.append((i, loc.x, loc.y))
+            if len(hist) > 4:
+                hist.pop(0)
+            rows[i] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac, 1.0)
+        else:
+            rows[i, 5] = 0.0
+        bar.update(1)
+    bar.close()
+    found = rows[:, 5] == 1.0
+    theta = np.full(n, np.nan)
+    theta[found] = angles(rows[found, 0], rows[found, 1], center, method=angle,
+                          track_radius_px=L_px)
+    frame_idx = np.arange(n)
+    df = pd.DataFrame({
+        "frame": frame_idx,
+        "t_s": frame_idx / setup.fps,
+        "x_px": rows[:, 0],
+        "y_px": rows[:, 1],
+        "theta_rad": theta,
+        "found": found.astype(int),
+        "r_px": rows[:, 2],
+        "sigma_px": rows[:, 3],
+        "inlier_frac": rows[:, 4],
+    })
+    df.attrs.update({"center_px": [float(center[0]), float(center[1])], "locator": method,
+                     "angle": angle, "ball_radius_px": r_px, "track_radius_px": L_px})
+    return df
+
+
+def check_track_fits(df: pd.DataFrame, setup: Setup) -> None:
+    """Refuse a track whose ball radius or distance from the axis contradicts the setup."""
+    found = df["found"] == 1
+    if not found.any():
+        raise InputError(
+            f"the ball was found in none of the {len(df)} frames: is it in the recording, is the "
+            f"background right, and is its size right (setup: {df.attrs['ball_radius_px']:.1f}"
+            " px radius)?")
+    rfit = df.loc[found, "r_px"].dropna()
+    r_px = df.attrs["ball_radius_px"]
+    if len(rfit) and abs(float(rfit.median()) - r_px) > 0.1 * r_px:
+        raise SetupError(f"the setup does not fit the images: the ball measures "
+                         f"{float(rfit.median()):.1f} px in radius, the setup says {r_px:.1f} px"
+                         " (ball.diameter_mm / camera.pixel_size_mm)")
+
+
+def measure(recording, setup: Setup | str | None = None, background=None, *,
+            method: str = "subpixel", angle: str = "atan2", fit_method: str = "lsq",
+            offset: bool = False, fit: bool = True, progress: bool = False,
+            median_frames: int = 41, log=None, fit_kwargs: dict | None = None):
+    """Measure mu from a recording: (track DataFrame, FitResult or None when ``fit=False``).
+
+    ``recording``: a path (see :func:`rollfric.io.open_recording`) or a FrameSource.
+    ``setup``: a Setup, a path to a setup TOML, or None to take it from the recording's attrs.
+    ``background``: an image path or array; None: the recording's own, else the per-pixel
+    median of ``median_frames`` frames (reported through ``log`` and ``track.attrs``).
+    ``method``: "subpixel" (default), "thesis-large" or "thesis-small".
+    The track has the columns TRACK_COLUMNS (+ r_px, sigma_px, inlier_frac); its ``attrs``
+    hold center_px, background, n_frames, n_found and the locator.
+    """
+    from rollfric import fit as fitmod
+    from rollfric.setup import load_setup
+
+    source = io.open_recording(recording) if isinstance(recording, (str, bytes)) or \
+        hasattr(recording, "__fspath__") else recording
+    if setup is None:
+        setup = setup_from_recording(source)
+    elif not isinstance(setup, Setup):
+        setup = load_setup(setup)
+    if angle not in ANGLES:
+        raise InputError(f"unknown angle method {angle!r} (known: {', '.join(ANGLES)})")
+    if method not in locate.METHODS:
+        raise InputError(f"unknown locator {method!r} (known: {', '.join(locate.METHODS)})")
+    check_setup_fits(setup, source.shape)
+    bg, bg_desc = resolve_background(source, background, median_frames=median_frames, log=log)
+    if setup.center_px is not None:
+        center, center_desc = setup.center_px, "setup center_px"
+    else:
+        contour = find_cylinder_center(bg, radius_px=setup.cylinder_radius / setup.pixel_size)
+        center, center_desc = contour.center, (
+            f"contour in the background ({contour.n_points} points over "
+            f"{contour.arc_deg:.0f} deg, radius {contour.radius:.1f} px)")
+        if log:
+            log(f"cylinder centre from the background contour: ({center[0]:.2f}, "
+                f"{center[1]:.2f}) px")
+        check_setup_fits(setup.replace(center_px=center), source.shape)
+    df = track_recording(source, setup, bg, method=method, angle=angle, center=center,
+                         progress=progress)
+    check_track_fits(df, setup)
+    n_found = int(df["found"].sum())
+    df.attrs.update({"background": bg_desc, "center_source": center_desc,
+                     "n_frames": len(df), "n_found": n_found,
+                     "recording": str(getattr(source, "name", recording))})
+    if n_found < len(df) and log:
+        log(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of the fit)")
+    result = None
+    if fit:
+        if n_found < fitmod.MIN_SAMPLES:
+            raise InputError(f"the ball was found in only {n_found} of {len(df)} frames: at "
+                             f"least {fitmod.MIN_SAMPLES} are needed to fit mu")
+        result = fitmod.fit_mu(df["t_s"].to_numpy(), df["theta_rad"].to_numpy(), setup,
+                               method=fit_method, offset=offset, **(fit_kwargs or {}))
+    return df, result
