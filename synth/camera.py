@@ -1,0 +1,167 @@
+"""Camera models: exact projection of world points, sphere silhouettes and tile projections.
+
+World frame (team contract): origin on the cylinder axis in the plane of the ball centre, x right,
+y up, z along the axis towards the camera. The camera sits on the cylinder axis and looks along
+-z, so the cylinder axis projects to ``center_px`` in both models.
+
+Pixels: x right, y down, origin at the centre of the top-left pixel (OpenCV).
+
+- orthographic: u = cx + x / s, v = cy - y / s (s = pixel size at the ball plane, m/px);
+- perspective (pinhole at distance ``working_distance`` from the ball plane z = 0):
+  u = cx + f x / (D - z), v = cy - f y / (D - z) with f = D / s (pixels), so that one pixel is
+  exactly s at the ball plane.
+
+All functions are plain numpy and exact (no rendering): they are the ground truth.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from rollfric.errors import InputError
+
+
+@dataclasses.dataclass(frozen=True)
+class CameraModel:
+    """Where the camera is and how it projects (SI units, pixels)."""
+
+    width: int = 1280
+    height: int = 1024
+    pixel_size: float = 0.1343e-3  # m per pixel in the ball plane z = 0
+    center_px: tuple[float, float] = (640.0, 380.0)  # cylinder axis in the image
+    projection: str = "orthographic"  # "orthographic" | "perspective"
+    working_distance: float = 0.5  # m, pinhole to ball plane (perspective only)
+    znear: float = 0.05  # m, clip planes as distances from the camera
+    zfar: float = 2.0
+
+    def __post_init__(self) -> None:
+        if self.projection not in ("orthographic", "perspective"):
+            raise InputError(f"camera projection must be 'orthographic' or 'perspective', "
+                             f"got {self.projection!r}")
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 8 or v > 8192:
+                raise InputError(f"camera {name} must be an integer 8..8192 px, got {v!r}")
+        for name in ("pixel_size", "working_distance", "znear", "zfar"):
+            v = getattr(self, name)
+            if not math.isfinite(v) or v <= 0:
+                raise InputError(f"camera {name} must be positive, got {v!r}")
+        if self.znear >= self.zfar:
+            raise InputError("camera znear must be smaller than zfar")
+        c = tuple(float(v) for v in self.center_px)
+        if len(c) != 2 or not all(math.isfinite(v) for v in c):
+            raise InputError(f"camera center_px must be two finite numbers, got "
+                             f"{self.center_px!r}")
+        object.__setattr__(self, "center_px", c)
+
+    @property
+    def focal_px(self) -> float:
+        return self.working_distance / self.pixel_size
+
+    @property
+    def camera_z(self) -> float:
+        """z of the camera (the pinhole, or the orthographic eye) in the world frame."""
+        return self.working_distance
+
+    def pose(self) -> np.ndarray:
+        """4x4 camera-to-world pose (OpenGL camera: looks along its -z)."""
+        pose = np.eye(4)
+        pose[2, 3] = self.camera_z
+        return pose
+
+    # -- exact projections -------------------------------------------------------------------
+
+    def project(self, points) -> np.ndarray:
+        """(..., 3) world points -> (..., 2) pixel coordinates (u, v)."""
+        p = np.asarray(points, dtype=float)
+        cx, cy = self.center_px
+        if self.projection == "orthographic":
+            u = cx + p[..., 0] / self.pixel_size
+            v = cy - p[..., 1] / self.pixel_size
+        else:
+            depth = self.camera_z - p[..., 2]
+            if np.any(depth <= 0):
+                raise InputError("point behind the perspective camera")
+            u = cx + self.focal_px * p[..., 0] / depth
+            v = cy - self.focal_px * p[..., 1] / depth
+        return np.stack([u, v], axis=-1)
+
+    def sphere_silhouette(self, centres, radius: float):
+        """Silhouette of spheres of ``radius`` at world ``centres`` (N, 3).
+
+        Returns (centre_uv (N, 2), radius_px (N,)): the centre of the silhouette ellipse and
+        its area-equivalent radius sqrt(a b). Orthographic: the projected centre and r / s.
+        Perspective: the tangent cone from the pinhole cut by the image plane is an ellipse
+        whose centre lies outward of the projected sphere centre.
+        """
+        c = np.atleast_2d(np.asarray(centres, dtype=float))
+        if self.projection == "orthographic":
+            return self.project(c), np.full(len(c), radius / self.pixel_size)
+        # camera coordinates with y down, z = depth (standard pinhole)
+        X = c[:, 0]
+        Y = -c[:, 1]
+        Z = self.camera_z - c[:, 2]
+        k = X * X + Y * Y + Z * Z - radius * radius
+        if np.any(k <= 0):
+            raise InputError("the perspective camera is inside the ball")
+        # conic q^T (C C^T - k I) q = 0 for q = (a, b, 1) in normalised image coordinates
+        A = X * X - k
+        B = X * Y
+        E = Y * Y - k
+        D = X * Z
+        F = Y * Z
+        G = Z * Z - k
+        det = A * E - B * B
+        a0 = -(E * D - B * F) / det
+        b0 = -(-B * D + A * F) / det
+        # semi-axes: value of the form at the centre, then eigenvalues of the 2x2 part
+        g = D * a0 + F * b0 + G  # conic value at the centre (q^T M q with centre substituted)
+        tr = A + E
+        disc = np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
+        l1 = 0.5 * tr + disc
+        l2 = 0.5 * tr - disc
+        semi_prod = np.sqrt((g / l1) * (g / l2))  # a * b in normalised units
+        f = self.focal_px
+        cx, cy = self.center_px
+        uv = np.stack([cx + f * a0, cy + f * b0], axis=-1)
+        return uv, f * np.sqrt(semi_prod)
+
+    # -- OpenGL projection for a pixel-aligned tile ------------------------------------------
+
+    def tile_projection(self, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+        """4x4 OpenGL projection that renders the full-frame pixels [x0, x0+w) x [y0, y0+h).
+
+        Pixel (i, j) of the tile is full-frame pixel (x0 + i, y0 + j), exactly: the tile lines
+        up with the full frame pixel for pixel (supersampling renders more pixels over the same
+        region, which keeps this mapping).
+        """
+        cx, cy = self.center_px
+        a = 2.0 * (cx - x0 + 0.5) / w - 1.0
+        b = 1.0 - 2.0 * (cy - y0 + 0.5) / h
+        n, fa = self.znear, self.zfar
+        P = np.zeros((4, 4))
+        if self.projection == "orthographic":
+            s = self.pixel_size
+            P[0, 0] = 2.0 / (s * w)
+            P[0, 3] = a
+            P[1, 1] = 2.0 / (s * h)
+            P[1, 3] = b
+            P[2, 2] = -2.0 / (fa - n)
+            P[2, 3] = -(fa + n) / (fa - n)
+            P[3, 3] = 1.0
+        else:
+            f = self.focal_px
+            P[0, 0] = 2.0 * f / w
+            P[0, 2] = -a
+            P[1, 1] = 2.0 * f / h
+            P[1, 2] = -b
+            P[2, 2] = -(fa + n) / (fa - n)
+            P[2, 3] = -2.0 * fa * n / (fa - n)
+            P[3, 2] = -1.0
+        return P
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self) | {"center_px": list(self.center_px)}

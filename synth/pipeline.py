@@ -1,0 +1,260 @@
+"""Render a trajectory into a synthetic recording (a Zarr store), in parallel processes."""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+import multiprocessing as mp
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from synth.camera import CameraModel
+from synth.config import SceneConfig, SensorConfig, SynthError
+from synth.store import FORMAT, TRUTH_COLUMNS
+
+BATCH = 16  # frames per task (progress granularity)
+
+
+# -- trajectories ------------------------------------------------------------------------------
+
+def load_trajectory(source):
+    """A sim.Trajectory from a Trajectory, a trajectory CSV or a scenario TOML (simulated)."""
+    import sim
+
+    if isinstance(source, sim.Trajectory):
+        return source
+    path = Path(source)
+    if not path.exists():
+        raise SynthError(f"trajectory not found: {path}")
+    if path.suffix.lower() == ".toml":
+        return sim.simulate(sim.load_scenario(path))
+    return sim.read_trajectory(path)
+
+
+def subframe_positions(traj, n_sub: int, exposure: float) -> np.ndarray:
+    """(N, n_sub, 3) ball centres at the sub-frame times of each exposure.
+
+    The exposure of frame i is centred on t_i; sub-frame k sits at t_i + ((k + 0.5) / n_sub
+    - 0.5) * exposure. Positions between samples follow a cubic Hermite spline through the
+    sampled positions with the rolling velocity L theta_dot (cos theta, sin theta, 0).
+    """
+    pos = np.asarray(traj.position, float)
+    if n_sub == 1:
+        return pos[:, None, :]
+    from scipy.interpolate import CubicHermiteSpline
+
+    t = np.asarray(traj.t, float)
+    L = math.hypot(pos[0, 0], pos[0, 1])
+    th, thd = np.asarray(traj.theta), np.asarray(traj.theta_dot)
+    vel = L * thd[:, None] * np.column_stack([np.cos(th), np.sin(th), np.zeros_like(th)])
+    spline = CubicHermiteSpline(t, pos, vel, axis=0, extrapolate=True)
+    offs = ((np.arange(n_sub) + 0.5) / n_sub - 0.5) * exposure
+    return spline(t[:, None] + offs[None, :])
+
+
+def truth_table(traj, camera: CameraModel, ball_radius: float) -> dict:
+    pos = np.asarray(traj.position, float)
+    uv = camera.project(pos)
+    sil, rad = camera.sphere_silhouette(pos, ball_radius)
+    n = len(pos)
+    return {
+        "t_s": np.asarray(traj.t, float),
+        "theta_rad": np.asarray(traj.theta, float),
+        "theta_dot_rad_s": np.asarray(traj.theta_dot, float),
+        "x_px": uv[:, 0], "y_px": uv[:, 1],
+        "sil_x_px": sil[:, 0], "sil_y_px": sil[:, 1],
+        "r_px": rad,
+        "cx_px": np.full(n, camera.center_px[0]), "cy_px": np.full(n, camera.center_px[1]),
+    }
+
+
+def _versions() -> dict:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for dist in ("rollfric", "pyrender-maintained", "pyrender2", "pyrender", "numpy", "zarr",
+                 "PyOpenGL", "trimesh"):
+        try:
+            out[dist] = version(dist)
+        except PackageNotFoundError:
+            pass
+    return out
+
+
+# -- worker processes --------------------------------------------------------------------------
+
+_W: dict = {}
+
+
+def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads):
+    if threads:
+        os.environ["LP_NUM_THREADS"] = str(threads)
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    import zarr
+
+    from synth.scene import SceneRenderer
+
+    cfg = SceneConfig.from_dict(scene_dict)
+    _W["renderer"] = SceneRenderer(cfg, ball_radius, cylinder_radius)
+    g = zarr.open_group(store_path, mode="r+")
+    _W["diff"] = g["clean_diff"]
+    _W["bg"] = np.asarray(g["background_clean"][...], dtype=np.int64)
+
+
+def _worker_batch(indices, centres, quats):
+    from synth.scene import ball_pose
+
+    sr = _W["renderer"]
+    diff_arr = _W["diff"]
+    bg = _W["bg"]
+    k = centres.shape[1]
+    dtype = diff_arr.dtype
+    for n, i in enumerate(indices):
+        poses = [ball_pose(c, quats[n]) for c in centres[n]]
+        tiles = sr.tiles_for(centres[n])
+        out = np.zeros(bg.shape, dtype=dtype)
+        if tiles:
+            rendered = sr.render_tiles(poses, tiles)
+            for (x0, y0, w, h), img in zip(tiles, rendered, strict=True):
+                out[y0:y0 + h, x0:x0 + w] = img.astype(np.int64) - k * bg[y0:y0 + h, x0:x0 + w]
+        diff_arr[int(i)] = out
+    return len(indices)
+
+
+# -- the public API ----------------------------------------------------------------------------
+
+def render(trajectory, out, *, scene: SceneConfig | None = None,
+           sensor: SensorConfig | None = None, seed: int = 0, progress: bool = False,
+           workers: int | None = None, overwrite: bool = False, frames: int | None = None,
+           threads: int | None = None) -> Path:
+    """Render ``trajectory`` (sim.Trajectory, trajectory CSV or scenario TOML) as the lab
+    camera would have seen it and store it as a recording at ``out`` (a ``.zarr`` directory).
+
+    ``frames`` limits the number of frames (the first ones); ``workers`` processes render in
+    parallel (default: the number of CPUs, at most 2); the sensor model is stored, not applied:
+    frames get their noise when read. Returns the path.
+    """
+    import zarr
+    from tqdm import tqdm
+
+    from rollfric.setup import Setup
+    from synth.scene import SceneRenderer
+
+    scene = scene or SceneConfig()
+    sensor = sensor or SensorConfig()
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise SynthError(f"seed must be a non-negative integer, got {seed!r}")
+    traj = load_trajectory(trajectory)
+    n = len(traj) if frames is None else int(frames)
+    if n < 1 or n > len(traj):
+        raise SynthError(f"frames must be 1..{len(traj)}, got {frames!r}")
+    if n < len(traj):
+        traj = _head(traj, n)
+    out = Path(out)
+    if out.exists() and not overwrite:
+        raise SynthError(f"output exists: {out} (use overwrite=True / --overwrite)")
+    base = traj.setup()
+    cam = scene.camera
+    setup = Setup(cylinder_radius=base.cylinder_radius, ball_diameter=base.ball_diameter,
+                  ball_mass=base.ball_mass, fps=base.fps, pixel_size=cam.pixel_size,
+                  center_px=cam.center_px, gravity=base.gravity)
+    r_ball, r_cyl = setup.ball_radius, setup.cylinder_radius
+    k_sub = scene.motion_blur
+    centres = subframe_positions(traj, k_sub, sensor.exposure)
+    quats = np.asarray(traj.quaternion, float)
+    if workers is None:
+        workers = max(1, min(2, os.cpu_count() or 1))
+    workers = max(1, min(int(workers), max(1, n // BATCH)))
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        sr = SceneRenderer(scene, r_ball, r_cyl)
+        bg = sr.render_full()
+        sr.close()
+        scale = sr.scale
+        frame_scale = scale * k_sub
+        H, W = cam.height, cam.width
+        g = zarr.open_group(str(tmp), mode="w")
+        bg_dtype = "uint16" if scale <= 65535 else "uint32"
+        g.create_array("background_clean", data=bg.astype(bg_dtype), chunks=(H, W))
+        diff_dtype = "int16" if frame_scale <= 32767 else "int32"
+        g.create_array("clean_diff", shape=(n, H, W), dtype=diff_dtype, chunks=(1, H, W),
+                       fill_value=0)
+        tg = g.create_group("truth")
+        for name, values in truth_table(traj, cam, r_ball).items():
+            arr = tg.create_array(name, data=np.asarray(values, dtype=np.float64))
+            arr.attrs["description"] = TRUTH_COLUMNS[name]
+        batches = [np.arange(s, min(s + BATCH, n)) for s in range(0, n, BATCH)]
+        bar = tqdm(total=n, unit="frame", desc="render", disable=not progress)
+        init = (scene.to_dict(), r_ball, r_cyl, str(tmp), threads)
+        if workers == 1:
+            _worker_init(*init)
+            try:
+                for b in batches:
+                    bar.update(_worker_batch(b, centres[b], quats[b]))
+            finally:
+                _W.pop("renderer").close()
+                _W.clear()
+        else:
+            ctx = mp.get_context("spawn")  # EGL contexts do not survive fork
+            with cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_worker_init,
+                                        initargs=init) as pool:
+                futs = [pool.submit(_worker_batch, b, centres[b], quats[b]) for b in batches]
+                for f in cf.as_completed(futs):
+                    bar.update(f.result())
+        bar.close()
+        g.attrs.update({
+            "format": FORMAT,
+            "setup": setup.to_toml_dict(),
+            "scene": scene.to_dict(),
+            "sensor": sensor.to_dict(),
+            "seed": int(seed),
+            "scenario": _scenario_dict(traj),
+            "engine_meta": _jsonable(getattr(traj, "meta", {})),
+            "versions": _versions(),
+            "fps": float(setup.fps),
+            "n_frames": int(n),
+            "subframes": int(k_sub),
+            "background_scale": int(scale),
+            "frame_scale": int(frame_scale),
+            "gamma": 2.2,
+            "truth_columns": TRUTH_COLUMNS,
+        })
+        if out.exists():
+            shutil.rmtree(out)
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def _scenario_dict(traj) -> dict:
+    sc = getattr(traj, "scenario", None)
+    if sc is None:
+        return {}
+    return _jsonable(sc.to_toml_dict() if hasattr(sc, "to_toml_dict") else dict(sc))
+
+
+def _jsonable(obj):
+    import json
+
+    return json.loads(json.dumps(obj, default=lambda o: o.tolist() if hasattr(o, "tolist")
+                                 else str(o)))
+
+
+def _head(traj, n: int):
+    import dataclasses
+
+    import sim
+
+    fields = {}
+    for f in dataclasses.fields(sim.Trajectory):
+        v = getattr(traj, f.name)
+        fields[f.name] = v[:n] if isinstance(v, np.ndarray) else v
+    return sim.Trajectory(**fields)

@@ -1,0 +1,403 @@
+"""The pyrender scene (trough, backdrop, steel ball, spot lamps) and the tile renderer.
+
+The scene is built in metres in the contract's world frame (pyrender's shadow bias is scaled for
+metre-sized scenes: in millimetres it shows acne). Rendered colours are 8-bit sRGB-like (pyrender
+applies gamma 2.2); a rendered image is returned as the integer SUM over the RGB channels and
+the ss x ss supersamples of each output pixel (``scale`` = 3 ss^2 255 is white), so nothing is
+lost to rounding and the same scene gives the same integers.
+
+Speed: the static scene (everything but the ball) is rendered once, full frame; each frame then
+renders only the pixels the ball and its shadows can change (the footprint, from lamp-to-ball
+tangent rays), with the projection shifted so the tile lines up with the full frame pixel for
+pixel. Shader programs and mesh buffers persist in the renderer; each frame's shadow maps are
+rendered once and reused by every tile of that frame.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from synth.camera import CameraModel
+from synth.config import SceneConfig
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+SHADOW_TEX_SZ = 2048  # pyrender.constants.SHADOW_TEX_SZ
+
+
+def _look_at(position, target) -> np.ndarray:
+    """Pose whose -z axis points from position to target (OpenGL camera/light convention)."""
+    p = np.asarray(position, float)
+    fwd = np.asarray(target, float) - p
+    fwd /= np.linalg.norm(fwd)
+    up = np.array([0.0, 1.0, 0.0])
+    if abs(fwd @ up) > 0.99:
+        up = np.array([1.0, 0.0, 0.0])
+    right = np.cross(fwd, up)
+    right /= np.linalg.norm(right)
+    true_up = np.cross(right, fwd)
+    pose = np.eye(4)
+    pose[:3, 0] = right
+    pose[:3, 1] = true_up
+    pose[:3, 2] = -fwd
+    pose[:3, 3] = p
+    return pose
+
+
+def _trough_meshes(R: float, wall: float, length: float, half_open: float, n: int = 720):
+    """Trimesh parts of the trough: inner bore (smooth), outer surface, end faces, caps."""
+    import trimesh
+
+    full = half_open >= math.pi - 1e-9
+    phi = np.linspace(-half_open, half_open, n + 1)
+    if full:
+        phi = phi[:-1]
+    # angle from the bottom, positive to the right (like theta)
+    def ring(rad, z):
+        return np.column_stack([rad * np.sin(phi), -rad * np.cos(phi), np.full(len(phi), z)])
+
+    z0, z1 = -length / 2, length / 2
+    m = len(phi)
+    seg = [(i, (i + 1) % m) for i in range(m if full else m - 1)]
+
+    def strip(a, b, flip):
+        verts = np.vstack([a, b])
+        faces = []
+        for i, j in seg:
+            f1 = [i, j, m + j]
+            f2 = [i, m + j, m + i]
+            faces += [f1[::-1], f2[::-1]] if flip else [f1, f2]
+        return verts, np.array(faces)
+
+    parts = []
+    # inner bore, normals towards the axis
+    v, f = strip(ring(R, z0), ring(R, z1), flip=False)
+    nrm = -np.column_stack([v[:, 0], v[:, 1], np.zeros(len(v))])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    inner = trimesh.Trimesh(v, f, vertex_normals=nrm, process=False)
+    if np.mean(np.einsum("ij,ij->i", inner.face_normals, nrm[f[:, 0]])) < 0:
+        inner = trimesh.Trimesh(v, f[:, ::-1], vertex_normals=nrm, process=False)
+    parts.append((inner, True))
+    v, f = strip(ring(R + wall, z0), ring(R + wall, z1), flip=True)
+    outer = trimesh.Trimesh(v, f, process=False)
+    parts.append((outer, False))
+    for z, flip in ((z1, False), (z0, True)):  # front face (towards the camera) and back face
+        v, f = strip(ring(R, z), ring(R + wall, z), flip=flip)
+        face = trimesh.Trimesh(v, f, process=False)
+        want = 1.0 if z > 0 else -1.0
+        if np.mean(face.face_normals[:, 2]) * want < 0:
+            face = trimesh.Trimesh(v, f[:, ::-1], process=False)
+        parts.append((face, False))
+    if not full:
+        for k in (0, m - 1):
+            a, b = ring(R, z0)[k], ring(R + wall, z0)[k]
+            c, d = ring(R + wall, z1)[k], ring(R, z1)[k]
+            cap = trimesh.Trimesh(np.array([a, b, c, d]), np.array([[0, 1, 2], [0, 2, 3],
+                                                                     [0, 2, 1], [0, 3, 2]]),
+                                  process=False)
+            parts.append((cap, False))
+    return parts
+
+
+class SceneRenderer:
+    """One pyrender scene and one offscreen renderer (one per process: EGL contexts do not
+    survive fork)."""
+
+    def __init__(self, config: SceneConfig, ball_radius: float, cylinder_radius: float):
+        import pyrender
+        import trimesh
+
+        self.config = config
+        self.camera: CameraModel = config.camera
+        self.ball_radius = float(ball_radius)
+        self.cylinder_radius = float(cylinder_radius)
+        self.ss = config.supersample
+        self.scale = 3 * self.ss * self.ss * 255
+        self._pyrender = pyrender
+        light = config.lighting
+        scene = pyrender.Scene(bg_color=[0.0, 0.0, 0.0, 1.0],
+                               ambient_light=[light.ambient] * 3)
+        # trough
+        tc = config.trough_color
+        trough_mat = pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=[tc, tc, tc, 1.0], metallicFactor=config.trough_metallic,
+            roughnessFactor=config.trough_roughness)
+        prims = []
+        for mesh, smooth in _trough_meshes(cylinder_radius, config.trough_wall,
+                                           config.trough_length, config.trough_opening):
+            prims += pyrender.Mesh.from_trimesh(mesh, material=trough_mat,
+                                                smooth=smooth).primitives
+        scene.add(pyrender.Mesh(primitives=prims), name="trough")
+        # paper backdrop
+        size = 4.0 * cylinder_radius + 0.4
+        zb = -config.backdrop_distance
+        quad = trimesh.Trimesh(
+            np.array([[-size, -size, zb], [size, -size, zb], [size, size, zb],
+                      [-size, size, zb]]), np.array([[0, 1, 2], [0, 2, 3]]), process=False)
+        br = light.backdrop_reflectance
+        paper = pyrender.MetallicRoughnessMaterial(baseColorFactor=[br, br, br, 1.0],
+                                                   metallicFactor=0.0, roughnessFactor=1.0)
+        self._backdrop_mesh = pyrender.Mesh.from_trimesh(quad, material=paper, smooth=False)
+        scene.add(self._backdrop_mesh, name="backdrop")
+        # lamps
+        self.lamps = light.lamps
+        for i, lamp in enumerate(light.lamps):
+            sl = pyrender.SpotLight(color=[1.0, 1.0, 1.0], intensity=lamp.intensity,
+                                    innerConeAngle=lamp.inner_cone,
+                                    outerConeAngle=lamp.outer_cone)
+            scene.add(sl, pose=_look_at(lamp.position, lamp.target), name=f"lamp{i}")
+        # ball (added/removed per render)
+        sphere = trimesh.creation.icosphere(subdivisions=config.ball_subdivisions,
+                                            radius=self.ball_radius)
+        bc = config.ball_color
+        steel = pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=[bc, bc, bc, 1.0], metallicFactor=config.ball_metallic,
+            roughnessFactor=config.ball_roughness)
+        self._ball_mesh = pyrender.Mesh.from_trimesh(sphere, material=steel, smooth=True)
+        self._ball_node = None
+        # camera whose projection we set per tile
+        self._cam = _camera_class()(znear=self.camera.znear, zfar=self.camera.zfar)
+        scene.add(self._cam, pose=self.camera.pose(), name="camera")
+        self.scene = scene
+        self.flags = pyrender.RenderFlags.NONE
+        if config.shadows:
+            self.flags |= pyrender.RenderFlags.SHADOWS_SPOT
+        self._renderer = None
+        self._viewport = None
+        # shadow-map resolution at each lamp (for the footprint's blur margin)
+        self._scene_scale = None
+
+    # -- low level -------------------------------------------------------------------------
+
+    def _ensure_renderer(self, w: int, h: int):
+        vw, vh = w * self.ss, h * self.ss
+        if self._renderer is None:
+            self._renderer = self._pyrender.OffscreenRenderer(vw, vh)
+        else:
+            self._renderer.viewport_width = vw
+            self._renderer.viewport_height = vh
+        self._viewport = (vw, vh)
+        return self._renderer
+
+    def set_ball(self, pose: np.ndarray | None) -> None:
+        if pose is None:
+            if self._ball_node is not None:
+                self.scene.remove_node(self._ball_node)
+                self._ball_node = None
+            return
+        if self._ball_node is None:
+            self._ball_node = self.scene.add(self._ball_mesh, pose=pose, name="ball")
+        else:
+            self.scene.set_pose(self._ball_node, pose)
+
+    def _reduce(self, color: np.ndarray) -> np.ndarray:
+        """(h ss, w ss, 3) uint8 -> (h, w) uint32 sum over channels and supersamples."""
+        s = self.ss
+        c = color.astype(np.uint32).sum(axis=2)
+        if s > 1:
+            h, w = c.shape[0] // s, c.shape[1] // s
+            c = c.reshape(h, s, w, s).sum(axis=(1, 3))
+        return c
+
+    def render_region(self, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+        """Plain pyrender render of full-frame pixels [x0, x0+w) x [y0, y0+h)."""
+        r = self._ensure_renderer(w, h)
+        self._cam.P = self.camera.tile_projection(x0, y0, w, h)
+        color, _ = r.render(self.scene, self.flags)
+        return self._reduce(color)
+
+    def render_full(self) -> np.ndarray:
+        return self.render_region(0, 0, self.camera.width, self.camera.height)
+
+    def render_tiles(self, poses, tiles) -> list[np.ndarray]:
+        """Render regions ``tiles`` [(x0, y0, w, h), ...] of the scene with the ball at each of
+        ``poses`` (sub-frames) and return, per tile, the sum over the sub-frames.
+
+        Per sub-frame the lamps' shadow maps are rendered once (from the ball and the trough:
+        the backdrop is the farthest surface and casts on nothing) and reused by every tile.
+        """
+        pr = self._pyrender
+        r = self._ensure_renderer(*tiles[0][2:])
+        r._platform.make_current()
+        inner = r._renderer
+        flags = self.flags | pr.RenderFlags.OFFSCREEN
+        out = [None] * len(tiles)
+        backdrop = self._backdrop_mesh
+        try:
+            for pose in poses:
+                self.set_ball(pose)
+                inner._update_context(self.scene, flags)
+                if self.config.shadows:
+                    backdrop.is_visible = False
+                    for ln in self.scene.light_nodes:
+                        inner._shadow_mapping_pass(self.scene, ln, flags)
+                    backdrop.is_visible = True
+                for k, (x0, y0, w, h) in enumerate(tiles):
+                    inner.viewport_width, inner.viewport_height = w * self.ss, h * self.ss
+                    self._cam.P = self.camera.tile_projection(x0, y0, w, h)
+                    color, _ = inner._forward_pass(self.scene, flags)
+                    c = self._reduce(color)
+                    out[k] = c if out[k] is None else out[k] + c
+        finally:
+            backdrop.is_visible = True
+            r._platform.make_uncurrent()
+        return out
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.delete()
+            self._renderer = None
+
+    # -- footprint -------------------------------------------------------------------------
+
+    def ball_box(self, centres: np.ndarray, margin_px: float = 2.0):
+        """Pixel box (x0, y0, x1, y1) holding the ball's silhouettes at ``centres`` (K, 3)."""
+        uv, rad = self.camera.sphere_silhouette(centres, self.ball_radius)
+        e = rad[:, None] * 1.05 + margin_px
+        return _box(np.vstack([uv - e, uv + e]))
+
+    def shadow_boxes(self, centres: np.ndarray, margin_px: float = 2.0) -> list:
+        """One pixel box per lamp holding every pixel the ball's shadow can change.
+
+        Rays from the lamp through the ball (its tangent cone, boundary and interior) are
+        followed to the first surface behind the ball: the trough bore (visible in perspective)
+        or the backdrop plane. The box holds the projections of all hits, widened by the
+        shadow filter's reach (3 shadow-map texels at the hit distance).
+        """
+        cam = self.camera
+        r = self.ball_radius
+        R = self.cylinder_radius
+        zb = -self.config.backdrop_distance
+        zlo, zhi = -self.config.trough_length / 2, self.config.trough_length / 2
+        ang = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+        rings = np.concatenate([np.full(64, 1.03), np.full(64, 0.7), np.full(64, 0.35)])
+        angs = np.concatenate([ang, ang + 0.05, ang + 0.1])
+        boxes = []
+        for lamp in self.lamps:
+            P = np.asarray(lamp.position)
+            fov = min(2 * lamp.outer_cone + np.pi / 16, np.pi)
+            pts, margins = [], []
+            for C in np.atleast_2d(centres):
+                d_vec = C - P
+                d = np.linalg.norm(d_vec)
+                u = d_vec / d
+                off = C - u * (r * r / d)
+                rho = r * math.sqrt(1 - (r / d) ** 2)
+                a = np.cross(u, [0.0, 0.0, 1.0] if abs(u[2]) < 0.9 else [1.0, 0.0, 0.0])
+                a /= np.linalg.norm(a)
+                b = np.cross(u, a)
+                circ = off + (rho * rings)[:, None] * (np.cos(angs)[:, None] * a
+                                                      + np.sin(angs)[:, None] * b)
+                dirs = circ - P
+                # backdrop hit
+                t_hit = (zb - P[2]) / dirs[:, 2]
+                # bore hit: leaving the cylinder of radius R beyond the tangent circle
+                A = dirs[:, 0] ** 2 + dirs[:, 1] ** 2
+                B = 2 * (P[0] * dirs[:, 0] + P[1] * dirs[:, 1])
+                Cq = P[0] ** 2 + P[1] ** 2 - R * R
+                disc = B * B - 4 * A * Cq
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    t_cyl = (-B + np.sqrt(np.maximum(disc, 0))) / (2 * A)
+                zc = P[2] + t_cyl * dirs[:, 2]
+                on_bore = (disc > 0) & (t_cyl > 1.0) & (t_cyl < t_hit) & (zc >= zlo) & \
+                    (zc <= zhi)
+                t_hit = np.where(on_bore, t_cyl, t_hit)
+                hits = P + t_hit[:, None] * dirs
+                keep = on_bore | ~self._behind_trough(hits)
+                pts.append(hits[keep])
+                if keep.any():
+                    margins.append(np.linalg.norm(hits[keep] - P, axis=1).max())
+            if not margins:
+                continue  # this lamp's shadow falls only where the trough hides the backdrop
+            q = cam.project(np.vstack(pts))
+            texel = max(margins) * 2 * math.tan(fov / 2) / SHADOW_TEX_SZ
+            pm = 3.0 * texel / cam.pixel_size + margin_px
+            boxes.append(_box(np.vstack([q.min(0) - pm, q.max(0) + pm])))
+        return boxes
+
+    def _behind_trough(self, points: np.ndarray) -> np.ndarray:
+        """True for backdrop points the trough's wall certainly hides from the camera."""
+        cam = self.camera
+        R, wall = self.cylinder_radius, self.config.trough_wall
+        half = self.config.trough_length / 2
+        q = cam.project(points) - np.asarray(cam.center_px)
+        rho = np.hypot(q[:, 0], q[:, 1])
+        if cam.projection == "orthographic":
+            lo, hi = R / cam.pixel_size, (R + wall) / cam.pixel_size
+        else:
+            f, D = cam.focal_px, cam.camera_z
+            lo, hi = R * f / (D - half), (R + wall) * f / (D + half)
+        phi = np.abs(np.arctan2(q[:, 0], q[:, 1]))  # angle from the bottom (image y down)
+        # 3 px and 1 degree inside the wall's silhouette, to stay clear of its edges
+        return (rho > lo + 3) & (rho < hi - 3) & (phi < self.config.trough_opening - 0.02)
+
+    def tiles_for(self, centres: np.ndarray) -> list:
+        """Tiles (x0, y0, w, h) inside the frame covering ball and shadows; boxes that overlap
+        enough to be cheaper as one are merged."""
+        boxes = [self.ball_box(centres)]
+        if self.config.shadows:
+            boxes += self.shadow_boxes(centres)
+        W, H = self.camera.width, self.camera.height
+        clipped = []
+        for x0, y0, x1, y1 in boxes:
+            x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
+            if x1 > x0 and y1 > y0:
+                clipped.append((x0, y0, x1, y1))
+        merged = True
+        while merged and len(clipped) > 1:
+            merged = False
+            for i in range(len(clipped)):
+                for j in range(i + 1, len(clipped)):
+                    a, b = clipped[i], clipped[j]
+                    u = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
+                    if _area(u) <= 1.15 * (_area(a) + _area(b)):
+                        clipped[i] = u
+                        del clipped[j]
+                        merged = True
+                        break
+                if merged:
+                    break
+        return [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
+
+
+def _box(pts: np.ndarray):
+    return (math.floor(pts[:, 0].min()), math.floor(pts[:, 1].min()),
+            math.ceil(pts[:, 0].max()) + 1, math.ceil(pts[:, 1].max()) + 1)
+
+
+def _area(b) -> int:
+    return max(b[2] - b[0], 0) * max(b[3] - b[1], 0)
+
+
+def _camera_class():
+    import pyrender
+
+    class FixedProjectionCamera(pyrender.camera.Camera):
+        """A pyrender camera whose projection matrix is set directly (tile projections)."""
+
+        def __init__(self, znear, zfar):
+            super().__init__(znear=znear, zfar=zfar, name="synth-camera")
+            self.P = np.eye(4)
+
+        def get_projection_matrix(self, width=None, height=None):
+            return self.P
+
+    return FixedProjectionCamera
+
+
+def ball_pose(position, quaternion=None) -> np.ndarray:
+    """4x4 pose from a position (m) and a wxyz quaternion (world frame)."""
+    pose = np.eye(4)
+    if quaternion is not None:
+        w, x, y, z = (float(v) for v in quaternion)
+        n = math.sqrt(w * w + x * x + y * y + z * z)
+        if n > 0:
+            w, x, y, z = w / n, x / n, y / n, z / n
+            pose[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
+    pose[:3, 3] = np.asarray(position, float)
+    return pose

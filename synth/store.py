@@ -1,0 +1,145 @@
+"""Synthetic recordings as Zarr v3 stores, read lazily.
+
+Layout (a directory ``REC.zarr``)::
+
+    background_clean  (H, W)     uint16/uint32  clean render without the ball: the sum over RGB
+                                                and supersamples (white = attrs background_scale)
+    clean_diff        (T, H, W)  int16/int32    clean frame minus background, in the same units
+                                                summed over the motion-blur sub-frames
+                                                (white = attrs frame_scale); one chunk per frame,
+                                                zero outside the ball's region, so it compresses
+                                                to a few kB a frame
+    truth/<column>    (T,)       float64        exact ground truth, see TRUTH_COLUMNS
+
+Root attributes: ``format``, ``setup`` (the lab setup, TOML form), ``scene``, ``sensor``,
+``seed``, ``scenario``, ``versions``, ``fps``, ``n_frames``, scales.
+
+Frames are made when read: clean frame -> the seeded sensor model (``synth.sensor``), the same
+bytes on every read. rollfric reads it through the entry point ``rollfric.zarr_readers`` ->
+``synth.store:open_frames``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from synth.config import SensorConfig, SynthError
+from synth.sensor import Sensor
+
+FORMAT = "rollfric-synth-recording/1"
+
+TRUTH_COLUMNS = {
+    "t_s": "time of the exposure centre (s)",
+    "theta_rad": "ball angle about the cylinder axis (rad)",
+    "theta_dot_rad_s": "angular velocity about the axis (rad/s)",
+    "x_px": "projected sphere centre, x (px)",
+    "y_px": "projected sphere centre, y (px)",
+    "sil_x_px": "centre of the ball's silhouette, x (px; differs in perspective)",
+    "sil_y_px": "centre of the ball's silhouette, y (px)",
+    "r_px": "ball radius in pixels (area-equivalent radius of the silhouette)",
+    "cx_px": "cylinder axis in the image, x (px)",
+    "cy_px": "cylinder axis in the image, y (px)",
+}
+
+
+class SynthFrames:
+    """FrameSource over a synthetic recording (lazy: one frame decoded per access)."""
+
+    def __init__(self, group):
+        a = dict(group.attrs)
+        self.attrs = a
+        self._diff = group["clean_diff"]
+        self._bg = np.asarray(group["background_clean"][...], dtype=np.float64)
+        self.frame_scale = float(a["frame_scale"])
+        self.background_scale = float(a["background_scale"])
+        self.subframes = int(a["subframes"])
+        self.sensor_config = SensorConfig(**a["sensor"])
+        self.seed = int(a["seed"])
+        self.shape = tuple(self._diff.shape)
+        self.dtype = np.dtype(self.sensor_config.dtype)
+        self.fps = float(a["fps"]) if a.get("fps") else None
+        self._sensor = Sensor(self.sensor_config, self.shape[1:], self.seed)
+        self._background = None
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def clean(self, i: int) -> np.ndarray:
+        """Clean display values in [0, 1] of frame i (float64)."""
+        i = self._index(i)
+        diff = np.asarray(self._diff[i], dtype=np.float64)
+        return (self._bg * self.subframes + diff) / self.frame_scale
+
+    def clean_background(self) -> np.ndarray:
+        return self._bg / self.background_scale
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        i = self._index(i)
+        return self._sensor.apply(self.clean(i), i)
+
+    @property
+    def background(self) -> np.ndarray:
+        """The background frame (no ball) as the camera records it (its own noise draw)."""
+        if self._background is None:
+            self._background = self._sensor.apply(self.clean_background(), None)
+        return self._background
+
+    def _index(self, i) -> int:
+        if isinstance(i, (bool, np.bool_)) or not isinstance(i, (int, np.integer)):
+            raise TypeError(f"frame index must be an integer, got {type(i).__name__}")
+        n = self.shape[0]
+        if not -n <= i < n:
+            raise IndexError(f"frame {i} out of range for {n} frames")
+        return int(i) % n
+
+    def __iter__(self):
+        for i in range(len(self)):
+            yield self[i]
+
+
+def open_frames(group) -> SynthFrames | None:
+    """Entry point ``rollfric.zarr_readers``: a FrameSource if ``group`` is a synth recording."""
+    try:
+        fmt = group.attrs.get("format")
+    except AttributeError:
+        return None
+    if fmt != FORMAT:
+        return None
+    return SynthFrames(group)
+
+
+@dataclasses.dataclass(frozen=True)
+class Recording:
+    frames: SynthFrames
+    background: np.ndarray
+    truth: object  # pandas.DataFrame, one row per frame
+    attrs: dict
+    path: Path
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+
+def open_recording(path) -> Recording:
+    """Open a synthetic recording: frames (lazy), background, truth (DataFrame), attrs."""
+    import pandas as pd
+    import zarr
+
+    path = Path(path)
+    if not path.exists():
+        raise SynthError(f"recording not found: {path}")
+    try:
+        group = zarr.open_group(str(path), mode="r")
+    except Exception as exc:  # zarr raises several types for a non-store
+        raise SynthError(f"{path}: not a Zarr store ({exc})") from None
+    frames = open_frames(group)
+    if frames is None:
+        raise SynthError(f"{path}: not a synth recording (attrs format != {FORMAT!r})")
+    tg = group["truth"]
+    truth = pd.DataFrame({name: np.asarray(tg[name][...]) for name in TRUTH_COLUMNS})
+    truth.index.name = "frame"
+    return Recording(frames=frames, background=frames.background, truth=truth,
+                     attrs=dict(group.attrs), path=path)
