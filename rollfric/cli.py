@@ -18,6 +18,7 @@ _SUBCOMMAND_MODULES = [
     "rollfric.cli_fit",
     "rollfric.cli_measure",
     "sim.cli",
+    "synth.cli",
     "validation.cli",
     "validation.cli_bench",
 ]
