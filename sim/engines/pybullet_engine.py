@@ -95,6 +95,15 @@ def _build_trough(p, client, scenario, opts):
                              baseOrientation=_Z_TO_Y, physicsClientId=client)
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("pybullet")
+    except PackageNotFoundError:
+        return "unknown"
+
+
 def run(scenario, progress: bool = False):
     import pybullet as p
     from tqdm import tqdm
@@ -177,7 +186,7 @@ def run(scenario, progress: bool = False):
     theta, theta_dot = theta_from_centre(pos, vel)
     meta = {
         "engine": "pybullet",
-        "engine_version": f"pybullet {p.getAPIVersion()} (bullet build API version)",
+        "engine_version": f"pybullet {_version()} (API {p.getAPIVersion()})",
         "surface": scenario.surface,
         "settings": {**opts, "timestep_s": dt, "steps_per_frame": n_sub, "units": "m, kg, s",
                      "ball_rolling_friction_m": scenario.mu * r / lat,
