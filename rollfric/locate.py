@@ -113,13 +113,14 @@ def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
 
 def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
                         roi: tuple[int, int, int, int] | None = None, window: int = 15,
-                        polarity: str = "bright") -> Location:
+                        polarity: str = "abs") -> Location:
     """Thesis paper 1: sum the relative image over a ``window`` x ``window`` window traversing
     the sub-image ``roi`` = (x0, y0, x1, y1) (default: the whole frame); the centre is the
-    brightest pixel in the window of largest sum.
+    brightest pixel (largest frame - background) in the window of largest sum.
 
-    ``polarity``: "bright" (the ball is a bright spot: frame - background), "dark"
-    (background - frame) or "abs" (|frame - background|).
+    ``polarity`` of the summed relative image: "abs" (|frame - background|, default: finds a
+    dark ball with a bright spot as well as a bright one), "bright" (frame - background, as
+    for the thesis's bright spot) or "dark" (background - frame).
     """
     h, w = frame.shape
     x0, y0, x1, y1 = (0, 0, w, h) if roi is None else roi
@@ -129,16 +130,18 @@ def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
     bg = background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]]
     rel = relative_image(fr, bg)
     if polarity == "dark":
-        rel = -rel
+        summed = -rel
     elif polarity == "abs":
-        rel = np.abs(rel)
-    elif polarity != "bright":
+        summed = np.abs(rel)
+    elif polarity == "bright":
+        summed = rel
+    else:
         raise ValueError(f"polarity must be bright, dark or abs, got {polarity!r}")
-    sums = cv2.boxFilter(rel, -1, (window, window), normalize=False,
+    sums = cv2.boxFilter(summed, -1, (window, window), normalize=False,
                          borderType=cv2.BORDER_CONSTANT)
     _, smax, _, (bx, by) = cv2.minMaxLoc(sums)
-    if smax <= 0:
-        return Location.missing("no bright spot in the search region")
+    if smax < 0.1 * _full_scale(frame.dtype):  # 25 DN summed over the window (8 bit)
+        return Location.missing("no spot in the search region")
     half = window // 2
     sub, sx0, sy0 = _crop(rel, bx - half, by - half, bx + half + 1, by + half + 1)
     _, vmax, _, (px, py) = cv2.minMaxLoc(sub)
@@ -279,6 +282,7 @@ class SubpixelOptions:
     tukey_c: float = 4.685
     sigma_floor: float = 0.03  # px: residual scale floor of the robust fit
     passes: int = 3
+    contrast_bands: tuple[float, ...] = (0.15, 0.3, 0.5)  # |contrast - median| / median kept
 
 
 def _n_rays(r_px: float) -> int:
@@ -550,8 +554,13 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
         nz = noise if noise is not None else float(np.median(out_sd[valid]))
         if cmed < max(4.0 * nz, 0.004 * _full_scale(frame.dtype)):
             return Location.missing("ball edge contrast below the noise")
-        keep = (valid & (con > 0.5 * cmed) & (con < 2.0 * cmed)
-                & (out_sd < max(0.15 * cmed, 3.0 * nz)))
+        # clean arcs share the ball's typical contrast; try a tight band first and widen it
+        # only when too few rays pass (real balls vary in contrast around the rim)
+        flat = out_sd < 0.02 * cmed + 2.5 * nz
+        for tol in opts.contrast_bands:
+            keep = valid & flat & (np.abs(con - cmed) < tol * cmed + 3.0 * nz)
+            if keep.sum() >= max(opts.min_rays, 0.4 * valid.sum()):
+                break
         if keep.sum() < opts.min_rays:
             return Location.missing("too few clean edge points (shadows or occlusion)")
         phi = (np.flatnonzero(keep) + 0.5) * (2 * math.pi / n)
