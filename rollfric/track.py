@@ -56,7 +56,6 @@ def setup_from_recording(source) -> Setup:
                          "none in its attrs")
     if isinstance(data, str):
         import json
-
         import tomllib
 
         try:

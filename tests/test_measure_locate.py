@@ -1,6 +1,5 @@
 """Locators on analytically drawn balls with known sub-pixel centres (exact area coverage)."""
 
-import dataclasses
 import math
 
 import numpy as np
