@@ -24,7 +24,7 @@ class Lamp:
 
     position: tuple[float, float, float] = (0.06, 0.0, 0.40)
     target: tuple[float, float, float] = (0.0, -0.06, 0.0)
-    intensity: float = 0.40
+    intensity: float = 0.30
     inner_cone: float = math.radians(12.0)
     outer_cone: float = math.radians(20.0)
 

@@ -170,6 +170,18 @@ class SceneRenderer:
         # shadow-map resolution at each lamp (for the footprint's blur margin)
         self._scene_scale = None
 
+    def silhouette_mode(self) -> None:
+        """Switch to an unlit white ball on black (no trough, no backdrop, no shadows): the
+        rendered image is the ball's coverage, for checking the silhouette truth."""
+        pr = self._pyrender
+        for node in self.scene.mesh_nodes:
+            if node.mesh is not self._ball_mesh:
+                node.mesh.is_visible = False
+        for prim in self._ball_mesh.primitives:
+            prim.material = pr.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0])
+        self.flags = pr.RenderFlags.FLAT
+        self.config = self.config.replace(shadows=False)
+
     # -- low level -------------------------------------------------------------------------
 
     def _ensure_renderer(self, w: int, h: int):

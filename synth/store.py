@@ -52,7 +52,7 @@ class SynthFrames:
         a = dict(group.attrs)
         self.attrs = a
         self._diff = group["clean_diff"]
-        self._bg = np.asarray(group["background_clean"][...], dtype=np.float64)
+        self._bg = np.asarray(group["background_clean"][...], dtype=np.int64)
         self.frame_scale = float(a["frame_scale"])
         self.background_scale = float(a["background_scale"])
         self.subframes = int(a["subframes"])
@@ -61,30 +61,35 @@ class SynthFrames:
         self.shape = tuple(self._diff.shape)
         self.dtype = np.dtype(self.sensor_config.dtype)
         self.fps = float(a["fps"]) if a.get("fps") else None
+        self._bg_scaled = (self._bg * self.subframes).astype(np.int32)
         self._sensor = Sensor(self.sensor_config, self.shape[1:], self.seed)
         self._background = None
 
     def __len__(self) -> int:
         return self.shape[0]
 
+    def clean_counts(self, i: int) -> np.ndarray:
+        """Clean frame i in integer levels (0..frame_scale = black..white display value)."""
+        i = self._index(i)
+        return self._bg_scaled + np.asarray(self._diff[i], dtype=np.int32)
+
     def clean(self, i: int) -> np.ndarray:
         """Clean display values in [0, 1] of frame i (float64)."""
-        i = self._index(i)
-        diff = np.asarray(self._diff[i], dtype=np.float64)
-        return (self._bg * self.subframes + diff) / self.frame_scale
+        return self.clean_counts(i) / self.frame_scale
 
     def clean_background(self) -> np.ndarray:
         return self._bg / self.background_scale
 
     def __getitem__(self, i: int) -> np.ndarray:
         i = self._index(i)
-        return self._sensor.apply(self.clean(i), i)
+        return self._sensor.apply(self.clean_counts(i), int(self.frame_scale), i)
 
     @property
     def background(self) -> np.ndarray:
         """The background frame (no ball) as the camera records it (its own noise draw)."""
         if self._background is None:
-            self._background = self._sensor.apply(self.clean_background(), None)
+            self._background = self._sensor.apply(self._bg.astype(np.int32),
+                                                  int(self.background_scale), None)
         return self._background
 
     def _index(self, i) -> int:

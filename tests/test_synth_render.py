@@ -1,0 +1,132 @@
+"""Rendered pixels against the exact truth, and tile renders against full-frame renders.
+
+Small frames: crops of the thesis scene at its true scale (0.1343 mm/px), the camera's
+centre_px placed so the trough bottom is in view.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from synth.camera import CameraModel
+from synth.config import SceneConfig
+from synth.scene import SceneRenderer, ball_pose
+
+R_CYL = 0.0853
+R_BALL = 0.005
+L = R_CYL - R_BALL
+
+
+def _centre(theta, z=0.0):
+    return np.array([L * math.sin(theta), -L * math.cos(theta), z])
+
+
+def _silhouette_renderer(camera, ss=2):
+    sr = SceneRenderer(SceneConfig(camera=camera, supersample=ss), R_BALL, R_CYL)
+    sr.silhouette_mode()
+    return sr
+
+
+@pytest.mark.parametrize("projection", ["orthographic", "perspective"])
+def test_rendered_ball_centroid_and_radius_match_truth(projection):
+    # perspective at a short working distance, ball far off the axis: the silhouette centre
+    # and the projected sphere centre differ by ~0.2 px, so the test can tell them apart
+    theta = 0.6 if projection == "perspective" else 0.3
+    c = _centre(theta)
+    cam0 = CameraModel(projection=projection, working_distance=0.25)
+    u, v = cam0.project(c)
+    cam = CameraModel(width=128, height=112, projection=projection, working_distance=0.25,
+                      center_px=(640.0 - (u - 64.3), 380.0 - (v - 55.6)))
+    sr = _silhouette_renderer(cam)
+    try:
+        sr.set_ball(ball_pose(c))
+        img = sr.render_full().astype(float) / sr.scale  # coverage in [0, 1]
+    finally:
+        sr.close()
+    yy, xx = np.mgrid[0:cam.height, 0:cam.width]
+    area = img.sum()
+    cx, cy = (img * xx).sum() / area, (img * yy).sum() / area
+    sil, r_px = cam.sphere_silhouette(c[None], R_BALL)
+    proj = cam.project(c)
+    assert abs(cx - sil[0, 0]) < 0.01 and abs(cy - sil[0, 1]) < 0.01, (cx, cy, sil)
+    assert math.sqrt(area / math.pi) == pytest.approx(r_px[0], abs=0.01)
+    if projection == "perspective":
+        assert np.hypot(cx - proj[0], cy - proj[1]) > 0.1  # the two centres really differ
+
+
+def test_cylinder_centre_is_the_centre_of_the_bore():
+    """A full ring trough in perspective: the backdrop seen through the bore is a disk whose
+    centroid is the cylinder centre of the truth."""
+    cam = CameraModel(width=192, height=160, pixel_size=1.2e-3, projection="perspective",
+                      working_distance=0.4, center_px=(97.3, 80.6))
+    cfg = SceneConfig(camera=cam, trough_opening=math.pi, supersample=2, shadows=False)
+    sr = SceneRenderer(cfg, R_BALL, R_CYL)
+    try:
+        import pyrender
+
+        sr.flags = pyrender.RenderFlags.FLAT  # unlit: paper white, anodised face dark
+        img = sr.render_full().astype(float) / sr.scale
+    finally:
+        sr.close()
+    yy, xx = np.mgrid[0:cam.height, 0:cam.width]
+    rho = np.hypot(xx - 97.3, yy - 80.6)
+    hole = R_CYL * 0.4 / (0.4 + cfg.trough_length / 2) / 1.2e-3  # far end of the bore, px
+    assert img[rho < hole - 2].min() > 0.8 and img[(rho > hole + 2) & (rho < hole + 8)].max() < 0.3
+    w = img * (rho < hole + 5)
+    assert (w * xx).sum() / w.sum() == pytest.approx(97.3, abs=0.01)
+    assert (w * yy).sum() / w.sum() == pytest.approx(80.6, abs=0.01)
+
+
+@pytest.mark.parametrize("projection", ["orthographic", "perspective"])
+def test_tiles_equal_full_frame_render(projection):
+    cam = CameraModel(width=256, height=192, projection=projection, working_distance=0.6,
+                      center_px=(128.0, -470.0))
+    cfg = SceneConfig(camera=cam)
+    sr = SceneRenderer(cfg, R_BALL, R_CYL)
+    try:
+        bg = sr.render_full()
+        worst, shadow_checked = 0, False
+        for theta in (-0.03, 0.04):
+            c = _centre(theta)
+            pose = ball_pose(c)
+            sr.set_ball(pose)
+            full = sr.render_full()
+            tiles = sr.tiles_for(c[None])
+            comp = bg.copy()
+            for (x0, y0, w, h), img in zip(tiles, sr.render_tiles([pose], tiles), strict=True):
+                comp[y0:y0 + h, x0:x0 + w] = img
+            sr.set_ball(None)
+            diff = np.abs(comp.astype(int) - full.astype(int)) / (sr.scale / 255)
+            worst = max(worst, diff.max())
+            # pixels the ball changed outside its own box: its shadows, which the tiles held
+            changed = np.argwhere(full != bg)
+            x0, y0, x1, y1 = sr.ball_box(c[None])
+            outside = ~((changed[:, 1] >= x0) & (changed[:, 1] < x1)
+                        & (changed[:, 0] >= y0) & (changed[:, 0] < y1))
+            shadow_checked |= outside.sum() > 50
+    finally:
+        sr.close()
+    assert worst <= 1.0, worst
+    assert shadow_checked, "no shadow in view: the test would not check the shadow tiles"
+
+
+def test_motion_blur_subframes_average():
+    """Two sub-frames at the same pose equal twice the single render."""
+    cam = CameraModel(width=96, height=80, center_px=(48.0, -560.0))
+    sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
+    try:
+        pose = ball_pose(_centre(0.0))
+        tiles = [(0, 0, 96, 80)]
+        one = sr.render_tiles([pose], tiles)[0]
+        two = sr.render_tiles([pose, pose], tiles)[0]
+    finally:
+        sr.close()
+    np.testing.assert_array_equal(two, 2 * one)
+
+
+def test_scene_config_round_trip():
+    cfg = SceneConfig(camera=dataclasses.replace(CameraModel(), projection="perspective"),
+                      supersample=2, motion_blur=4)
+    assert SceneConfig.from_dict(cfg.to_dict()) == cfg
