@@ -1,0 +1,147 @@
+"""A short sequence end to end into the Zarr store and back, noise determinism, the entry
+point, the lab-style export."""
+
+import dataclasses
+from importlib.metadata import entry_points
+
+import numpy as np
+import pytest
+
+import sim
+import synth
+from synth.camera import CameraModel
+from synth.pipeline import truth_table
+from synth.sensor import Sensor
+
+CAM = CameraModel(width=160, height=128, center_px=(80.0, -500.0))
+
+
+@pytest.fixture(scope="module")
+def traj():
+    # released near the bottom so the ball stays inside the small crop
+    return sim.simulate(sim.Scenario(theta0=0.03, duration=0.011))
+
+
+@pytest.fixture(scope="module")
+def rec_path(traj, tmp_path_factory):
+    out = tmp_path_factory.mktemp("synth") / "rec.zarr"
+    synth.render(traj, out, scene=synth.SceneConfig(camera=CAM),
+                 sensor=synth.noise_preset("realistic"), seed=7, workers=1)
+    return out
+
+
+def test_store_round_trip(traj, rec_path):
+    rec = synth.open_recording(rec_path)
+    n = len(traj)
+    assert len(rec) == n and rec.frames.shape == (n, 128, 160)
+    assert rec.frames.dtype == np.uint8 and rec.frames[0].dtype == np.uint8
+    assert rec.frames.fps == 1000.0
+    expected = truth_table(traj, CAM, 0.005)
+    for name, values in expected.items():
+        np.testing.assert_array_equal(rec.truth[name].to_numpy(), values)
+    assert rec.attrs["setup"]["cylinder"]["center_px"] == [80.0, -500.0]
+    assert rec.attrs["seed"] == 7 and rec.attrs["sensor"]["read_noise"] == 8.0
+    assert "pyrender-maintained" in rec.attrs["versions"] or "pyrender2" in rec.attrs["versions"]
+    # the ball is where the truth says: the darkest blob's centroid near (x_px, y_px)
+    clean = rec.frames.clean(5)
+    dark = np.clip(rec.frames.clean_background() - clean, 0, None)
+    yy, xx = np.mgrid[0:128, 0:160]
+    cx, cy = (dark * xx).sum() / dark.sum(), (dark * yy).sum() / dark.sum()
+    assert abs(cx - rec.truth.x_px[5]) < 8 and abs(cy - rec.truth.y_px[5]) < 8
+
+
+def test_noise_is_deterministic_with_a_seed(rec_path):
+    a = synth.open_recording(rec_path).frames
+    b = synth.open_recording(rec_path).frames
+    for i in (0, 4, len(a) - 1):
+        assert a[i].tobytes() == b[i].tobytes()
+        assert a[i].tobytes() == a[i].tobytes()
+    assert a[1].tobytes() != a[2].tobytes() or not np.array_equal(a.clean(1), a.clean(2))
+    s1 = Sensor(synth.noise_preset("realistic"), (128, 160), seed=1)
+    s2 = Sensor(synth.noise_preset("realistic"), (128, 160), seed=2)
+    counts = a.clean_counts(3)
+    scale = int(a.frame_scale)
+    assert s1.apply(counts, scale, 3).tobytes() == s1.apply(counts, scale, 3).tobytes()
+    assert s1.apply(counts, scale, 3).tobytes() != s2.apply(counts, scale, 3).tobytes()
+    assert s1.apply(counts, scale, 3).tobytes() != s1.apply(counts, scale, 4).tobytes()
+    # the noise has the rms the model says: shot + read noise on a flat field
+    flat = np.full((128, 160), scale // 2, dtype=np.int32)
+    cfg = synth.SensorConfig(read_noise=8.0, full_well=10000.0)
+    frames = np.stack([Sensor(cfg, flat.shape, 0).apply(flat, scale, i) for i in range(4)])
+    e = 0.5 ** 2.2 * 10000.0
+    expected_dn = np.sqrt(e + 64.0) * 255 / 10000.0
+    measured = frames.astype(float).std(axis=0).mean() * np.sqrt(4 / 3)
+    assert measured == pytest.approx(np.sqrt(expected_dn ** 2 + 1 / 12), rel=0.1)
+
+
+def test_noise_none_is_the_quantised_clean_render(rec_path):
+    rec = synth.open_recording(rec_path)
+    s = Sensor(synth.noise_preset("none"), rec.frames.shape[1:], seed=0)
+    clean = rec.frames.clean(2)
+    out = s.apply(rec.frames.clean_counts(2), int(rec.frames.frame_scale), 2)
+    np.testing.assert_array_equal(out, np.clip(np.rint(clean ** 2.2 * 255), 0, 255))
+
+
+def test_entry_point_reads_the_store(rec_path):
+    import zarr
+
+    (ep,) = [e for e in entry_points(group="rollfric.zarr_readers") if e.name == "synth"]
+    open_frames = ep.load()
+    assert open_frames is synth.store.open_frames
+    src = open_frames(zarr.open_group(str(rec_path), mode="r"))
+    rec = synth.open_recording(rec_path)
+    assert len(src) == len(rec) and src.shape == rec.frames.shape and src.dtype == np.uint8
+    assert src[3].tobytes() == rec.frames[3].tobytes()
+    assert src.background.shape == (128, 160) and isinstance(src.attrs, dict)
+    assert src.attrs["setup"]["ball"]["diameter_mm"] == pytest.approx(10.0)
+    # not a synth store: None, so other readers get their turn
+    other = zarr.open_group(str(rec_path.parent / "other.zarr"), mode="w")
+    other.attrs["format"] = "something-else"
+    assert open_frames(other) is None
+
+
+def test_two_processes_render_the_same_bytes(traj, rec_path, tmp_path):
+    out = synth.render(traj, tmp_path / "par.zarr", scene=synth.SceneConfig(camera=CAM),
+                       sensor=synth.noise_preset("realistic"), seed=7, workers=2,
+                       frames=len(traj))
+    a, b = synth.open_recording(rec_path).frames, synth.open_recording(out).frames
+    for i in range(len(a)):
+        assert a[i].tobytes() == b[i].tobytes()
+
+
+def test_export_like_a_lab_camera(rec_path, tmp_path):
+    import cv2
+    import pandas as pd
+    import tifffile
+
+    from rollfric.setup import load_setup
+    from synth.export import export_recording
+
+    d = export_recording(rec_path, tmp_path / "exp")
+    rec = synth.open_recording(rec_path)
+    stack = tifffile.imread(d / "frames.tif")
+    assert stack.shape == rec.frames.shape
+    np.testing.assert_array_equal(stack[4], rec.frames[4])
+    np.testing.assert_array_equal(cv2.imread(str(d / "background.png"), cv2.IMREAD_UNCHANGED),
+                                  rec.background)
+    setup = load_setup(d / "setup.toml")
+    assert setup.center_px == (80.0, -500.0) and setup.fps == 1000.0
+    truth = pd.read_csv(d / "truth.csv")
+    assert list(truth.columns) == ["frame", "t_s", "x_px", "y_px", "theta_rad"]
+    np.testing.assert_allclose(truth.x_px, rec.truth.x_px, rtol=1e-9)
+
+
+def test_bad_inputs_are_refused(traj, tmp_path):
+    with pytest.raises(synth.SynthError, match="lighting preset"):
+        synth.lighting_preset("disco")
+    with pytest.raises(synth.SynthError, match="bit_depth"):
+        synth.SensorConfig(bit_depth=9)
+    with pytest.raises(synth.SynthError, match="frames"):
+        synth.render(traj, tmp_path / "x.zarr", frames=0)
+    with pytest.raises(synth.SynthError, match="not found"):
+        synth.render(tmp_path / "missing.csv", tmp_path / "x.zarr")
+    assert not (tmp_path / "x.zarr").exists()
+    with pytest.raises(synth.SynthError, match="supersample"):
+        synth.SceneConfig(supersample=0)
+    cam = dataclasses.replace(CAM, width=64)
+    assert cam.width == 64
