@@ -1,0 +1,47 @@
+"""Small synthetic recordings for the measure tests: a ball on the equation of motion, drawn
+analytically (validation.drawn_frames), in a 360 x 240 frame with a 200 px trough."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from rollfric import eom
+from rollfric.setup import Setup
+from validation.drawn_frames import Scene, make_frames
+
+R = 85.3e-3
+PIX = R / 200.0  # the trough's radius is 200 px
+
+
+@dataclasses.dataclass
+class Recording:
+    setup: Setup
+    scene: Scene
+    background: np.ndarray
+    frames: list
+    centers: np.ndarray  # (T, 2) px, NaN where no ball
+    theta: np.ndarray
+    t: np.ndarray
+
+
+def make_recording(n=160, *, mu=0.02, theta0=0.5, fps=200.0, bit_depth=8, noise=0.0,
+                   missing=(), seed=0, center=(180.0, 20.0), width=360, height=240,
+                   with_center=False) -> Recording:
+    setup = Setup(cylinder_radius=R, ball_diameter=6e-3, ball_mass=4e-3, fps=fps,
+                  pixel_size=PIX, center_px=center if with_center else None)
+    r_px = setup.ball_radius / PIX
+    L = setup.track_radius / PIX
+    fs = 255.0 if bit_depth == 8 else 65535.0
+    scene = Scene(width=width, height=height, center=center, R_px=200.0, r_px=r_px,
+                  wall_px=20, bit_depth=bit_depth, noise=noise * fs / 255.0)
+    t = np.arange(n) / fps
+    theta, _, _ = eom.solve_reference(theta0, 0.0, mu, t, track_radius=setup.track_radius)
+    centers = np.array([(center[0] + L * math.sin(a), center[1] + L * math.cos(a))
+                        for a in theta])
+    centers[list(missing)] = np.nan
+    todraw = [(None, None) if np.isnan(c[0]) else tuple(c) for c in centers]
+    bg, frames = make_frames(scene, todraw, seed=seed)
+    return Recording(setup, scene, bg, frames, centers, theta, t)

@@ -1,0 +1,206 @@
+"""Recording readers: every input format, 8 and 16 bit, and bad input."""
+
+import math
+import os
+import sys
+import textwrap
+
+import cv2
+import numpy as np
+import pytest
+import tifffile
+import zarr
+
+from rollfric.io import (
+    RecordingError,
+    check_background,
+    median_background,
+    open_recording,
+    read_image,
+)
+
+rng = np.random.default_rng(0)
+FR8 = rng.integers(0, 255, (5, 24, 32), dtype=np.uint8)
+FR16 = rng.integers(0, 65535, (5, 24, 32), dtype=np.uint16)
+
+
+@pytest.mark.parametrize("frames", [FR8, FR16])
+def test_tiff_stack(tmp_path, frames):
+    p = tmp_path / "rec.tif"
+    tifffile.imwrite(p, frames)
+    src = open_recording(p)
+    assert src.shape == frames.shape and src.dtype == frames.dtype and len(src) == 5
+    for i in range(5):
+        np.testing.assert_array_equal(src[i], frames[i])
+    # page by page, too
+    p2 = tmp_path / "pages.tiff"
+    with tifffile.TiffWriter(p2) as tw:
+        for f in frames:
+            tw.write(f, contiguous=False)
+    src2 = open_recording(p2)
+    assert len(src2) == 5
+    np.testing.assert_array_equal(src2[3], frames[3])
+
+
+@pytest.mark.parametrize("frames", [FR8, FR16])
+def test_png_folder_sorted_by_name(tmp_path, frames):
+    for i, f in enumerate(frames):
+        cv2.imwrite(str(tmp_path / f"img_{i:04d}.png"), f)
+    (tmp_path / "notes.txt").write_text("not an image")
+    src = open_recording(tmp_path)
+    assert src.shape == frames.shape and src.dtype == frames.dtype
+    np.testing.assert_array_equal(src[4], frames[4])
+    np.testing.assert_array_equal(np.stack(list(src)), frames)
+
+
+@pytest.mark.parametrize("fourcc,lossless", [("FFV1", True), ("MJPG", False)])
+def test_video(tmp_path, fourcc, lossless):
+    p = tmp_path / "rec.avi"
+    yy, xx = np.mgrid[0:48, 0:64]
+    frames = [((xx * 3 + yy * 2 + 20 * i) % 200 + 20).astype(np.uint8) for i in range(6)]
+    vw = cv2.VideoWriter(str(p), cv2.VideoWriter_fourcc(*fourcc), 50.0, (64, 48), isColor=False)
+    assert vw.isOpened()
+    for f in frames:
+        vw.write(f)
+    vw.release()
+    src = open_recording(p)
+    assert src.shape == (6, 48, 64) and src.dtype == np.uint8
+    assert src.fps == pytest.approx(50.0)
+    for i in (0, 1, 2, 5, 3):  # in order and out of order
+        err = np.abs(src[i].astype(int) - frames[i]).mean()
+        assert err == 0 if lossless else err < 6
+
+
+def test_zarr_frames_array(tmp_path):
+    p = tmp_path / "rec.zarr"
+    g = zarr.open_group(str(p), mode="w")
+    g.create_array("frames", data=FR16, chunks=(1, 24, 32))
+    g.create_array("background", data=FR16[0])
+    g.attrs["fps"] = 1000.0
+    g.attrs["setup"] = {"cylinder": {"radius_mm": 85.3}}
+    src = open_recording(p)
+    assert src.shape == FR16.shape and src.dtype == np.uint16 and src.fps == 1000.0
+    np.testing.assert_array_equal(src[2], FR16[2])
+    np.testing.assert_array_equal(src.background, FR16[0])
+    assert src.attrs["setup"]["cylinder"]["radius_mm"] == 85.3
+
+
+def test_zarr_entry_point_reader(tmp_path, monkeypatch):
+    # a real (fake) installed distribution advertising a rollfric.zarr_readers entry point
+    site = tmp_path / "site"
+    (site / "fakereader-0.1.dist-info").mkdir(parents=True)
+    (site / "fakereader-0.1.dist-info" / "METADATA").write_text(
+        "Metadata-Version: 2.1\nName: fakereader\nVersion: 0.1\n")
+    (site / "fakereader-0.1.dist-info" / "entry_points.txt").write_text(
+        "[rollfric.zarr_readers]\nfake = fakereader_mod:open_frames\n")
+    (site / "fakereader_mod.py").write_text(textwrap.dedent("""
+        import numpy as np
+
+        class Src:
+            def __init__(self, group):
+                self.clean = group["clean"]
+                self.shape = self.clean.shape
+                self.dtype = np.dtype(np.uint8)
+                self.fps = 500.0
+                self.background = None
+                self.attrs = {"from": "fake"}
+            def __len__(self):
+                return self.shape[0]
+            def __getitem__(self, i):
+                return (np.asarray(self.clean[i]) // 2).astype(np.uint8)
+
+        def open_frames(group):
+            return Src(group) if "clean" in group else None
+        """))
+    monkeypatch.syspath_prepend(str(site))
+    p = tmp_path / "rec.zarr"
+    g = zarr.open_group(str(p), mode="w")
+    g.create_array("clean", data=FR8)
+    src = open_recording(p)
+    assert src.shape == FR8.shape and src.fps == 500.0 and src.attrs["from"] == "fake"
+    np.testing.assert_array_equal(src[1], FR8[1] // 2)
+    # a store neither has frames nor is accepted by any reader
+    p2 = tmp_path / "other.zarr"
+    zarr.open_group(str(p2), mode="w").create_array("x", data=np.zeros(3))
+    with pytest.raises(RecordingError, match="without an array 'frames'.*tried: .*fake"):
+        open_recording(p2)
+    sys.modules.pop("fakereader_mod", None)
+
+
+def test_median_background_streams_a_subsample():
+    class Counting:
+        shape = (200, 8, 8)
+        dtype = np.dtype(np.uint8)
+
+        def __init__(self):
+            self.reads = 0
+
+        def __len__(self):
+            return 200
+
+        def __getitem__(self, i):
+            self.reads += 1
+            f = np.full((8, 8), 100, np.uint8)
+            f[i % 8, :] = 250  # a 'ball' that moves: never in the median
+            return f
+
+    src = Counting()
+    bg = median_background(src, max_frames=21)
+    assert src.reads == 21
+    np.testing.assert_array_equal(bg, 100)
+
+
+def test_bad_inputs(tmp_path):
+    with pytest.raises(RecordingError, match="no such file"):
+        open_recording(tmp_path / "missing.tif")
+    junk = tmp_path / "junk.tif"
+    junk.write_bytes(b"this is not a tiff file at all" * 10)
+    with pytest.raises(RecordingError, match="junk.tif"):
+        open_recording(junk)
+    # truncated TIFF: the last pages' data cut off
+    p = tmp_path / "trunc.tif"
+    big = np.random.default_rng(1).integers(0, 255, (6, 64, 64), dtype=np.uint8)
+    with tifffile.TiffWriter(p) as tw:
+        for f in big:
+            tw.write(f, contiguous=False)
+    data = p.read_bytes()
+    p.write_bytes(data[: len(data) // 2])
+    with pytest.raises(RecordingError, match="trunc.tif"):
+        src = open_recording(p)
+        for i in range(len(src)):
+            src[i]
+    # mixed sizes in a folder
+    d = tmp_path / "mixed"
+    d.mkdir()
+    cv2.imwrite(str(d / "a.png"), FR8[0])
+    cv2.imwrite(str(d / "b.png"), np.zeros((10, 10), np.uint8))
+    src = open_recording(d)
+    with pytest.raises(RecordingError, match="mixed sizes"):
+        src[1]
+    # a corrupt image in a folder
+    d2 = tmp_path / "corrupt"
+    d2.mkdir()
+    cv2.imwrite(str(d2 / "a.png"), FR8[0])
+    (d2 / "b.png").write_bytes(b"\x89PNG broken")
+    with pytest.raises(RecordingError, match="b.png"):
+        open_recording(d2)[1]
+    # an empty folder, an unknown format, a broken video
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(RecordingError, match="no image files"):
+        open_recording(tmp_path / "empty")
+    (tmp_path / "x.xyz").write_text("?")
+    with pytest.raises(RecordingError, match="unknown recording format"):
+        open_recording(tmp_path / "x.xyz")
+    (tmp_path / "v.avi").write_bytes(os.urandom(300))
+    with pytest.raises(RecordingError, match="v.avi"):
+        open_recording(tmp_path / "v.avi")
+    # a background of another size
+    tifffile.imwrite(tmp_path / "rec.tif", FR8)
+    src = open_recording(tmp_path / "rec.tif")
+    with pytest.raises(RecordingError, match="background is 10x12 px but the frames are 32x24"):
+        check_background(np.zeros((12, 10), np.uint8), src)
+    with pytest.raises(RecordingError, match="unsupported pixel type"):
+        check_background(np.zeros((24, 32), np.float32), src)
+    with pytest.raises(RecordingError, match="no such file"):
+        read_image(tmp_path / "nope.png")
+    assert math.isfinite(float(read_image(tmp_path / "rec.tif").mean()))
