@@ -1,0 +1,349 @@
+"""One validation case: what is simulated, how it is filmed, how it is measured.
+
+A case file is TOML with three sections (every key optional; the defaults are the built-in
+case of ``rollfric validate``)::
+
+    name = "default"
+
+    [scenario]                 # the sim scenario form (sim/scenario.py), bench units
+    ball = { diameter_mm = 10.0, mass_g = 4.07612 }
+    motion = { mu = 0.0079, theta0_deg = 20.0, seconds = 1.5 }
+    engine = { name = "reference", surface = "tangent" }
+
+    [render]                   # synth
+    lighting = "thesis"        # lighting preset: thesis, dim, harsh, uneven, flat
+    intensity_scale = 1.0      # multiplies every lamp's intensity
+    lamp_spread = 1.0          # multiplies every lamp's x (sideways distance from the axis)
+    lamp_dy_mm = 0.0           # moves every lamp up (+) or down
+    lamp_dz_mm = 0.0           # moves every lamp towards (+) or away from the ball plane
+    ambient = 0.03             # (optional) overrides the preset's ambient light
+    noise = "realistic"        # sensor preset: none, realistic, noisy, 12bit, dark
+    motion_blur = 4            # sub-frames integrated over the exposure (1: none)
+    supersample = 1            # ss x ss samples per pixel (plus 4x MSAA)
+    shadows = true
+    seed = 0                   # seed of the sensor noise
+    [render.sensor]            # overrides of the preset: read_noise, full_well, shot_noise,
+    read_noise = 8.0           #   exposure, gain, bit_depth, prnu, dsnu, vignetting, ...
+    [render.camera]            # width, height, center_px, projection, working_distance
+    width = 1280
+
+    [measure]                  # rollfric
+    locator = "subpixel"       # subpixel, thesis-large, thesis-small
+    fit = "lsq"                # lsq, paper1_eps, paper2_grid
+    offset = false             # also fit an angle offset of the trough bottom
+
+A case is kept as this plain dict (validated by :func:`case_from_dict`), so sweeps can address
+any key by its dotted path (``render.sensor.read_noise``) and hash it.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import hashlib
+import json
+import math
+from pathlib import Path
+
+import tomllib
+
+from rollfric.errors import InputError
+
+
+class CaseError(InputError):
+    """A validation case that cannot be run (the message names the bad key)."""
+
+
+RENDER_KEYS = {
+    "lighting": str, "intensity_scale": float, "lamp_spread": float, "lamp_dy_mm": float,
+    "lamp_dz_mm": float, "ambient": float, "noise": str, "motion_blur": int,
+    "supersample": int, "shadows": bool, "seed": int, "sensor": dict, "camera": dict,
+    "scene": dict, "lamps": list,
+}
+MEASURE_KEYS = {"locator": str, "fit": str, "offset": bool}
+LOCATORS = ("subpixel", "thesis-large", "thesis-small")
+FITS = ("lsq", "paper1_eps", "paper2_grid")
+TOP_KEYS = ("name", "scenario", "render", "measure")
+SCENARIO_SECTIONS = ("cylinder", "ball", "camera", "environment", "motion", "engine")
+
+DEFAULT_SECONDS = 1.5
+
+
+def default_case_dict() -> dict:
+    """The built-in case of ``rollfric validate``: thesis 10 mm ball, mu 0.0079, thesis lighting,
+    realistic noise, the full thesis camera, 1.5 s of 1000 Hz frames."""
+    return {
+        "name": "default",
+        "scenario": {
+            "ball": {"diameter_mm": 10.0, "mass_g": 4.07612},
+            "motion": {"mu": 0.0079, "theta0_deg": 20.0, "seconds": DEFAULT_SECONDS},
+            "engine": {"name": "reference", "surface": "tangent", "seed": 0},
+        },
+        "render": {"lighting": "thesis", "noise": "realistic", "motion_blur": 4,
+                   "supersample": 1, "shadows": True, "seed": 0},
+        "measure": {"locator": "subpixel", "fit": "lsq", "offset": False},
+    }
+
+
+def small_case_dict(seconds: float = 0.4) -> dict:
+    """A cheap case for tests and quick checks: the 10 mm ball swinging 8 deg, seen by a
+    cropped 320 x 112 px camera that just holds its path, no motion blur."""
+    d = default_case_dict()
+    d["name"] = "small"
+    d["scenario"]["motion"].update(theta0_deg=8.0, seconds=seconds)
+    d["render"].update(motion_blur=1, camera={"width": 320, "height": 112,
+                                              "center_px": [160.0, -540.0]})
+    return d
+
+
+# -- dict helpers ---------------------------------------------------------------------------
+
+def _merge(base: dict, over: dict) -> dict:
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = _merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+def set_dotted(d: dict, key: str, value) -> None:
+    """d["a"]["b"]["c"] = value for key "a.b.c" (creating tables on the way)."""
+    parts = key.split(".")
+    if not all(parts):
+        raise CaseError(f"bad parameter key {key!r}")
+    cur = d
+    for p in parts[:-1]:
+        nxt = cur.setdefault(p, {})
+        if not isinstance(nxt, dict):
+            raise CaseError(f"parameter {key!r}: {p!r} is not a table")
+        cur = nxt
+    cur[parts[-1]] = copy.deepcopy(value)
+
+
+def get_dotted(d: dict, key: str, default=None):
+    cur = d
+    for p in key.split("."):
+        if not isinstance(cur, dict) or p not in cur:
+            return default
+        cur = cur[p]
+    return cur
+
+
+def apply_overrides(base: dict, overrides: dict) -> dict:
+    out = copy.deepcopy(base)
+    for k, v in overrides.items():
+        set_dotted(out, k, v)
+    return out
+
+
+def load_case_dict(path: str | Path) -> dict:
+    """A case TOML file merged over the defaults. A plain sim scenario file (top-level
+    [ball], [motion], ...) is taken as the [scenario] of a default case."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            data = tomllib.load(f)
+    except FileNotFoundError:
+        raise CaseError(f"case file not found: {path}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(f"{path}: not valid TOML: {exc}") from None
+    if data and set(data) <= set(SCENARIO_SECTIONS):
+        data = {"scenario": data}
+    return merge_case(default_case_dict(), data, source=str(path))
+
+
+def merge_case(base: dict, data: dict, source: str = "case") -> dict:
+    unknown = sorted(set(data) - set(TOP_KEYS))
+    if unknown:
+        raise CaseError(f"{source}: unknown top-level key(s) {unknown} "
+                        f"(known: {', '.join(TOP_KEYS)})")
+    return _merge(base, data)
+
+
+def canonical_json(d: dict) -> str:
+    return json.dumps(d, sort_keys=True, separators=(",", ":"), default=str)
+
+
+def case_id(d: dict) -> str:
+    """12 hex digits of SHA-256 over the case's canonical JSON (its name left out)."""
+    body = {k: v for k, v in d.items() if k != "name"}
+    return hashlib.sha256(canonical_json(body).encode()).hexdigest()[:12]
+
+
+# -- the validated case ---------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Case:
+    """A validated case: the sim scenario, synth's scene and sensor, rollfric's methods."""
+
+    name: str
+    scenario: object  # sim.Scenario
+    scene: object  # synth.config.SceneConfig
+    sensor: object  # synth.config.SensorConfig
+    render_seed: int
+    locator: str
+    fit: str
+    offset: bool
+    data: dict  # the case dict it came from (merged over the defaults)
+
+    @property
+    def case_id(self) -> str:
+        return case_id(self.data)
+
+    def to_toml(self) -> str:
+        return dumps_case(self.data)
+
+
+def _check_types(table: dict, schema: dict, where: str) -> dict:
+    out = {}
+    for k, v in table.items():
+        if k not in schema:
+            raise CaseError(f"unknown key {where}.{k} (known: {', '.join(schema)})")
+        want = schema[k]
+        if want is float and isinstance(v, int) and not isinstance(v, bool):
+            v = float(v)
+        ok = isinstance(v, want) and not (want in (int, float) and isinstance(v, bool))
+        if not ok:
+            raise CaseError(f"{where}.{k} must be {want.__name__}, got {v!r}")
+        if want is float and not math.isfinite(v):
+            raise CaseError(f"{where}.{k} must be finite, got {v!r}")
+        out[k] = v
+    return out
+
+
+def case_from_dict(d: dict, source: str = "case") -> Case:
+    """Validate a case dict (as from TOML, merged over the defaults) into a :class:`Case`."""
+    import sim
+    from synth import config as sc
+    from synth.camera import CameraModel
+
+    d = merge_case(default_case_dict(), d, source)
+    try:
+        scenario = sim.scenario_from_dict(d.get("scenario", {}), source=f"{source} [scenario]")
+    except InputError as exc:
+        raise CaseError(str(exc)) from None
+    r = _check_types(d.get("render", {}), RENDER_KEYS, f"{source}: render")
+    m = _check_types(d.get("measure", {}), MEASURE_KEYS, f"{source}: measure")
+    if m.get("locator", "subpixel") not in LOCATORS:
+        raise CaseError(f"{source}: measure.locator must be one of {', '.join(LOCATORS)}, "
+                        f"got {m['locator']!r}")
+    if m.get("fit", "lsq") not in FITS:
+        raise CaseError(f"{source}: measure.fit must be one of {', '.join(FITS)}, "
+                        f"got {m['fit']!r}")
+    try:
+        lighting = sc.lighting_preset(r.get("lighting", "thesis"))
+        lamps = r.get("lamps")
+        if lamps is not None:
+            lamps = tuple(sc.Lamp(**_lamp_si(lp, source)) for lp in lamps)
+        else:
+            lamps = lighting.lamps
+        scale = r.get("intensity_scale", 1.0)
+        spread = r.get("lamp_spread", 1.0)
+        dy = r.get("lamp_dy_mm", 0.0) / 1000.0
+        dz = r.get("lamp_dz_mm", 0.0) / 1000.0
+        if scale < 0:
+            raise CaseError(f"{source}: render.intensity_scale must be >= 0, got {scale!r}")
+        lamps = tuple(dataclasses.replace(
+            lp, intensity=lp.intensity * scale,
+            position=(lp.position[0] * spread, lp.position[1] + dy, lp.position[2] + dz))
+            for lp in lamps)
+        lighting = dataclasses.replace(lighting, lamps=lamps,
+                                       ambient=r.get("ambient", lighting.ambient))
+        sensor = sc.noise_preset(r.get("noise", "realistic"))
+        sensor_over = dict(r.get("sensor", {}))
+        _known(sensor_over, sensor, f"{source}: render.sensor")
+        sensor = dataclasses.replace(sensor, **sensor_over)
+        cam_over = dict(r.get("camera", {}))
+        cam = CameraModel(pixel_size=scenario.pixel_size)
+        _known(cam_over, cam, f"{source}: render.camera")
+        if "center_px" in cam_over:
+            cam_over["center_px"] = tuple(cam_over["center_px"])
+        cam = dataclasses.replace(cam, **cam_over)
+        scene_over = dict(r.get("scene", {}))
+        scene = sc.SceneConfig(camera=cam, lighting=lighting)
+        _known(scene_over, scene, f"{source}: render.scene")
+        for k in ("motion_blur", "supersample", "shadows"):
+            if k in r:
+                scene_over[k] = r[k]
+        scene = dataclasses.replace(scene, **scene_over)
+    except CaseError:
+        raise
+    except InputError as exc:
+        raise CaseError(f"{source}: render: {exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise CaseError(f"{source}: render: {exc}") from None
+    seed = r.get("seed", 0)
+    if seed < 0:
+        raise CaseError(f"{source}: render.seed must be >= 0, got {seed!r}")
+    name = d.get("name", "case")
+    if not isinstance(name, str):
+        raise CaseError(f"{source}: name must be a string")
+    return Case(name=name, scenario=scenario, scene=scene, sensor=sensor, render_seed=seed,
+                locator=m.get("locator", "subpixel"), fit=m.get("fit", "lsq"),
+                offset=m.get("offset", False), data=d)
+
+
+def _known(over: dict, obj, where: str) -> None:
+    names = {f.name for f in dataclasses.fields(obj)}
+    for k in over:
+        if k not in names:
+            raise CaseError(f"unknown key {where}.{k} (known: {', '.join(sorted(names))})")
+
+
+def _lamp_si(lp: dict, source: str) -> dict:
+    """A lamp table in bench units (position_mm, target_mm, intensity, cones in deg) -> SI."""
+    if not isinstance(lp, dict):
+        raise CaseError(f"{source}: render.lamps entries must be tables")
+    out = {}
+    for k, v in lp.items():
+        if k in ("position_mm", "target_mm"):
+            out[k[:-3]] = tuple(float(x) / 1000.0 for x in v)
+        elif k in ("inner_cone_deg", "outer_cone_deg"):
+            out[k[:-4]] = math.radians(v)
+        elif k == "intensity":
+            out[k] = float(v)
+        else:
+            raise CaseError(f"{source}: unknown lamp key {k!r} (position_mm, target_mm, "
+                            "intensity, inner_cone_deg, outer_cone_deg)")
+    return out
+
+
+def load_case(path: str | Path) -> Case:
+    return case_from_dict(load_case_dict(path), source=str(path))
+
+
+def dumps_case(d: dict) -> str:
+    """The case dict as TOML text (tables nested; loads back to the same dict)."""
+    def fmt(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, float):
+            return repr(v) if math.isfinite(v) else ("nan" if v != v else
+                                                     ("inf" if v > 0 else "-inf"))
+        if isinstance(v, int):
+            return str(v)
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, (list, tuple)):
+            return "[" + ", ".join(fmt(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{k} = {fmt(x)}" for k, x in v.items()) + " }"
+        raise TypeError(f"cannot write {v!r} to TOML")
+
+    lines: list[str] = []
+
+    def table(prefix: str, t: dict):
+        scalars = {k: v for k, v in t.items() if not isinstance(v, dict)}
+        subs = {k: v for k, v in t.items() if isinstance(v, dict)}
+        if prefix and (scalars or not subs):
+            lines.append(f"[{prefix}]")
+        lines.extend(f"{k} = {fmt(v)}" for k, v in scalars.items())
+        if scalars or not subs:
+            lines.append("")
+        for k, v in subs.items():
+            table(f"{prefix}.{k}" if prefix else k, v)
+
+    table("", d)
+    return "\n".join(lines)

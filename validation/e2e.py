@@ -1,0 +1,304 @@
+"""One case end to end: scenario -> sim -> synth -> rollfric -> metrics, with stage timings.
+
+    >>> from validation import case, e2e
+    >>> result = e2e.run_case(case.case_from_dict(case.default_case_dict()))
+    >>> result.metrics["mu_bias_rel"], result.timings["render"]
+
+The metrics separate the engine's bias from the pipeline's: ``mu_engine`` is what the same
+fitter (same method, same options) recovers from the engine's ground-truth theta(t), so
+``mu_engine_bias_rel`` is the physics engine's error and ``mu_pipeline_bias_rel`` (recovered
+against mu_engine) is the camera + locator + fit error on top of it. ``mu_bias_rel`` is the
+total, against the configured mu.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from validation.case import Case, case_from_dict
+
+STAGES = ("simulate", "fit_truth", "render", "measure", "metrics")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CaseResult:
+    """Everything one end-to-end run produced (arrays kept for the report)."""
+
+    case: Case
+    metrics: dict  # flat: name -> float/int/bool/str
+    timings: dict  # stage -> seconds (also in metrics as t_<stage>_s)
+    trajectory: object  # sim.Trajectory
+    truth: object  # pandas.DataFrame, one row per frame (synth's truth)
+    track: object  # pandas.DataFrame: frame, t_s, x_px, y_px, theta_rad, found, ...
+    fit: object  # rollfric.fit.FitResult from the measured track
+    fit_truth: object  # the same fitter on the engine's theta(t)
+    setup: object  # rollfric.setup.Setup used by the measurement
+    recording: Path | None  # the recording, when kept
+
+
+@contextlib.contextmanager
+def _timer(timings: dict, stage: str):
+    t0 = time.perf_counter()
+    try:
+        yield
+    finally:
+        timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - t0
+
+
+def run_case(case: Case | dict, *, recording: str | Path | None = None,
+             keep_recording: bool = False, report_dir: str | Path | None = None,
+             render_workers: int | None = None, render_threads: int | None = None,
+             progress: bool = False) -> CaseResult:
+    """Run one case end to end and return its metrics, per-stage timings and arrays.
+
+    ``recording``: where to write the rendered recording (kept); otherwise it goes to a
+    temporary directory, removed at the end unless ``keep_recording`` (then it is kept as
+    ``report_dir/recording.zarr``). ``render_workers``/``render_threads``: rendering
+    processes (synth's default: up to 2) and llvmpipe threads each; a sweep worker uses 1/1.
+    """
+    import sim
+    import synth
+    from rollfric.fit import fit_mu
+
+    if isinstance(case, dict):
+        case = case_from_dict(case)
+    timings: dict = {}
+    t_start = time.perf_counter()
+    with _timer(timings, "simulate"):
+        traj = sim.simulate(case.scenario)
+    setup_truth = case.scenario.setup()
+    with _timer(timings, "fit_truth"):
+        fit_truth = fit_mu(traj.t, traj.theta, setup_truth, method=case.fit, offset=case.offset)
+
+    tmpdir = None
+    if recording is not None:
+        rec_path = Path(recording)
+    elif keep_recording:
+        if report_dir is None:
+            raise ValueError("keep_recording needs report_dir (or recording=PATH)")
+        rec_path = Path(report_dir) / "recording.zarr"
+    else:
+        tmpdir = Path(tempfile.mkdtemp(prefix="rollfric-case-"))
+        rec_path = tmpdir / "recording.zarr"
+    try:
+        with _timer(timings, "render"):
+            synth.render(traj, rec_path, scene=case.scene, sensor=case.sensor,
+                         seed=case.render_seed, progress=progress, workers=render_workers,
+                         threads=render_threads, overwrite=True)
+        rec = synth.open_recording(rec_path)
+        truth = rec.truth
+        with _timer(timings, "measure"):
+            track, fit, setup = measure_recording(rec_path, case, progress=progress)
+        with _timer(timings, "metrics"):
+            metrics = compute_metrics(case, traj, truth, track, fit, fit_truth, setup)
+    finally:
+        if tmpdir is not None:
+            shutil.rmtree(tmpdir, ignore_errors=True)
+    timings["total"] = time.perf_counter() - t_start
+    metrics.update({f"t_{k}_s": float(v) for k, v in timings.items()})
+    metrics["n_frames"] = int(len(truth))
+    metrics["frame_width_px"] = int(case.scene.camera.width)
+    metrics["frame_height_px"] = int(case.scene.camera.height)
+    metrics["render_fps"] = (len(truth) / timings["render"]) if timings["render"] > 0 else math.nan
+    return CaseResult(case=case, metrics=metrics, timings=dict(timings), trajectory=traj,
+                      truth=truth, track=track, fit=fit, fit_truth=fit_truth, setup=setup,
+                      recording=None if tmpdir is not None else rec_path)
+
+
+# -- the measurement (rollfric) ---------------------------------------------------------------
+
+def measure_recording(path: Path, case: Case, *, progress: bool = False):
+    """rollfric's measurement of a recording: (track DataFrame, FitResult, Setup).
+
+    Exactly what ``rollfric measure REC.zarr`` does: the recording opened through rollfric's
+    reader (synth's Zarr entry point), the setup and background it carries, the case's locator
+    and fit method (:func:`rollfric.track.measure`).
+    """
+    from rollfric import io
+    from rollfric import track as track_mod
+
+    src = io.open_recording(path)
+    setup = track_mod.setup_from_recording(src)
+    track, fit = track_mod.measure(src, setup, method=case.locator, fit_method=case.fit,
+                                   offset=case.offset, progress=progress)
+    return track, fit, setup
+
+
+# -- metrics ----------------------------------------------------------------------------------
+
+def _f(x) -> float:
+    return float(x) if x is not None and math.isfinite(float(x)) else math.nan
+
+
+def compute_metrics(case: Case, traj, truth, track, fit, fit_truth, setup) -> dict:
+    """The flat metric dict of one case (see the module docstring and README)."""
+    import pandas as pd
+
+    mu_true = float(case.scenario.mu)
+    m: dict = {"case_id": case.case_id, "name": case.name, "mu_true": mu_true}
+    mu = _f(fit.mu)
+    se = _f(fit.mu_stderr)
+    mu_eng = _f(fit_truth.mu)
+    m.update({
+        "mu_recovered": mu,
+        "mu_stderr": se,
+        "mu_bias": mu - mu_true,
+        "mu_bias_rel": (mu - mu_true) / mu_true if mu_true > 0 else math.nan,
+        "mu_engine": mu_eng,
+        "mu_engine_stderr": _f(fit_truth.mu_stderr),
+        "mu_engine_bias_rel": (mu_eng - mu_true) / mu_true if mu_true > 0 else math.nan,
+        "mu_pipeline_bias_rel": (mu - mu_eng) / mu_eng if mu_eng > 0 else math.nan,
+        "mu_true_within_stderr": bool(abs(mu - mu_true) <= se) if math.isfinite(se) else False,
+        "mu_true_within_2stderr": bool(abs(mu - mu_true) <= 2 * se) if math.isfinite(se)
+        else False,
+        "mu_engine_within_stderr": bool(abs(mu - mu_eng) <= se) if math.isfinite(se)
+        else False,
+        "mu_z": (mu - mu_true) / se if se > 0 else math.nan,
+        "fit_rms_residual_rad": _f(fit.rms_residual),
+        "fit_relative_error": _f(getattr(fit, "relative_error", math.nan)),
+        "fit_method": case.fit,
+        "locator": case.locator,
+        "engine": case.scenario.engine,
+        "surface": case.scenario.surface,
+    })
+    # per-frame comparison, aligned on the frame number
+    tr = track.set_index("frame") if "frame" in track.columns else track
+    tt = truth
+    n = len(tt)
+    found = np.zeros(n, dtype=bool)
+    fx = np.full(n, np.nan)
+    fy = np.full(n, np.nan)
+    fth = np.full(n, np.nan)
+    idx = np.asarray(tr.index, dtype=int)
+    ok = (idx >= 0) & (idx < n)
+    idx = idx[ok]
+    f_found = np.asarray(tr["found"], dtype=bool)[ok] if "found" in tr.columns \
+        else np.isfinite(np.asarray(tr["x_px"], float))[ok]
+    found[idx] = f_found
+    fx[idx] = np.asarray(tr["x_px"], float)[ok]
+    fy[idx] = np.asarray(tr["y_px"], float)[ok]
+    fth[idx] = np.asarray(tr["theta_rad"], float)[ok]
+    good = found & np.isfinite(fx) & np.isfinite(fy)
+    tx = np.asarray(tt["sil_x_px"], float)
+    ty = np.asarray(tt["sil_y_px"], float)
+    ex, ey = fx - tx, fy - ty
+    e = np.hypot(ex, ey)
+    m["found_fraction"] = float(good.mean()) if n else math.nan
+    m["n_found"] = int(good.sum())
+    if good.any():
+        eg = e[good]
+        m.update({
+            "center_rms_px": float(np.sqrt(np.mean(eg ** 2))),
+            "center_max_px": float(np.max(eg)),
+            "center_p95_px": float(np.percentile(eg, 95)),
+            "center_median_px": float(np.median(eg)),
+            "center_bias_x_px": float(np.mean(ex[good])),
+            "center_bias_y_px": float(np.mean(ey[good])),
+            "center_std_x_px": float(np.std(ex[good])),
+            "center_std_y_px": float(np.std(ey[good])),
+            "center_within_1px": float(np.mean(eg <= 1.0)),
+        })
+    else:
+        for k in ("center_rms_px", "center_max_px", "center_p95_px", "center_median_px",
+                  "center_bias_x_px", "center_bias_y_px", "center_std_x_px",
+                  "center_std_y_px", "center_within_1px"):
+            m[k] = math.nan
+    th_true = np.asarray(tt["theta_rad"], float)
+    et = fth - th_true
+    gt = good & np.isfinite(et)
+    if gt.any():
+        m.update({
+            "theta_rms_rad": float(np.sqrt(np.mean(et[gt] ** 2))),
+            "theta_max_rad": float(np.max(np.abs(et[gt]))),
+            "theta_bias_rad": float(np.mean(et[gt])),
+        })
+    else:
+        m.update(theta_rms_rad=math.nan, theta_max_rad=math.nan, theta_bias_rad=math.nan)
+    # the fitted model against the true angle (what the fit would have to reproduce)
+    curve = np.asarray(fit.curve, float)
+    if curve.shape == th_true.shape:
+        d = curve - th_true
+        d = d[np.isfinite(d)]
+        m["model_vs_truth_rms_rad"] = float(np.sqrt(np.mean(d ** 2))) if d.size else math.nan
+    m["ball_radius_px"] = float(setup.ball_radius / setup.pixel_size)
+    m["amplitude0_deg"] = float(np.degrees(abs(case.scenario.theta0)))
+    _ = pd  # pandas is used through the DataFrames' methods
+    return m
+
+
+def per_frame_errors(result: CaseResult):
+    """DataFrame per frame: truth, located centre, errors (px, rad), found flag."""
+    import pandas as pd
+
+    tt = result.truth
+    tr = result.track.set_index("frame") if "frame" in result.track.columns else result.track
+    tr = tr.reindex(range(len(tt)))
+    out = pd.DataFrame({
+        "frame": np.arange(len(tt)),
+        "t_s": np.asarray(tt["t_s"], float),
+        "truth_x_px": np.asarray(tt["sil_x_px"], float),
+        "truth_y_px": np.asarray(tt["sil_y_px"], float),
+        "truth_theta_rad": np.asarray(tt["theta_rad"], float),
+        "x_px": np.asarray(tr["x_px"], float),
+        "y_px": np.asarray(tr["y_px"], float),
+        "theta_rad": np.asarray(tr["theta_rad"], float),
+        "found": np.asarray(tr["found"].fillna(False), dtype=bool) if "found" in tr.columns
+        else np.isfinite(np.asarray(tr["x_px"], float)),
+    })
+    out["err_x_px"] = out["x_px"] - out["truth_x_px"]
+    out["err_y_px"] = out["y_px"] - out["truth_y_px"]
+    out["err_px"] = np.hypot(out["err_x_px"], out["err_y_px"])
+    out["err_theta_rad"] = out["theta_rad"] - out["truth_theta_rad"]
+    return out
+
+
+def sim_only_case(case: Case | dict) -> dict:
+    """A cheap case: simulate and fit the engine's theta(t) only (no render, no locator).
+
+    Its metrics are the engine-fidelity subset of :func:`run_case`'s (``mu_engine``,
+    ``mu_engine_bias_rel``, timings). Sweeps over engines/surfaces/scenarios can use it
+    (``[sweep] stages = "sim"``) and the sweep-machinery tests do.
+    """
+    import sim
+    from rollfric.fit import fit_mu
+
+    if isinstance(case, dict):
+        case = case_from_dict(case)
+    timings: dict = {}
+    t0 = time.perf_counter()
+    with _timer(timings, "simulate"):
+        traj = sim.simulate(case.scenario)
+    with _timer(timings, "fit_truth"):
+        ft = fit_mu(traj.t, traj.theta, case.scenario.setup(), method=case.fit,
+                    offset=case.offset)
+    timings["total"] = time.perf_counter() - t0
+    mu_true = float(case.scenario.mu)
+    m = {"case_id": case.case_id, "name": case.name, "mu_true": mu_true,
+         "mu_engine": _f(ft.mu), "mu_engine_stderr": _f(ft.mu_stderr),
+         "mu_engine_bias_rel": (_f(ft.mu) - mu_true) / mu_true if mu_true > 0 else math.nan,
+         "fit_rms_residual_rad": _f(ft.rms_residual), "engine": case.scenario.engine,
+         "surface": case.scenario.surface, "fit_method": case.fit,
+         "n_frames": int(len(traj))}
+    m.update({f"t_{k}_s": float(v) for k, v in timings.items()})
+    return m
+
+
+def metrics_of(case_dict: dict, stages: str = "full", **kw) -> dict:
+    """The metric dict of one case dict (what a sweep worker runs)."""
+    if stages == "sim":
+        return sim_only_case(case_dict)
+    return run_case(case_dict, **kw).metrics
+
+
+def environment_threads() -> int | None:
+    v = os.environ.get("LP_NUM_THREADS")
+    return int(v) if v and v.isdigit() else None
