@@ -43,9 +43,8 @@ import dataclasses
 import hashlib
 import json
 import math
-from pathlib import Path
-
 import tomllib
+from pathlib import Path
 
 from rollfric.errors import InputError
 

@@ -1,4 +1,4 @@
-"""``rollfric validate`` and ``rollfric sweep`` (argparse only; the pipeline loads in the handlers)."""
+"""``rollfric validate`` and ``rollfric sweep`` (argparse only; the work loads in handlers)."""
 
 from __future__ import annotations
 
@@ -138,7 +138,6 @@ def handle_validate(args) -> int:
                                    source=args.case or "built-in case")
     result = e2e.run_case(case, keep_recording=args.keep_recording, report_dir=args.out,
                           progress=not args.no_progress and not args.json)
-    report.write_report(result, args.out)
     if args.json:
         print(json.dumps(report.json_safe(result.metrics), sort_keys=True))
     else:

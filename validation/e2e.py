@@ -62,7 +62,8 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
 
     ``recording``: where to write the rendered recording (kept); otherwise it goes to a
     temporary directory, removed at the end unless ``keep_recording`` (then it is kept as
-    ``report_dir/recording.zarr``). ``render_workers``/``render_threads``: rendering
+    ``report_dir/recording.zarr``). ``report_dir``: also write the report there
+    (:mod:`validation.report`). ``render_workers``/``render_threads``: rendering
     processes (synth's default: up to 2) and llvmpipe threads each; a sweep worker uses 1/1.
     """
     import sim
@@ -100,18 +101,26 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
             track, fit, setup = measure_recording(rec_path, case, progress=progress)
         with _timer(timings, "metrics"):
             metrics = compute_metrics(case, traj, truth, track, fit, fit_truth, setup)
+        timings["total"] = time.perf_counter() - t_start
+        metrics.update({f"t_{k}_s": float(v) for k, v in timings.items()})
+        metrics["n_frames"] = int(len(truth))
+        metrics["frame_width_px"] = int(case.scene.camera.width)
+        metrics["frame_height_px"] = int(case.scene.camera.height)
+        metrics["render_fps"] = (len(truth) / timings["render"]) if timings["render"] > 0 \
+            else math.nan
+        result = CaseResult(case=case, metrics=metrics, timings=dict(timings), trajectory=traj,
+                            truth=truth, track=track, fit=fit, fit_truth=fit_truth, setup=setup,
+                            recording=rec_path)
+        if report_dir is not None:
+            from validation.report import write_report
+
+            write_report(result, report_dir)  # while the recording exists (overlay frames)
     finally:
         if tmpdir is not None:
             shutil.rmtree(tmpdir, ignore_errors=True)
-    timings["total"] = time.perf_counter() - t_start
-    metrics.update({f"t_{k}_s": float(v) for k, v in timings.items()})
-    metrics["n_frames"] = int(len(truth))
-    metrics["frame_width_px"] = int(case.scene.camera.width)
-    metrics["frame_height_px"] = int(case.scene.camera.height)
-    metrics["render_fps"] = (len(truth) / timings["render"]) if timings["render"] > 0 else math.nan
-    return CaseResult(case=case, metrics=metrics, timings=dict(timings), trajectory=traj,
-                      truth=truth, track=track, fit=fit, fit_truth=fit_truth, setup=setup,
-                      recording=None if tmpdir is not None else rec_path)
+    if tmpdir is not None:
+        result = dataclasses.replace(result, recording=None)
+    return result
 
 
 # -- the measurement (rollfric) ---------------------------------------------------------------

@@ -1,0 +1,206 @@
+"""The report directory of one end-to-end case, and its short text summary.
+
+Files (all written to a temporary name and renamed)::
+
+    metrics.json        the flat metric dict (NaN -> null), plus the case's timings
+    case.toml           the case that was run (loads back with ``rollfric validate case.toml``)
+    fit.json            rollfric's fit of the measured track; fit_truth.json: the same fitter on
+                        the engine's ground-truth theta(t)
+    frames.csv          per frame: truth (silhouette centre, theta), located centre, errors
+    angle_vs_model.png  measured theta(t) against the fitted equation of motion, with residuals
+    center_error_hist.png   histogram of the per-frame centre error (x, y, |e|)
+    center_error_vs_time.png    centre error (x, y) and theta error against time
+    overlays.png        frames with the located circle/centre and the true centre (zoomed)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def json_safe(value):
+    """NaN/inf -> None, numpy scalars -> Python, recursively."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _atomic_text(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.part")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _savefig(fig, path: Path) -> None:
+    tmp = path.with_name(f".{path.stem}.part.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
+    """Write the report of a :class:`validation.e2e.CaseResult` into ``out`` (created)."""
+    from rollfric.fit import save_fit
+    from rollfric.plots import plot_fit
+    from validation.case import dumps_case
+    from validation.e2e import per_frame_errors
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    m = result.metrics
+    _atomic_text(out / "metrics.json", json.dumps(json_safe(m), indent=2, sort_keys=True)
+                 + "\n")
+    _atomic_text(out / "case.toml", dumps_case(result.case.data))
+    save_fit(result.fit, out / "fit.json")
+    save_fit(result.fit_truth, out / "fit_truth.json")
+    pf = per_frame_errors(result)
+    tmp = out / ".frames.csv.part"
+    pf.to_csv(tmp, index=False, float_format="%.9g")
+    os.replace(tmp, out / "frames.csv")
+
+    # angle vs model
+    tr = result.track
+    tmp_png = out / ".angle_vs_model.part.png"
+    plot_fit(tr["t_s"].to_numpy(float), tr["theta_rad"].to_numpy(float), result.fit, tmp_png,
+             title=(f"{result.case.name}: mu recovered {m['mu_recovered']:.6f} "
+                    f"(true {m['mu_true']:.6f}, bias {100 * m['mu_bias_rel']:+.2f} %)"))
+    os.replace(tmp_png, out / "angle_vs_model.png")
+
+    good = pf["found"].to_numpy(bool) & np.isfinite(pf["err_px"].to_numpy(float))
+    # centre-error histogram
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
+    for ax, col, label in zip(axes, ("err_x_px", "err_y_px", "err_px"),
+                              ("x error (px)", "y error (px)", "|error| (px)"), strict=True):
+        v = pf.loc[good, col].to_numpy(float)
+        if v.size:
+            ax.hist(v, bins=min(60, max(10, v.size // 20)), color="tab:blue", alpha=0.8)
+            ax.axvline(0, color="k", lw=0.8)
+        ax.set_xlabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("frames")
+    fig.suptitle(f"centre error vs silhouette truth: rms {m['center_rms_px']:.3f} px, "
+                 f"max {m['center_max_px']:.3f} px, {100 * m['found_fraction']:.1f} % located")
+    fig.tight_layout()
+    _savefig(fig, out / "center_error_hist.png")
+
+    # error vs time
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
+    t = pf["t_s"].to_numpy(float)
+    a1.plot(t, pf["err_x_px"], ".", ms=1.5, label="x")
+    a1.plot(t, pf["err_y_px"], ".", ms=1.5, label="y")
+    miss = ~pf["found"].to_numpy(bool)
+    if miss.any():
+        a1.plot(t[miss], np.zeros(miss.sum()), "x", color="r", ms=4, label="not found")
+    a1.set_ylabel("centre error (px)")
+    a1.legend(loc="upper right", markerscale=4)
+    a1.grid(alpha=0.3)
+    a2.plot(t, np.degrees(pf["err_theta_rad"]), ".", ms=1.5, color="0.3")
+    a2.set_ylabel("theta error (deg)")
+    a2.set_xlabel("t (s)")
+    a2.grid(alpha=0.3)
+    fig.tight_layout()
+    _savefig(fig, out / "center_error_vs_time.png")
+
+    if result.recording is not None or getattr(result, "_source", None) is not None:
+        _overlays(result, pf, out / "overlays.png", overlay_frames)
+    return out
+
+
+def _overlays(result, pf, path: Path, k: int) -> None:
+    """Zoomed frames with the located circle (blue), its centre (+) and the true centre (x)."""
+    from rollfric import io
+
+    src = io.open_recording(result.recording)
+    n = len(pf)
+    # the worst-located frame and frames spread over the record
+    picks = list(np.unique(np.linspace(0, n - 1, max(1, k - 1)).round().astype(int)))
+    err = pf["err_px"].to_numpy(float)
+    if np.isfinite(err).any():
+        worst = int(np.nanargmax(err))
+        if worst not in picks:
+            picks.append(worst)
+    r = float(result.metrics.get("ball_radius_px", 10.0))
+    ncol = min(3, len(picks))
+    nrow = math.ceil(len(picks) / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4 * ncol, 4 * nrow), squeeze=False)
+    half = int(math.ceil(1.5 * r)) + 4
+    for ax, i in zip(axes.flat, picks, strict=False):
+        frame = np.asarray(src[int(i)])
+        row = pf.iloc[int(i)]
+        cx, cy = float(row["truth_x_px"]), float(row["truth_y_px"])
+        x0, y0 = int(round(cx)) - half, int(round(cy)) - half
+        x0c, y0c = max(0, x0), max(0, y0)
+        crop = frame[y0c:y0c + 2 * half + 1, x0c:x0c + 2 * half + 1]
+        ext = (x0c - 0.5, x0c + crop.shape[1] - 0.5, y0c + crop.shape[0] - 0.5, y0c - 0.5)
+        ax.imshow(crop, cmap="gray", extent=ext, interpolation="nearest")
+        if row["found"] and np.isfinite(row["x_px"]):
+            ax.add_patch(plt.Circle((row["x_px"], row["y_px"]), r, fill=False,
+                                    color="tab:blue", lw=1))
+            ax.plot(row["x_px"], row["y_px"], "+", color="tab:blue", ms=10, mew=1.5)
+            title = f"frame {i}: error {row['err_px']:.3f} px"
+        else:
+            title = f"frame {i}: not found"
+        ax.plot(cx, cy, "x", color="tab:red", ms=8, mew=1.5)
+        ax.set_title(title, fontsize=9)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    for ax in list(axes.flat)[len(picks):]:
+        ax.axis("off")
+    fig.suptitle("located circle and centre (blue +) vs true silhouette centre (red x)")
+    fig.tight_layout()
+    _savefig(fig, path)
+
+
+def summary_text(result, out: str | Path | None = None) -> str:
+    """A short readable summary of one case."""
+    m = result.metrics
+    c = result.case
+    sc = c.scenario
+    tm = result.timings
+    lines = [
+        f"rollfric validate: {c.name} (case {m['case_id']})",
+        f"  scenario   {sc.ball_diameter * 1e3:g} mm ball, trough R"
+        f" {sc.cylinder_radius * 1e3:g} mm,"
+        f" theta0 {math.degrees(sc.theta0):g} deg, {sc.duration:g} s at {sc.fps:g} Hz,"
+        f" engine {sc.engine}/{sc.surface}",
+        f"  camera     {c.scene.camera.width}x{c.scene.camera.height} px,"
+        f" {sc.pixel_size * 1e3:g} mm/px, motion blur {c.scene.motion_blur} sub-frame(s),"
+        f" sensor {c.data['render'].get('noise')}, lighting {c.data['render'].get('lighting')},"
+        f" seed {c.render_seed}",
+        f"  measure    locator {c.locator}, fit {c.fit}{' + offset' if c.offset else ''}",
+        "",
+        f"  mu true        {m['mu_true']:.6f}",
+        f"  mu recovered   {m['mu_recovered']:.6f} +- {m['mu_stderr']:.2g}"
+        f"   bias {100 * m['mu_bias_rel']:+.3f} %"
+        f"   truth within 1 stderr: {'yes' if m['mu_true_within_stderr'] else 'no'}"
+        f" (z = {m['mu_z']:+.2f})",
+        f"  mu engine      {m['mu_engine']:.6f}"
+        f"   (engine bias {100 * m['mu_engine_bias_rel']:+.3f} %,"
+        f" pipeline bias {100 * m['mu_pipeline_bias_rel']:+.3f} %)",
+        f"  centre error   rms {m['center_rms_px']:.4f} px, max {m['center_max_px']:.4f} px,"
+        f" bias ({m['center_bias_x_px']:+.4f}, {m['center_bias_y_px']:+.4f}) px",
+        f"  theta error    rms {math.degrees(m['theta_rms_rad']):.5f} deg,"
+        f" max {math.degrees(m['theta_max_rad']):.5f} deg",
+        f"  located        {m['n_found']} of {m['n_frames']} frames"
+        f" ({100 * m['found_fraction']:.1f} %)",
+        "  time           " + ", ".join(f"{k} {v:.1f} s" for k, v in tm.items()),
+    ]
+    if out is not None:
+        lines += ["", f"  report: {Path(out).resolve()}/"
+                      " (metrics.json, angle_vs_model.png, center_error_*.png, overlays.png)"]
+    return "\n".join(lines)
