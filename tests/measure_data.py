@@ -29,14 +29,14 @@ class Recording:
 
 def make_recording(n=160, *, mu=0.02, theta0=0.5, fps=200.0, bit_depth=8, noise=0.0,
                    missing=(), seed=0, center=(180.0, 20.0), width=360, height=240,
-                   with_center=False) -> Recording:
-    setup = Setup(cylinder_radius=R, ball_diameter=6e-3, ball_mass=4e-3, fps=fps,
+                   with_center=False, ball_mm=6.0, trough_visible=True) -> Recording:
+    setup = Setup(cylinder_radius=R, ball_diameter=ball_mm * 1e-3, ball_mass=4e-3, fps=fps,
                   pixel_size=PIX, center_px=center if with_center else None)
     r_px = setup.ball_radius / PIX
     L = setup.track_radius / PIX
     fs = 255.0 if bit_depth == 8 else 65535.0
     scene = Scene(width=width, height=height, center=center, R_px=200.0, r_px=r_px,
-                  wall_px=20, bit_depth=bit_depth, noise=noise * fs / 255.0)
+                  wall_px=20 if trough_visible else -10, bit_depth=bit_depth, noise=noise * fs / 255.0)
     t = np.arange(n) / fps
     theta, _, _ = eom.solve_reference(theta0, 0.0, mu, t, track_radius=setup.track_radius)
     centers = np.array([(center[0] + L * math.sin(a), center[1] + L * math.cos(a))
