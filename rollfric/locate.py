@@ -571,11 +571,14 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
         n_in = int((wts > 0).sum())
         if n_in < opts.min_rays or not math.isfinite(fcx):
             return Location.missing("robust circle fit failed")
-        if abs(fr_ - r_px) > opts.max_radius_dev * r_px:
-            return Location.missing(f"fitted radius {fr_:.2f} px is not the ball's "
-                                    f"{r_px:.2f} px")
+        # the ball's radius as seen: the fitted one, or (known radius) the known one plus the
+        # median offset of the edge points from that circle
+        r_seen = fr_ if free else r_px + float(np.median(res[wts > 0]))
+        if abs(r_seen - r_px) > opts.max_radius_dev * r_px:
+            return Location.missing(f"the ball's edge lies on a circle of {r_seen:.2f} px "
+                                    f"radius, not {r_px:.2f} px")
         shift = math.hypot(fcx - lcx, fcy - lcy)
-        cx, cy, r = fcx + x0c, fcy + y0c, float(fr_)
+        cx, cy, r = fcx + x0c, fcy + y0c, float(r_seen)
         # residual scale and formal centre error from the inliers
         rms = math.sqrt(float(np.sum(wts * res * res) / max(float(np.sum(wts)), 1e-12)))
         frac = n_in / n

@@ -255,7 +255,14 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     if setup.center_px is not None:
         center, center_desc = setup.center_px, "setup center_px"
     else:
-        contour = find_cylinder_center(bg, radius_px=setup.cylinder_radius / setup.pixel_size)
+        R_px = setup.cylinder_radius / setup.pixel_size
+        contour = find_cylinder_center(bg, radius_px=R_px)
+        if abs(contour.radius - R_px) > 0.1 * R_px:
+            raise SetupError(
+                f"the setup does not fit the images: the trough contour in the background has a "
+                f"radius of {contour.radius:.1f} px, the setup says {R_px:.1f} px "
+                "(cylinder.radius_mm / camera.pixel_size_mm); fix those or give "
+                "[cylinder] center_px")
         center, center_desc = contour.center, (
             f"contour in the background ({contour.n_points} points over "
             f"{contour.arc_deg:.0f} deg, radius {contour.radius:.1f} px)")
@@ -274,6 +281,9 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         log(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of the fit)")
     result = None
     if fit:
+        if len(df) < fitmod.MIN_SAMPLES:
+            raise InputError(f"the recording has only {len(df)} frames: at least "
+                             f"{fitmod.MIN_SAMPLES} are needed to fit mu")
         if n_found < fitmod.MIN_SAMPLES:
             raise InputError(f"the ball was found in only {n_found} of {len(df)} frames: at "
                              f"least {fitmod.MIN_SAMPLES} are needed to fit mu")

@@ -36,7 +36,8 @@ def make_recording(n=160, *, mu=0.02, theta0=0.5, fps=200.0, bit_depth=8, noise=
     L = setup.track_radius / PIX
     fs = 255.0 if bit_depth == 8 else 65535.0
     scene = Scene(width=width, height=height, center=center, R_px=200.0, r_px=r_px,
-                  wall_px=20 if trough_visible else -10, bit_depth=bit_depth, noise=noise * fs / 255.0)
+                  wall_px=20 if trough_visible else -10, bit_depth=bit_depth,
+                  noise=noise * fs / 255.0)
     t = np.arange(n) / fps
     theta, _, _ = eom.solve_reference(theta0, 0.0, mu, t, track_radius=setup.track_radius)
     centers = np.array([(center[0] + L * math.sin(a), center[1] + L * math.cos(a))

@@ -8,8 +8,8 @@ import pandas as pd
 import pytest
 import tifffile
 import zarr
-
 from measure_data import make_recording
+
 from rollfric.cli import main
 from rollfric.cylinder import ContourError, find_cylinder_center
 from rollfric.setup import dumps_setup, save_setup
@@ -177,11 +177,16 @@ def test_bad_inputs_exit_2_and_write_nothing(tmp_path, capsys):
     wrong = rec.setup.replace(ball_diameter=rec.setup.ball_diameter * 2)
     (tmp_path / "wrong.toml").write_text(dumps_setup(wrong))
     _bad(tmp_path, capsys, [path, "--setup", tmp_path / "wrong.toml", "--background", bg],
-         "ball")
+         "is its size right")
+    # a pixel size that makes the trough's contour the wrong size
+    off = rec.setup.replace(pixel_size=rec.setup.pixel_size * 1.3)
+    (tmp_path / "off.toml").write_text(dumps_setup(off))
+    _bad(tmp_path, capsys, [path, "--setup", tmp_path / "off.toml", "--background", bg],
+         "the setup does not fit the images")
     # sequence too short to fit
     short = tmp_path / "short.tif"
     tifffile.imwrite(short, np.stack(rec.frames[:20]))
-    _bad(tmp_path, capsys, [short, "--setup", setup, "--background", bg], "at least")
+    _bad(tmp_path, capsys, [short, "--setup", setup, "--background", bg], "only 20 frames")
     # the ball missing from every frame
     empty = tmp_path / "empty.tif"
     tifffile.imwrite(empty, np.stack([rec.background] * 60))
