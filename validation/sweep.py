@@ -1,0 +1,494 @@
+"""Sweeps: many validation cases on Dask distributed, one tidy table row per case.
+
+A sweep file (TOML)::
+
+    [sweep]
+    name = "noise"
+    description = "mu bias and centre error vs read noise and shot noise"
+    mode = "grid"              # grid: every combination of [grid]; list: the [[cases]] tables
+    stages = "full"            # full: sim -> synth -> rollfric; sim: simulate + fit only
+    seeds = 2                  # each case repeated with render.seed = 0 .. seeds-1
+    metrics = ["mu_bias_rel", "center_rms_px"]   # what the plots show
+
+    [base]                     # a case (validation.case), merged over the built-in default
+    scenario.motion = { seconds = 1.0 }
+    render = { noise = "realistic" }
+
+    [grid]                     # dotted case keys -> values
+    "render.sensor.read_noise" = [0.0, 8.0, 20.0, 40.0]
+    "render.sensor.shot_noise" = [false, true]
+
+    [[cases]]                  # (mode = "list") one table per case
+    "render.lighting" = "dim"
+
+Each case's id is a hash of its full case dict (:func:`validation.case.case_id`), so the same
+parameters always give the same id. A finished case is written at once to
+``OUT/parts/<case_id>.parquet`` (one row: the parameters, status, error, the metrics); the
+combined ``OUT/results.parquet`` and ``OUT/results.csv`` are rebuilt from the parts. Running the
+same sweep into the same OUT resumes: cases with a part are not run again (failed ones only with
+``retry_failed``). A case that raises is recorded as failed with its error; a case whose worker
+dies is re-run by Dask on another worker, and recorded as failed (KilledWorker) only when it
+kills workers repeatedly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.resources
+import itertools
+import json
+import logging
+import math
+import os
+import socket
+import tempfile
+import time
+import tomllib
+import traceback
+from pathlib import Path
+
+from rollfric.errors import InputError
+from validation.case import (
+    apply_overrides,
+    case_from_dict,
+    case_id,
+    default_case_dict,
+    merge_case,
+)
+
+STAGES = ("full", "sim")
+DEFAULT_METRICS = ("mu_bias_rel", "mu_pipeline_bias_rel", "center_rms_px", "center_max_px")
+SWEEP_KEYS = ("name", "description", "mode", "stages", "seeds", "metrics")
+REBUILD_EVERY_S = 20.0
+
+
+class SweepError(InputError):
+    """A sweep file that cannot be run (the message names the bad input)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepCase:
+    case_id: str
+    params: dict  # swept dotted key -> value (includes render.seed when seeds > 1)
+    case: dict  # the full case dict
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepSpec:
+    name: str
+    description: str
+    stages: str
+    metrics: tuple
+    swept: tuple  # swept dotted keys, in file order
+    cases: tuple  # SweepCase
+    source: str = ""
+    text: str = ""  # the sweep file's text (copied into OUT)
+
+
+# -- reading sweep files --------------------------------------------------------------------
+
+def shipped_sweeps() -> list[tuple[str, str, str]]:
+    """(name, path, description) of the example sweeps shipped in validation/sweeps/."""
+    out = []
+    root = importlib.resources.files("validation") / "sweeps"
+    for entry in sorted(root.iterdir(), key=lambda e: e.name):
+        if entry.name.endswith(".toml"):
+            data = tomllib.loads(entry.read_text())
+            out.append((entry.name[:-5], str(entry),
+                        data.get("sweep", {}).get("description", "")))
+    return out
+
+
+def _find_sweep(path_or_name: str | Path) -> Path:
+    p = Path(path_or_name)
+    if p.is_file():
+        return p
+    for name, path, _ in shipped_sweeps():
+        if name == str(path_or_name):
+            return Path(path)
+    raise SweepError(f"sweep file not found: {path_or_name} (nor a shipped study: "
+                     f"{', '.join(n for n, _, _ in shipped_sweeps())})")
+
+
+def load_sweep(path_or_name: str | Path) -> SweepSpec:
+    """Read a sweep file (or a shipped study by name) and expand its cases."""
+    path = _find_sweep(path_or_name)
+    text = path.read_text()
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SweepError(f"{path}: not valid TOML: {exc}") from None
+    return sweep_from_dict(data, source=str(path), text=text)
+
+
+def _flatten_keys(table: dict, prefix: str = "") -> dict:
+    """{"render": {"sensor": {"read_noise": [..]}}} -> {"render.sensor.read_noise": [..]}."""
+    out = {}
+    for k, v in table.items():
+        key = f"{prefix}.{k}" if prefix else k
+        if isinstance(v, dict):
+            out.update(_flatten_keys(v, key))
+        else:
+            out[key] = v
+    return out
+
+
+def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepSpec:
+    unknown = sorted(set(data) - {"sweep", "base", "grid", "cases"})
+    if unknown:
+        raise SweepError(f"{source}: unknown section(s) {unknown} (sweep, base, grid, cases)")
+    head = data.get("sweep", {})
+    bad = sorted(set(head) - set(SWEEP_KEYS))
+    if bad:
+        raise SweepError(f"{source}: unknown key(s) sweep.{bad} (known: {', '.join(SWEEP_KEYS)})")
+    name = head.get("name", Path(source).stem)
+    mode = head.get("mode", "grid")
+    stages = head.get("stages", "full")
+    seeds = head.get("seeds", 1)
+    metrics = tuple(head.get("metrics", DEFAULT_METRICS))
+    if mode not in ("grid", "list"):
+        raise SweepError(f"{source}: sweep.mode must be 'grid' or 'list', got {mode!r}")
+    if stages not in STAGES:
+        raise SweepError(f"{source}: sweep.stages must be one of {STAGES}, got {stages!r}")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise SweepError(f"{source}: sweep.seeds must be a positive integer, got {seeds!r}")
+    base = merge_case(default_case_dict(), data.get("base", {}), f"{source} [base]")
+    combos: list[dict] = []
+    if mode == "grid":
+        grid = _flatten_keys(data.get("grid", {}))
+        if "cases" in data:
+            raise SweepError(f"{source}: [[cases]] given but sweep.mode is 'grid'")
+        for k, v in grid.items():
+            if not isinstance(v, list) or not v:
+                raise SweepError(f"{source}: grid.{k} must be a non-empty list of values")
+        keys = list(grid)
+        combos = [dict(zip(keys, vals, strict=True))
+                  for vals in itertools.product(*(grid[k] for k in keys))]
+        swept = keys
+    else:
+        if "grid" in data:
+            raise SweepError(f"{source}: [grid] given but sweep.mode is 'list'")
+        cases = data.get("cases", [])
+        if not isinstance(cases, list) or not cases:
+            raise SweepError(f"{source}: mode 'list' needs [[cases]] tables")
+        combos = [_flatten_keys(c) for c in cases]
+        swept = list(dict.fromkeys(k for c in combos for k in c))
+    if seeds > 1:
+        if "render.seed" in swept:
+            raise SweepError(f"{source}: sweep.seeds and a swept render.seed exclude each other")
+        combos = [dict(c, **{"render.seed": s}) for c in combos for s in range(seeds)]
+        swept = [*swept, "render.seed"]
+    out, seen = [], set()
+    for params in combos:
+        d = apply_overrides(base, params)
+        d["name"] = name
+        try:
+            case_from_dict(d, source=f"{source} case {params}")
+        except InputError as exc:
+            raise SweepError(str(exc)) from None
+        cid = case_id(d)
+        if cid in seen:
+            continue  # the same case twice (e.g. a list repeating itself)
+        seen.add(cid)
+        out.append(SweepCase(case_id=cid, params=params, case=d))
+    return SweepSpec(name=name, description=head.get("description", ""), stages=stages,
+                     metrics=metrics, swept=tuple(swept), cases=tuple(out), source=source,
+                     text=text)
+
+
+# -- running one case (on a worker) ---------------------------------------------------------
+
+def run_one(case_dict: dict, stages: str = "full", recording: str | None = None,
+            case_fn=None) -> dict:
+    """What a worker runs for one case: {"status", "error", "metrics", "worker", "wall_s"}.
+
+    An exception in the case is caught and returned as status "failed" with its traceback's
+    last line as the error; a dying process is left to Dask (the case is re-run elsewhere).
+    """
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    from validation import e2e
+
+    t0 = time.perf_counter()
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    try:
+        if case_fn is not None:
+            metrics = case_fn(case_dict)
+        elif stages == "sim":
+            metrics = e2e.sim_only_case(case_dict)
+        else:
+            metrics = e2e.run_case(case_dict, recording=recording, render_workers=1,
+                                   render_threads=1).metrics
+        return {"status": "ok", "error": "", "metrics": metrics, "worker": worker,
+                "wall_s": time.perf_counter() - t0}
+    except Exception as exc:  # recorded, not raised: one bad case must not stop the sweep
+        tb = traceback.format_exc(limit=6)
+        return {"status": "failed", "error": f"{type(exc).__name__}: {exc}", "traceback": tb,
+                "metrics": {}, "worker": worker, "wall_s": time.perf_counter() - t0}
+
+
+# -- parts and the combined table -----------------------------------------------------------
+
+def _scalar(v):
+    if isinstance(v, (list, tuple, dict)):
+        return json.dumps(v)
+    return v
+
+
+def _row(sc: SweepCase, outcome: dict) -> dict:
+    row = {"case_id": sc.case_id, "status": outcome["status"], "error": outcome["error"],
+           "worker": outcome.get("worker", ""), "wall_s": float(outcome.get("wall_s", math.nan)),
+           "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    for k, v in sc.params.items():
+        row[k] = _scalar(v)
+    for k, v in outcome.get("metrics", {}).items():
+        if k in ("case_id",):
+            continue
+        row[k] = _scalar(v)
+    row["case_json"] = json.dumps(sc.case, sort_keys=True)
+    return row
+
+
+def write_part(parts_dir: Path, row: dict) -> Path:
+    """One case's row as parts/<case_id>.parquet, atomically (temp file + rename)."""
+    import pandas as pd
+
+    parts_dir.mkdir(parents=True, exist_ok=True)
+    path = parts_dir / f"{row['case_id']}.parquet"
+    fd, tmp = tempfile.mkstemp(prefix=f".{row['case_id']}.", suffix=".part", dir=parts_dir)
+    os.close(fd)
+    try:
+        pd.DataFrame([row]).to_parquet(tmp, index=False)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def read_parts(out: str | Path):
+    """All finished cases' rows (pandas DataFrame, one row per part), sorted by case_id."""
+    import pandas as pd
+
+    parts = sorted((Path(out) / "parts").glob("*.parquet"))
+    if not parts:
+        return pd.DataFrame(columns=["case_id", "status", "error"])
+    frames = [pd.read_parquet(p) for p in parts]
+    frames = [f for f in frames if not f.empty]
+    df = pd.concat(frames, ignore_index=True, sort=False)
+    return df.sort_values("case_id", kind="stable").reset_index(drop=True)
+
+
+def rebuild_table(out: str | Path, spec: SweepSpec | None = None):
+    """results.parquet and results.csv from the parts (atomic); returns the DataFrame."""
+    out = Path(out)
+    df = read_parts(out)
+    if spec is not None and len(df):
+        # sweep order (the file's), then anything else found in parts
+        order = {c.case_id: i for i, c in enumerate(spec.cases)}
+        df = df.assign(_o=df["case_id"].map(order).fillna(len(order))) \
+            .sort_values(["_o", "case_id"], kind="stable").drop(columns="_o") \
+            .reset_index(drop=True)
+    for name, write in (("results.parquet", lambda p: df.to_parquet(p, index=False)),
+                        ("results.csv", lambda p: df.to_csv(p, index=False))):
+        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", dir=out)
+        os.close(fd)
+        try:
+            write(tmp)
+            os.replace(tmp, out / name)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    return df
+
+
+def _write_recordings_index(out: Path, spec: SweepSpec, df) -> None:
+    import pandas as pd
+
+    rec_dir = out / "recordings"
+    rows = []
+    for sc in spec.cases:
+        p = rec_dir / f"{sc.case_id}.zarr"
+        if p.exists():
+            status = df.loc[df["case_id"] == sc.case_id, "status"]
+            rows.append({"case_id": sc.case_id, "recording": str(p.relative_to(out)),
+                         "status": status.iloc[0] if len(status) else "",
+                         **{k: _scalar(v) for k, v in sc.params.items()},
+                         "case_json": json.dumps(sc.case, sort_keys=True)})
+    if rows:
+        tmp = rec_dir / ".index.csv.part"
+        pd.DataFrame(rows).to_csv(tmp, index=False)
+        os.replace(tmp, rec_dir / "index.csv")
+
+
+# -- the sweep --------------------------------------------------------------------------------
+
+@dataclasses.dataclass
+class SweepSummary:
+    out: Path
+    n_cases: int
+    n_done_before: int
+    n_run: int
+    n_ok: int
+    n_failed: int
+    seconds: float
+    plots: list
+
+    def text(self) -> str:
+        lines = [f"sweep: {self.n_cases} case(s), {self.n_done_before} already done, "
+                 f"{self.n_run} run now in {self.seconds:.1f} s; {self.n_ok} ok, "
+                 f"{self.n_failed} failed",
+                 f"results: {self.out / 'results.parquet'} and results.csv"]
+        if self.plots:
+            lines.append(f"plots:   {self.out / 'plots'}/ ({len(self.plots)} files)")
+        return "\n".join(lines)
+
+
+def _start_client(scheduler: str | None, n_workers: int):
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        return Client(scheduler), None
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")  # inherited by the worker processes
+    cluster = LocalCluster(n_workers=max(1, int(n_workers)), threads_per_worker=1,
+                           processes=True, dashboard_address=None,
+                           silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
+              n_workers: int = 2, keep_recordings: bool = False, retry_failed: bool = False,
+              progress: bool = True, case_fn=None, client=None) -> SweepSummary:
+    """Run the sweep's cases not yet in OUT/parts on Dask; rebuild the table; plot.
+
+    ``case_fn(case_dict) -> metrics dict`` replaces the end-to-end case (for cheap sweeps
+    and tests); ``client``: an existing ``distributed.Client`` to use (else ``scheduler``,
+    else a local cluster of ``n_workers`` processes, one thread each).
+    """
+    import pandas as pd
+    from distributed import as_completed
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    parts_dir = out / "parts"
+    parts_dir.mkdir(exist_ok=True)
+    if spec.text:
+        (out / "sweep.toml").write_text(spec.text)
+    done = read_parts(out)
+    status = dict(zip(done["case_id"], done["status"], strict=True)) if len(done) else {}
+    todo = [c for c in spec.cases
+            if c.case_id not in status or (retry_failed and status[c.case_id] != "ok")]
+    n_before = len(spec.cases) - len(todo)
+    n_ok = n_failed = 0
+    own = None
+    if todo:
+        if client is None:
+            client, own = _start_client(scheduler, n_workers)
+            own = (client, own)
+        try:
+            futures = {}
+            for sc in todo:
+                rec = None
+                if keep_recordings:
+                    (out / "recordings").mkdir(exist_ok=True)
+                    rec = str((out / "recordings" / f"{sc.case_id}.zarr").resolve())
+                fut = client.submit(run_one, sc.case, spec.stages, rec, case_fn,
+                                    key=f"case-{spec.name}-{sc.case_id}", pure=False)
+                futures[fut] = sc
+            bar = tqdm(total=len(spec.cases), initial=n_before, unit="case",
+                       desc=f"sweep {spec.name}", disable=not progress)
+            last = time.perf_counter()
+            for fut in as_completed(list(futures)):
+                sc = futures[fut]
+                try:
+                    outcome = fut.result()
+                except Exception as exc:  # KilledWorker, lost connection, unpicklable result
+                    outcome = {"status": "failed", "error": f"{type(exc).__name__}: {exc}",
+                               "metrics": {}, "worker": "", "wall_s": math.nan}
+                write_part(parts_dir, _row(sc, outcome))
+                if outcome["status"] == "ok":
+                    n_ok += 1
+                else:
+                    n_failed += 1
+                    bar.write(f"case {sc.case_id} failed: {outcome['error']}")
+                bar.update(1)
+                fut.release()
+                if time.perf_counter() - last > REBUILD_EVERY_S:
+                    rebuild_table(out, spec)
+                    last = time.perf_counter()
+            bar.close()
+        finally:
+            if own is not None:
+                own[0].close()
+                if own[1] is not None:
+                    own[1].close()
+    df = rebuild_table(out, spec)
+    if keep_recordings:
+        _write_recordings_index(out, spec, df)
+    n_failed_total = int((df["status"] != "ok").sum()) if len(df) else 0
+    plots = plot_sweep(df, spec, out / "plots") if len(df) else []
+    _ = pd
+    return SweepSummary(out=out, n_cases=len(spec.cases), n_done_before=n_before,
+                        n_run=len(todo), n_ok=n_ok, n_failed=n_failed_total,
+                        seconds=time.perf_counter() - t0, plots=plots)
+
+
+# -- plots ------------------------------------------------------------------------------------
+
+def plot_sweep(df, spec: SweepSpec, plot_dir: Path) -> list[Path]:
+    """For every swept key x and metric y: y vs x (mean +- std over the other repeats), one
+    line per combination of the other swept keys. Categorical x are spread evenly."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    ok = df[df["status"] == "ok"]
+    if ok.empty:
+        return []
+    plot_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    keys = [k for k in spec.swept if k in ok.columns and k != "render.seed"]
+    for x in keys:
+        others = [k for k in keys if k != x]
+        metrics = [m for m in spec.metrics if m in ok.columns]
+        if not metrics:
+            continue
+        fig, axes = plt.subplots(len(metrics), 1, figsize=(8, 2.8 * len(metrics) + 0.6),
+                                 squeeze=False, sharex=True)
+        xs_all = list(dict.fromkeys(ok[x].tolist()))
+        numeric = all(isinstance(v, (int, float, np.number)) and not isinstance(v, bool)
+                      for v in xs_all)
+        pos = ({v: float(v) for v in xs_all} if numeric
+               else {v: float(i) for i, v in enumerate(xs_all)})
+        groups = ok.groupby(others, dropna=False) if others else [((), ok)]
+        for ax, met in zip(axes[:, 0], metrics, strict=True):
+            for gkey, g in groups:
+                agg = g.groupby(x, dropna=False)[met].agg(["mean", "std", "count"])
+                agg = agg.reindex([v for v in xs_all if v in agg.index])
+                px = [pos[v] for v in agg.index]
+                gkey = gkey if isinstance(gkey, tuple) else (gkey,)
+                label = ", ".join(f"{k}={v}" for k, v in zip(others, gkey, strict=True)) or None
+                ax.errorbar(px, agg["mean"].to_numpy(float),
+                            yerr=np.nan_to_num(agg["std"].to_numpy(float)), marker="o",
+                            ms=4, capsize=3, lw=1, label=label)
+            ax.set_ylabel(met)
+            ax.grid(alpha=0.3)
+            if met.startswith("mu_") and "bias" in met:
+                ax.axhline(0, color="k", lw=0.7)
+            if others and len(groups) <= 12:
+                ax.legend(fontsize=7, loc="best")
+        axes[-1, 0].set_xlabel(x)
+        if not numeric:
+            axes[-1, 0].set_xticks(list(pos.values()), [str(v) for v in pos], rotation=20)
+        fig.suptitle(f"{spec.name}: {', '.join(metrics)} vs {x}", fontsize=10)
+        fig.tight_layout()
+        path = plot_dir / f"{x.replace('.', '_')}.png"
+        tmp = plot_dir / f".{path.stem}.part.png"
+        fig.savefig(tmp, dpi=100)
+        plt.close(fig)
+        os.replace(tmp, path)
+        written.append(path)
+    return written

@@ -1,0 +1,1 @@
+"""Example sweep files (package data): ``rollfric sweep --list``, ``rollfric sweep NAME``."""
