@@ -91,7 +91,7 @@ class SceneConfig:
     shadows: bool = True
     supersample: int = 1  # render ss x ss pixels per output pixel (box filter), plus 4x MSAA
     motion_blur: int = 1  # sub-frames integrated over the exposure (1: none)
-    ball_subdivisions: int = 5  # icosphere level of the ball mesh
+    ball_silhouette_segments: int = 512  # vertices on the ball mesh's silhouette ring
 
     def __post_init__(self) -> None:
         if isinstance(self.camera, dict):

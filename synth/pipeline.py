@@ -106,15 +106,13 @@ def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads):
 
 
 def _worker_batch(indices, centres, quats):
-    from synth.scene import ball_pose
-
     sr = _W["renderer"]
     diff_arr = _W["diff"]
     bg = _W["bg"]
     k = centres.shape[1]
     dtype = diff_arr.dtype
     for n, i in enumerate(indices):
-        poses = [ball_pose(c, quats[n]) for c in centres[n]]
+        poses = [sr.ball_pose(c) for c in centres[n]]
         tiles = sr.tiles_for(centres[n])
         out = np.zeros(bg.shape, dtype=dtype)
         if tiles:

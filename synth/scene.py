@@ -102,6 +102,65 @@ def _trough_meshes(R: float, wall: float, length: float, half_open: float, n: in
     return parts
 
 
+def _stitch(a: np.ndarray, ta: np.ndarray, b: np.ndarray, tb: np.ndarray) -> list:
+    """Triangles joining closed ring a (vertex ids, angles ta in [0, 1)) to ring b."""
+    na, nb = len(a), len(b)
+    faces = []
+    i = j = 0
+    while i < na or j < nb:
+        next_a = ta[i + 1] if i + 1 < na else 1.0 + ta[0]
+        next_b = tb[j + 1] if j + 1 < nb else 1.0 + tb[0]
+        if (i < na and next_a <= next_b) or j >= nb:
+            faces.append([a[i % na], a[(i + 1) % na], b[j % nb]])
+            i += 1
+        else:
+            faces.append([a[i % na], b[(j + 1) % nb], b[j % nb]])
+            j += 1
+    return faces
+
+
+def view_sphere(radius: float, silhouette_angle: float = math.pi / 2, n_silhouette: int = 512,
+                n_segments: int = 64, n_front: int = 16, n_back: int = 8):
+    """A sphere mesh for a camera on its +z axis: few triangles, an exact silhouette.
+
+    Rings of constant polar angle phi about +z; the ring at ``silhouette_angle`` (pi/2 for an
+    orthographic camera, acos(r/d) for a pinhole at distance d) is the silhouette and gets
+    ``n_silhouette`` vertices (its polygon's area is short of the circle's by 2.5e-5, i.e.
+    0.001 px in radius for a 37 px ball); the other rings ``n_segments`` sin(phi). Vertex
+    normals are the exact sphere normals. A uniform ball looks the same in any orientation,
+    so the renderer turns this mesh's +z towards the camera instead of applying the ball's spin.
+    """
+    import trimesh
+
+    phis = np.concatenate([np.linspace(0, silhouette_angle, n_front + 1)[1:],
+                           np.linspace(silhouette_angle, math.pi, n_back + 1)[1:-1]])
+    verts = [np.array([0.0, 0.0, 1.0])]
+    rings = [(np.array([0]), np.array([0.0]))]
+    for phi in phis:
+        if abs(phi - silhouette_angle) < 1e-12:
+            n = n_silhouette
+        else:
+            n = max(6, int(math.ceil(n_segments * math.sin(phi))))
+        t = (np.arange(n) + (0.5 if len(rings) % 2 else 0.0)) / n
+        t = t % 1.0
+        order = np.argsort(t)
+        t = t[order]
+        ang = 2 * math.pi * t
+        pts = np.column_stack([math.sin(phi) * np.cos(ang), math.sin(phi) * np.sin(ang),
+                               np.full(n, math.cos(phi))])
+        ids = np.arange(len(verts), len(verts) + n)
+        verts.extend(pts)
+        rings.append((ids, t))
+    verts.append(np.array([0.0, 0.0, -1.0]))
+    rings.append((np.array([len(verts) - 1]), np.array([0.0])))
+    faces = []
+    for (a, ta), (b, tb) in zip(rings[:-1], rings[1:], strict=True):
+        faces += [f for f in _stitch(a, ta, b, tb) if len(set(f)) == 3]
+    faces = np.array(faces)[:, ::-1]  # counter-clockwise seen from outside
+    unit = np.array(verts)
+    return trimesh.Trimesh(unit * radius, faces, vertex_normals=unit, process=False)
+
+
 class SceneRenderer:
     """One pyrender scene and one offscreen renderer (one per process: EGL contexts do not
     survive fork)."""
@@ -150,8 +209,13 @@ class SceneRenderer:
                                     outerConeAngle=lamp.outer_cone)
             scene.add(sl, pose=_look_at(lamp.position, lamp.target), name=f"lamp{i}")
         # ball (added/removed per render)
-        sphere = trimesh.creation.icosphere(subdivisions=config.ball_subdivisions,
-                                            radius=self.ball_radius)
+        cam = self.camera
+        if cam.projection == "orthographic":
+            sil = math.pi / 2
+        else:
+            # the ball stays near the ball plane: its distance to the pinhole barely changes
+            sil = math.acos(self.ball_radius / cam.working_distance)
+        sphere = view_sphere(self.ball_radius, sil, n_silhouette=config.ball_silhouette_segments)
         bc = config.ball_color
         steel = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=[bc, bc, bc, 1.0], metallicFactor=config.ball_metallic,
@@ -167,6 +231,7 @@ class SceneRenderer:
             self.flags |= pyrender.RenderFlags.SHADOWS_SPOT
         self._renderer = None
         self._viewport = None
+        self._shadow_cache = None
         # shadow-map resolution at each lamp (for the footprint's blur margin)
         self._scene_scale = None
 
@@ -193,6 +258,15 @@ class SceneRenderer:
             self._renderer.viewport_height = vh
         self._viewport = (vw, vh)
         return self._renderer
+
+    def ball_pose(self, centre) -> np.ndarray:
+        """Pose of the ball mesh at ``centre`` (m): its +z axis towards the camera."""
+        c = np.asarray(centre, float)
+        pose = np.eye(4)
+        pose[:3, 3] = c
+        if self.camera.projection == "perspective":
+            pose[:3, :3] = _rotation_z_to(np.array([0.0, 0.0, self.camera.camera_z]) - c)
+        return pose
 
     def set_ball(self, pose: np.ndarray | None) -> None:
         if pose is None:
@@ -237,16 +311,12 @@ class SceneRenderer:
         inner = r._renderer
         flags = self.flags | pr.RenderFlags.OFFSCREEN
         out = [None] * len(tiles)
-        backdrop = self._backdrop_mesh
         try:
             for pose in poses:
                 self.set_ball(pose)
                 inner._update_context(self.scene, flags)
                 if self.config.shadows:
-                    backdrop.is_visible = False
-                    for ln in self.scene.light_nodes:
-                        inner._shadow_mapping_pass(self.scene, ln, flags)
-                    backdrop.is_visible = True
+                    self._ball_shadow_pass(inner, flags)
                 for k, (x0, y0, w, h) in enumerate(tiles):
                     inner.viewport_width, inner.viewport_height = w * self.ss, h * self.ss
                     self._cam.P = self.camera.tile_projection(x0, y0, w, h)
@@ -254,12 +324,71 @@ class SceneRenderer:
                     c = self._reduce(color)
                     out[k] = c if out[k] is None else out[k] + c
         finally:
-            backdrop.is_visible = True
             r._platform.make_uncurrent()
         return out
 
+    def _ball_shadow_pass(self, inner, flags) -> None:
+        """Each lamp's shadow map: the cached depth of the static caster (the trough) copied
+        in, then the ball drawn over it with the depth test, as pyrender would draw both (the
+        backdrop is the farthest surface and casts on nothing: it is left out)."""
+        from OpenGL.GL import GL_TEXTURE_2D, glCopyImageSubData
+
+        static = [n.mesh for n in self.scene.mesh_nodes if n.mesh is not self._ball_mesh]
+        if self._shadow_cache is None:
+            self._shadow_cache = self._make_shadow_cache(inner, flags, static)
+        original = inner._configure_shadow_mapping_viewport
+        size = SHADOW_TEX_SZ
+        visible = [m.is_visible for m in static]
+        try:
+            for ln in self.scene.light_nodes:
+                cache = self._shadow_cache[ln.name]
+
+                def configure(light, fl, cache=cache):
+                    original(light, fl)  # binds the light's map and clears it
+                    glCopyImageSubData(cache._texid, GL_TEXTURE_2D, 0, 0, 0, 0,
+                                       light.shadow_texture._texid, GL_TEXTURE_2D, 0, 0, 0, 0,
+                                       size, size, 1)
+
+                inner._configure_shadow_mapping_viewport = configure
+                for m in static:
+                    m.is_visible = False
+                inner._shadow_mapping_pass(self.scene, ln, flags)
+        finally:
+            inner._configure_shadow_mapping_viewport = original
+            for m, v in zip(static, visible, strict=True):
+                m.is_visible = v
+
+    def _make_shadow_cache(self, inner, flags, static) -> dict:
+        """Render each lamp's shadow map of the trough alone, once, and keep a copy."""
+        from OpenGL.GL import GL_FLOAT, GL_TEXTURE_2D, glCopyImageSubData
+
+        pr = self._pyrender
+        ball_visible = self._ball_mesh.is_visible
+        self._ball_mesh.is_visible = False
+        self._backdrop_mesh.is_visible = False
+        cache = {}
+        try:
+            for ln in self.scene.light_nodes:
+                inner._shadow_mapping_pass(self.scene, ln, flags)
+                tex = pr.texture.Texture(width=SHADOW_TEX_SZ, height=SHADOW_TEX_SZ,
+                                         source_channels="D", data_format=GL_FLOAT)
+                tex._add_to_context()
+                glCopyImageSubData(ln.light.shadow_texture._texid, GL_TEXTURE_2D, 0, 0, 0, 0,
+                                   tex._texid, GL_TEXTURE_2D, 0, 0, 0, 0,
+                                   SHADOW_TEX_SZ, SHADOW_TEX_SZ, 1)
+                cache[ln.name] = tex
+        finally:
+            self._ball_mesh.is_visible = ball_visible
+            self._backdrop_mesh.is_visible = True
+        return cache
+
     def close(self) -> None:
         if self._renderer is not None:
+            if self._shadow_cache:
+                self._renderer._platform.make_current()
+                for tex in self._shadow_cache.values():
+                    tex._remove_from_context()
+                self._shadow_cache = None
             self._renderer.delete()
             self._renderer = None
 
@@ -318,7 +447,10 @@ class SceneRenderer:
                     (zc <= zhi)
                 t_hit = np.where(on_bore, t_cyl, t_hit)
                 hits = P + t_hit[:, None] * dirs
-                keep = on_bore | ~self._behind_trough(hits)
+                # an orthographic camera sees the bore edge-on (no pixels); a pinhole sees the
+                # part of the bore behind the front edge
+                bore_seen = on_bore & (cam.projection == "perspective")
+                keep = bore_seen | (~on_bore & ~self._behind_trough(hits))
                 pts.append(hits[keep])
                 if keep.any():
                     margins.append(np.linalg.norm(hits[keep] - P, axis=1).max())
@@ -400,16 +532,14 @@ def _camera_class():
     return FixedProjectionCamera
 
 
-def ball_pose(position, quaternion=None) -> np.ndarray:
-    """4x4 pose from a position (m) and a wxyz quaternion (world frame)."""
-    pose = np.eye(4)
-    if quaternion is not None:
-        w, x, y, z = (float(v) for v in quaternion)
-        n = math.sqrt(w * w + x * x + y * y + z * z)
-        if n > 0:
-            w, x, y, z = w / n, x / n, y / n, z / n
-            pose[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
-    pose[:3, 3] = np.asarray(position, float)
-    return pose
+def _rotation_z_to(direction) -> np.ndarray:
+    """Rotation matrix turning +z onto ``direction`` (smallest rotation)."""
+    d = np.asarray(direction, float)
+    d = d / np.linalg.norm(d)
+    z = np.array([0.0, 0.0, 1.0])
+    v = np.cross(z, d)
+    c = float(z @ d)
+    if np.linalg.norm(v) < 1e-15:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1 + c)

@@ -12,7 +12,7 @@ import pytest
 
 from synth.camera import CameraModel
 from synth.config import SceneConfig
-from synth.scene import SceneRenderer, ball_pose
+from synth.scene import SceneRenderer, view_sphere
 
 R_CYL = 0.0853
 R_BALL = 0.005
@@ -41,7 +41,7 @@ def test_rendered_ball_centroid_and_radius_match_truth(projection):
                       center_px=(640.0 - (u - 64.3), 380.0 - (v - 55.6)))
     sr = _silhouette_renderer(cam)
     try:
-        sr.set_ball(ball_pose(c))
+        sr.set_ball(sr.ball_pose(c))
         img = sr.render_full().astype(float) / sr.scale  # coverage in [0, 1]
     finally:
         sr.close()
@@ -90,7 +90,7 @@ def test_tiles_equal_full_frame_render(projection):
         worst, shadow_checked = 0, False
         for theta in (-0.03, 0.04):
             c = _centre(theta)
-            pose = ball_pose(c)
+            pose = sr.ball_pose(c)
             sr.set_ball(pose)
             full = sr.render_full()
             tiles = sr.tiles_for(c[None])
@@ -117,7 +117,7 @@ def test_motion_blur_subframes_average():
     cam = CameraModel(width=96, height=80, center_px=(48.0, -560.0))
     sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
     try:
-        pose = ball_pose(_centre(0.0))
+        pose = sr.ball_pose(_centre(0.0))
         tiles = [(0, 0, 96, 80)]
         one = sr.render_tiles([pose], tiles)[0]
         two = sr.render_tiles([pose, pose], tiles)[0]
@@ -130,3 +130,15 @@ def test_scene_config_round_trip():
     cfg = SceneConfig(camera=dataclasses.replace(CameraModel(), projection="perspective"),
                       supersample=2, motion_blur=4)
     assert SceneConfig.from_dict(cfg.to_dict()) == cfg
+
+
+def test_view_sphere_is_a_closed_sphere_with_a_fine_silhouette():
+    for sil in (math.pi / 2, math.acos(R_BALL / 0.25)):
+        mesh = view_sphere(R_BALL, sil)
+        assert mesh.is_watertight and mesh.is_winding_consistent
+        np.testing.assert_allclose(np.linalg.norm(mesh.vertices, axis=1), R_BALL, rtol=1e-12)
+        assert mesh.volume == pytest.approx(4 / 3 * math.pi * R_BALL ** 3, rel=0.02)
+        assert len(mesh.faces) < 3000
+        # the silhouette ring: 512 vertices at the polar angle the camera sees as the edge
+        z = mesh.vertices[:, 2] / R_BALL
+        assert np.sum(np.abs(z - math.cos(sil)) < 1e-12) == 512

@@ -145,3 +145,12 @@ def test_bad_inputs_are_refused(traj, tmp_path):
         synth.SceneConfig(supersample=0)
     cam = dataclasses.replace(CAM, width=64)
     assert cam.width == 64
+
+
+def test_rollfric_reads_the_recording_through_its_io(rec_path):
+    io = pytest.importorskip("rollfric.io")
+    src = io.open_recording(rec_path)
+    rec = synth.open_recording(rec_path)
+    assert len(src) == len(rec)
+    assert src[2].tobytes() == rec.frames[2].tobytes()
+    assert src.attrs["setup"] == rec.attrs["setup"]
