@@ -302,15 +302,38 @@ class SceneRenderer:
         """Render regions ``tiles`` [(x0, y0, w, h), ...] of the scene with the ball at each of
         ``poses`` (sub-frames) and return, per tile, the sum over the sub-frames.
 
-        Per sub-frame the lamps' shadow maps are rendered once (from the ball and the trough:
-        the backdrop is the farthest surface and casts on nothing) and reused by every tile.
+        The tiles are drawn through the full frame's own viewport and projection with a
+        scissor box, and only the box is resolved and read: every tile pixel goes through the
+        same arithmetic as in a full-frame render (a shifted projection on a small viewport
+        rounds vertex positions differently and flips MSAA samples on the silhouette). Per
+        sub-frame the lamps' shadow maps are rendered once (ball over the cached trough) and
+        reused by every tile.
         """
+        from OpenGL.GL import GL_SCISSOR_TEST, glDisable, glEnable, glScissor
+
         pr = self._pyrender
-        r = self._ensure_renderer(*tiles[0][2:])
+        W, H, s = self.camera.width, self.camera.height, self.ss
+        r = self._ensure_renderer(W, H)
+        self._cam.P = self.camera.tile_projection(0, 0, W, H)
         r._platform.make_current()
         inner = r._renderer
+        inner.viewport_width, inner.viewport_height = W * s, H * s
         flags = self.flags | pr.RenderFlags.OFFSCREEN
         out = [None] * len(tiles)
+        configure, read = inner._configure_forward_pass_viewport, inner._read_main_framebuffer
+        box = {}
+
+        def configure_scissored(fl):
+            configure(fl)
+            glEnable(GL_SCISSOR_TEST)
+            glScissor(*box["gl"])
+
+        def read_box(scene, fl):
+            glDisable(GL_SCISSOR_TEST)
+            return _read_region(inner, *box["gl"]), None
+
+        inner._configure_forward_pass_viewport = configure_scissored
+        inner._read_main_framebuffer = read_box
         try:
             for pose in poses:
                 self.set_ball(pose)
@@ -318,12 +341,14 @@ class SceneRenderer:
                 if self.config.shadows:
                     self._ball_shadow_pass(inner, flags)
                 for k, (x0, y0, w, h) in enumerate(tiles):
-                    inner.viewport_width, inner.viewport_height = w * self.ss, h * self.ss
-                    self._cam.P = self.camera.tile_projection(x0, y0, w, h)
+                    box["gl"] = (x0 * s, (H - y0 - h) * s, w * s, h * s)
                     color, _ = inner._forward_pass(self.scene, flags)
                     c = self._reduce(color)
                     out[k] = c if out[k] is None else out[k] + c
         finally:
+            glDisable(GL_SCISSOR_TEST)
+            inner._configure_forward_pass_viewport = configure
+            inner._read_main_framebuffer = read
             r._platform.make_uncurrent()
         return out
 
@@ -505,6 +530,29 @@ class SceneRenderer:
                 if merged:
                     break
         return [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
+
+
+def _read_region(inner, x: int, y: int, w: int, h: int) -> np.ndarray:
+    """Resolve the multisampled box (GL window coordinates) and read it as (h, w, 3) uint8,
+    top row first."""
+    from OpenGL.GL import (
+        GL_COLOR_BUFFER_BIT,
+        GL_DRAW_FRAMEBUFFER,
+        GL_NEAREST,
+        GL_READ_FRAMEBUFFER,
+        GL_RGBA,
+        GL_UNSIGNED_BYTE,
+        glBindFramebuffer,
+        glBlitFramebuffer,
+        glReadPixels,
+    )
+
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, inner._main_fb_ms)
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, inner._main_fb)
+    glBlitFramebuffer(x, y, x + w, y + h, x, y, x + w, y + h, GL_COLOR_BUFFER_BIT, GL_NEAREST)
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, inner._main_fb)
+    buf = glReadPixels(x, y, w, h, GL_RGBA, GL_UNSIGNED_BYTE)
+    return np.frombuffer(buf, dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]
 
 
 def _box(pts: np.ndarray):
