@@ -26,6 +26,9 @@ from synth.config import SceneConfig
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 SHADOW_TEX_SZ = 2048  # pyrender.constants.SHADOW_TEX_SZ
+# two tiles are drawn as one when that shades at most this many extra pixels (a forward pass
+# has a fixed cost of a few thousand pixels' shading on llvmpipe)
+MERGE_PX = 4000
 
 
 def _look_at(position, target) -> np.ndarray:
@@ -504,8 +507,8 @@ class SceneRenderer:
         return (rho > lo + 3) & (rho < hi - 3) & (phi < self.config.trough_opening - 0.02)
 
     def tiles_for(self, centres: np.ndarray) -> list:
-        """Tiles (x0, y0, w, h) inside the frame covering ball and shadows; boxes that overlap
-        enough to be cheaper as one are merged."""
+        """Tiles (x0, y0, w, h) inside the frame covering ball and shadows; boxes whose union
+        adds at most MERGE_PX pixels are merged."""
         boxes = [self.ball_box(centres)]
         if self.config.shadows:
             boxes += self.shadow_boxes(centres)
@@ -522,7 +525,7 @@ class SceneRenderer:
                 for j in range(i + 1, len(clipped)):
                     a, b = clipped[i], clipped[j]
                     u = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
-                    if _area(u) <= 1.15 * (_area(a) + _area(b)):
+                    if _area(u) - (_area(a) + _area(b)) <= MERGE_PX:
                         clipped[i] = u
                         del clipped[j]
                         merged = True
