@@ -274,7 +274,7 @@ class SubpixelOptions:
     radius: str = "auto"  # "free": fit the radius too; "known": use r_px; "auto": free when
     # r_px >= 12 (enough edge points to afford it), known below
     ds: float = 0.25  # sample step along a ray (px)
-    edge_half: float = 2.5  # half-width of the window integrated across the edge (px)
+    edge_half: float = 1.5  # half-width of the window integrated across the edge (px)
     level_len: float = 2.0  # length of the inside/outside level windows (px)
     min_rays: int = 12
     min_inlier_frac: float = 0.35
@@ -282,11 +282,15 @@ class SubpixelOptions:
     tukey_c: float = 4.685
     sigma_floor: float = 0.03  # px: residual scale floor of the robust fit
     passes: int = 3
+    ray_spacing: float = 1.0  # px between rays along the rim
+    max_rays: int = 360
+    level_smooth: int = 3  # levels averaged over 2 k + 1 neighbouring rays
     contrast_bands: tuple[float, ...] = (0.15, 0.3, 0.5)  # |contrast - median| / median kept
 
 
-def _n_rays(r_px: float) -> int:
-    return int(min(128, max(48, round(2 * math.pi * r_px / 2.5))))
+def _n_rays(r_px: float, spacing: float = 2.5, most: int = 128) -> int:
+    """Rays around a ball of radius r_px: about ``spacing`` px apart along the rim."""
+    return int(min(most, max(48, round(2 * math.pi * r_px / spacing))))
 
 
 @numba.njit(cache=True)
@@ -314,7 +318,7 @@ def _profiles(rel, cx, cy, s0, ds, ns, n):
 
 
 @numba.njit(cache=True)
-def _edges(prof, s0, ds, r, w, ne, nl):
+def _edges(prof, s0, ds, r, w, ne, nl, ksm):
     """Per ray: the steepest step of the ball's polarity in [r - w, r + w], then the edge
     position from the integral of the normalised profile across a window of 2 ne + 2 samples
     (exact for a sampled step), with the inside/outside levels from nl samples either side.
@@ -379,16 +383,36 @@ def _edges(prof, s0, ds, r, w, ne, nl):
     spoiled = np.abs(a_in - a_med) > 0.08 * c_med + 3.0 * sd_med
     # drop those rays when enough clean ones remain, else use the median inside level
     drop = (fin & ~spoiled).sum() >= 0.5 * fin.sum()
+    # levels averaged over neighbouring rays (2 ksm + 1, clean ones only): less noise
+    a_sm = np.full(n, np.nan)
+    b_sm = np.full(n, np.nan)
+    for i in range(n):
+        sa = 0.0
+        sb = 0.0
+        na = 0
+        nb = 0
+        for j in range(-ksm, ksm + 1):
+            q = (i + j) % n
+            if fin[q]:
+                sb += b_out[q]
+                nb += 1
+                if not spoiled[q]:
+                    sa += a_in[q]
+                    na += 1
+        if na > 0:
+            a_sm[i] = sa / na
+        if nb > 0:
+            b_sm[i] = sb / nb
     for i in range(n):
         kb = kbs[i]
         if kb < 0 or not fin[i]:
             continue
-        a = a_in[i]
+        a = a_sm[i] if np.isfinite(a_sm[i]) else a_med
         if spoiled[i]:
             if drop:
                 continue
             a = a_med
-        b = b_out[i]
+        b = b_sm[i]
         c = a - b
         if c * sgn <= 0:
             continue
@@ -497,6 +521,62 @@ def _fit_circle(xs, ys, r_known, free, tukey_c, sigma_floor):
     return cx, cy, r, wts, res
 
 
+_SELECT_FAIL = {
+    1: "too few edge points (ball missing, occluded or at the border)",
+    2: "ball edge contrast below the noise",
+    3: "too few clean edge points (shadows or occlusion)",
+}
+
+
+@numba.njit(cache=True)
+def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor):
+    """Edge points of the clean rays: the ball's typical contrast (a tight band first, widened
+    only when too few rays pass: real balls vary around the rim) and a flat outside (shadow
+    gradients, spots, the trough contact and occluders fail). Returns status, xs, ys."""
+    n = len(s_edge)
+    empty = np.empty(0)
+    nv = valid.sum()
+    if nv < min_rays:
+        return 1, empty, empty
+    cmed = np.median(con[valid])
+    nz = noise if noise >= 0 else np.median(out_sd[valid])
+    if cmed < max(4.0 * nz, floor):
+        return 2, empty, empty
+    keep = np.zeros(n, np.bool_)
+    for tol in bands:
+        cnt = 0
+        for i in range(n):
+            keep[i] = (valid[i] and out_sd[i] < 0.02 * cmed + 2.5 * nz
+                       and abs(con[i] - cmed) < tol * cmed + 3.0 * nz)
+            cnt += keep[i]
+        if cnt >= max(min_rays, 0.4 * nv):
+            break
+    m = keep.sum()
+    if m < min_rays:
+        return 3, empty, empty
+    xs = np.empty(m)
+    ys = np.empty(m)
+    j = 0
+    for i in range(n):
+        if keep[i]:
+            phi = (i + 0.5) * (2.0 * np.pi / n)
+            xs[j] = lcx + np.cos(phi) * s_edge[i]
+            ys[j] = lcy + np.sin(phi) * s_edge[i]
+            j += 1
+    return 0, xs, ys
+
+
+@numba.njit(cache=True)
+def _fit_stats(wts, res):
+    """Inliers, their median residual and weighted rms residual."""
+    inl = wts > 0
+    n_in = inl.sum()
+    if n_in == 0:
+        return 0, np.nan, np.nan
+    sw = wts.sum()
+    return n_in, np.median(res[inl]), np.sqrt((wts * res * res).sum() / max(sw, 1e-12))
+
+
 def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
                     guess: tuple[float, float] | None = None, search: float | None = None,
                     opts: SubpixelOptions = SubpixelOptions(),
@@ -523,12 +603,16 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
     # window sizes scale down for small balls
     edge_half = min(opts.edge_half, max(1.5, 0.25 * r_px))
     level_len = min(opts.level_len, max(0.75, 0.2 * r_px))
-    n = _n_rays(r_px)
+    # coarse passes (rays ~2.5 px apart) until the centre settles, then one fine pass
+    n_coarse = _n_rays(r_px)
+    n_fine = max(n_coarse, _n_rays(r_px, opts.ray_spacing, opts.max_rays))
+    fine = False
     if opts.radius not in ("auto", "free", "known"):
         raise ValueError(f"radius must be auto, free or known, got {opts.radius!r}")
     free = opts.radius == "free" or (opts.radius == "auto" and r_px >= 12)
     loc = Location.missing("no edge found")
-    for p in range(opts.passes):
+    for p in range(opts.passes + 1):
+        n = n_fine if fine else n_coarse
         ds = opts.ds if w <= 3.0 else 2 * opts.ds  # coarse sampling while the search is wide
         ne = max(2, int(round(edge_half / ds)))
         nl = max(2, int(round(level_len / ds)))
@@ -544,49 +628,33 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
         rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
         lcx, lcy = cx - x0c, cy - y0c
         prof = _profiles(rel, lcx, lcy, s0, ds, ns, n)
-        s_edge, con, out_sd, valid = _edges(prof, s0, ds, r, w, ne, nl)
-        if valid.sum() < opts.min_rays:
-            return Location.missing("too few edge points (ball missing, occluded or at the "
-                                    "border)")
-        # reject rays whose contrast is much weaker than the ball's typical one (shadow, the
-        # trough contact, occluder) or whose outside is not flat (shadow gradient, spot)
-        cmed = float(np.median(con[valid]))
-        nz = noise if noise is not None else float(np.median(out_sd[valid]))
-        if cmed < max(4.0 * nz, 0.004 * _full_scale(frame.dtype)):
-            return Location.missing("ball edge contrast below the noise")
-        # clean arcs share the ball's typical contrast; try a tight band first and widen it
-        # only when too few rays pass (real balls vary in contrast around the rim)
-        flat = out_sd < 0.02 * cmed + 2.5 * nz
-        for tol in opts.contrast_bands:
-            keep = valid & flat & (np.abs(con - cmed) < tol * cmed + 3.0 * nz)
-            if keep.sum() >= max(opts.min_rays, 0.4 * valid.sum()):
-                break
-        if keep.sum() < opts.min_rays:
-            return Location.missing("too few clean edge points (shadows or occlusion)")
-        phi = (np.flatnonzero(keep) + 0.5) * (2 * math.pi / n)
-        xs = lcx + np.cos(phi) * s_edge[keep]
-        ys = lcy + np.sin(phi) * s_edge[keep]
+        s_edge, con, out_sd, valid = _edges(prof, s0, ds, r, w, ne, nl, opts.level_smooth)
+        status, xs, ys = _select(s_edge, con, out_sd, valid, lcx, lcy, opts.contrast_bands,
+                                 opts.min_rays, -1.0 if noise is None else float(noise),
+                                 0.004 * _full_scale(frame.dtype))
+        if status:
+            return Location.missing(_SELECT_FAIL[status])
         fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_px, free, opts.tukey_c,
                                               opts.sigma_floor)
-        n_in = int((wts > 0).sum())
+        n_in, med_res, rms = _fit_stats(wts, res)
         if n_in < opts.min_rays or not math.isfinite(fcx):
             return Location.missing("robust circle fit failed")
         # the ball's radius as seen: the fitted one, or (known radius) the known one plus the
         # median offset of the edge points from that circle
-        r_seen = fr_ if free else r_px + float(np.median(res[wts > 0]))
+        r_seen = fr_ if free else r_px + med_res
         if abs(r_seen - r_px) > opts.max_radius_dev * r_px:
             return Location.missing(f"the ball's edge lies on a circle of {r_seen:.2f} px "
                                     f"radius, not {r_px:.2f} px")
         shift = math.hypot(fcx - lcx, fcy - lcy)
         cx, cy, r = fcx + x0c, fcy + y0c, float(r_seen)
-        # residual scale and formal centre error from the inliers
-        rms = math.sqrt(float(np.sum(wts * res * res) / max(float(np.sum(wts)), 1e-12)))
         frac = n_in / n
         ok = frac >= opts.min_inlier_frac
         loc = Location(x=cx, y=cy, r=r, found=ok, sigma=rms * math.sqrt(2.0 / n_in),
                        inlier_frac=frac,
                        reason="" if ok else f"only {100 * frac:.0f} % of the edge fits a circle")
-        w = min(w, max(1.5, 2.0 * shift + 1.0))
-        if shift < 0.02 and p > 0:
+        if fine:
             break
+        w = min(w, max(1.5, 2.0 * shift + 1.0))
+        if shift < 0.1 or p >= opts.passes - 1:
+            fine = True
     return loc

@@ -103,13 +103,14 @@ def _predict(hist: list, i: int):
     return hist[-1][1], hist[-1][2]
 
 
-def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None):
-    """One frame with the chosen locator: ROI search at ``guess``, full frame when lost."""
+def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=None):
+    """One frame with the chosen locator: ROI search at ``guess`` (edge within ``search`` px of
+    the guessed circle), full frame when lost."""
     if method == "subpixel":
         kw = {"opts": opts} if opts is not None else {}
         loc = None
         if guess is not None:
-            loc = locate.locate_subpixel(frame, bg, r_px, guess=guess, **kw)
+            loc = locate.locate_subpixel(frame, bg, r_px, guess=guess, search=search, **kw)
         if loc is None or not loc.found:
             loc = locate.locate_subpixel(frame, bg, r_px, guess=None, **kw)
         return loc
@@ -168,10 +169,17 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     hist: list = []
     bar = tqdm(total=n, desc="locating ball", unit="frame", disable=not progress,
                file=sys.stderr, mininterval=0.5)
+    pred_err = math.inf  # how far the last prediction was off (px)
     for i in range(n):
         frame = source[i]
-        loc = locate_frame(frame, background, r_px, method, _predict(hist, i), center,
-                           opts=opts)
+        guess = _predict(hist, i)
+        search = min(0.3 * r_px + 2.0, max(2.0, 4.0 * pred_err + 1.0))
+        loc = locate_frame(frame, background, r_px, method, guess, center, opts=opts,
+                           search=search)
+        if guess is not None and loc.found:
+            pred_err = math.hypot(loc.x - guess[0], loc.y - guess[1])
+        else:
+            pred_err = math.inf
         ok = (loc.found and math.isfinite(loc.x) and -0.5 <= loc.x <= w - 0.5
               and -0.5 <= loc.y <= h - 0.5)
         if ok:
