@@ -1,0 +1,172 @@
+"""Sweeps on a two-worker local Dask cluster: parallel cases, a worker killed mid-sweep,
+resume, failures recorded, and a tiny sweep through the real pipeline (render in a worker)."""
+
+from __future__ import annotations
+
+import functools
+import logging
+import os
+import sys
+import time
+from pathlib import Path
+
+import cloudpickle
+import pandas as pd
+import pytest
+
+from validation import e2e
+from validation import sweep as S
+
+# the case functions below are defined here: ship them to the workers by value
+cloudpickle.register_pickle_by_value(sys.modules[__name__])
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client, LocalCluster
+
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    c = Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+def _mu_spec(mus, name="t", **head):
+    return S.sweep_from_dict({"sweep": {"name": name, "stages": "sim",
+                                        "metrics": ["mu_engine_bias_rel"], **head},
+                              "base": {"scenario": {"motion": {"seconds": 1.0}}},
+                              "grid": {"scenario.motion.mu": list(mus)}})
+
+
+def _counting_case(calls: str, case_dict: dict) -> dict:
+    """sim-only case that leaves one file per call (to count who ran what)."""
+    m = e2e.sim_only_case(case_dict)
+    Path(calls, f"{m['case_id']}.{os.getpid()}.{time.monotonic_ns()}").touch()
+    time.sleep(0.3)  # long enough for both workers to take cases
+    return m
+
+
+def _dying_case(marker_dir: str, die_for: float, case_dict: dict) -> dict:
+    """Kills its worker process the first time it meets mu == die_for, then succeeds."""
+    marker = Path(marker_dir, "died")
+    if case_dict["scenario"]["motion"]["mu"] == die_for and not marker.exists():
+        marker.touch()
+        os._exit(1)  # the worker process dies mid-case
+    return e2e.sim_only_case(case_dict)
+
+
+def _failing_case(bad: float, case_dict: dict) -> dict:
+    if case_dict["scenario"]["motion"]["mu"] == bad:
+        raise ValueError(f"no good: mu {bad}")
+    return e2e.sim_only_case(case_dict)
+
+
+def test_two_worker_sweep_table_and_plots(client, tmp_path):
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    spec = _mu_spec([0.004, 0.006, 0.008, 0.010, 0.012, 0.014])
+    summary = S.run_sweep(spec, tmp_path / "out", client=client, progress=False,
+                          case_fn=functools.partial(_counting_case, str(calls)))
+    assert summary.n_run == 6 and summary.n_failed == 0
+    df = pd.read_parquet(tmp_path / "out" / "results.parquet")
+    csv = pd.read_csv(tmp_path / "out" / "results.csv")
+    assert len(df) == len(csv) == 6
+    assert list(df["case_id"]) == [c.case_id for c in spec.cases]
+    assert (df["status"] == "ok").all()
+    # one row per case: the swept parameter and the metrics as columns
+    assert sorted(df["scenario.motion.mu"]) == [0.004, 0.006, 0.008, 0.010, 0.012, 0.014]
+    assert (df["mu_engine"] - df["mu_true"]).abs().max() < 1e-6  # reference engine: exact
+    assert df["worker"].nunique() == 2  # both workers ran cases
+    assert len(list(calls.iterdir())) == 6
+    assert len(list((tmp_path / "out" / "parts").glob("*.parquet"))) == 6
+    assert (tmp_path / "out" / "plots" / "scenario_motion_mu.png").stat().st_size > 1000
+
+
+def test_worker_killed_mid_sweep_loses_nothing(client, tmp_path):
+    mus = [0.005, 0.007, 0.009, 0.011]
+    spec = _mu_spec(mus, name="kill")
+    markers = tmp_path / "m"
+    markers.mkdir()
+    summary = S.run_sweep(spec, tmp_path / "out", client=client, progress=False,
+                          case_fn=functools.partial(_dying_case, str(markers), 0.007))
+    assert (markers / "died").exists()  # a worker really died
+    df = S.read_parts(tmp_path / "out")
+    assert summary.n_failed == 0
+    assert sorted(df["case_id"]) == sorted(c.case_id for c in spec.cases)
+    assert (df["status"] == "ok").all()
+    # the cluster has replaced the dead worker
+    client.wait_for_workers(2, timeout=60)
+
+
+def test_failed_case_recorded_and_sweep_goes_on(client, tmp_path):
+    spec = _mu_spec([0.005, 0.007, 0.009], name="fail")
+    out = tmp_path / "out"
+    summary = S.run_sweep(spec, out, client=client, progress=False,
+                          case_fn=functools.partial(_failing_case, 0.007))
+    assert summary.n_failed == 1
+    df = pd.read_parquet(out / "results.parquet").set_index("scenario.motion.mu")
+    assert df.loc[0.007, "status"] == "failed"
+    assert "ValueError: no good: mu 0.007" in df.loc[0.007, "error"]
+    assert (df.drop(index=0.007)["status"] == "ok").all()
+    assert pd.isna(df.loc[0.007, "mu_engine"]) and df.loc[0.005, "mu_engine"] > 0
+    # resume does not re-run the failed case unless asked
+    again = S.run_sweep(spec, out, client=client, progress=False,
+                        case_fn=functools.partial(_failing_case, 0.007))
+    assert again.n_run == 0
+    retry = S.run_sweep(spec, out, client=client, progress=False, retry_failed=True,
+                        case_fn=functools.partial(_failing_case, 0.0))
+    assert retry.n_run == 1 and retry.n_failed == 0
+
+
+def test_resume_runs_only_the_missing_cases(client, tmp_path):
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    fn = functools.partial(_counting_case, str(calls))
+    spec = _mu_spec([0.005, 0.006, 0.007, 0.008], name="resume")
+    out = tmp_path / "out"
+    S.run_sweep(spec, out, client=client, progress=False, case_fn=fn)
+    first = pd.read_parquet(out / "results.parquet")
+    # an interrupted sweep: two cases never finished, the combined table never written
+    lost = [spec.cases[1].case_id, spec.cases[3].case_id]
+    for cid in lost:
+        (out / "parts" / f"{cid}.parquet").unlink()
+    (out / "results.parquet").unlink()
+    (out / "results.csv").unlink()
+    before = {p.name for p in calls.iterdir()}
+    summary = S.run_sweep(spec, out, client=client, progress=False, case_fn=fn)
+    assert summary.n_done_before == 2 and summary.n_run == 2
+    new = {p.name for p in calls.iterdir()} - before
+    assert sorted(n.split(".")[0] for n in new) == sorted(lost)
+    second = pd.read_parquet(out / "results.parquet")
+    cols = ["case_id", "status", "scenario.motion.mu", "mu_engine", "mu_engine_bias_rel"]
+    pd.testing.assert_frame_equal(first[cols], second[cols])
+
+
+def test_real_pipeline_sweep_keeps_recordings(client, tmp_path):
+    """Two tiny cases through sim -> synth -> rollfric on the workers (one renderer each)."""
+    from validation.case import small_case_dict
+
+    base = small_case_dict(seconds=0.2)
+    base["render"]["shadows"] = False
+    spec = S.sweep_from_dict({"sweep": {"name": "real", "metrics": ["center_rms_px"]},
+                              "base": base,
+                              "grid": {"render.sensor.read_noise": [4.0, 30.0]}})
+    out = tmp_path / "out"
+    summary = S.run_sweep(spec, out, client=client, progress=False, keep_recordings=True)
+    df = pd.read_parquet(out / "results.parquet")
+    assert summary.n_failed == 0, df["error"].tolist()
+    assert (df["found_fraction"] == 1.0).all()
+    assert (df["center_rms_px"] < 0.2).all()
+    idx = pd.read_csv(out / "recordings" / "index.csv")
+    assert sorted(idx["case_id"]) == sorted(df["case_id"])
+    from rollfric import io
+
+    for rel in idx["recording"]:
+        src = io.open_recording(out / rel)
+        assert len(src) == 201
+    # more read noise, larger centre error
+    by = df.set_index("render.sensor.read_noise")
+    assert by.loc[30.0, "center_rms_px"] > by.loc[4.0, "center_rms_px"]
