@@ -27,7 +27,7 @@ def client():
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR)
+                           dashboard_address=":0", silence_logs=logging.ERROR)
     c = Client(cluster)
     yield c
     c.close()
@@ -170,3 +170,17 @@ def test_real_pipeline_sweep_keeps_recordings(client, tmp_path):
     # more read noise, larger centre error
     by = df.set_index("render.sensor.read_noise")
     assert by.loc[30.0, "center_rms_px"] > by.loc[4.0, "center_rms_px"]
+
+
+def test_table_holds_this_sweeps_cases_only(tmp_path):
+    """Parts of other case ids (an edited sweep file, changed defaults) stay out of the table."""
+    spec = _mu_spec([0.005, 0.006], name="own")
+    for sc in spec.cases:
+        S.write_part(tmp_path / "parts", S._row(sc, {"status": "ok", "error": "",
+                                                     "metrics": {"mu_engine": 1.0}}))
+    S.write_part(tmp_path / "parts", {"case_id": "0123456789ab", "status": "ok", "error": "",
+                                      "stale_metric": 5.0})
+    df = S.rebuild_table(tmp_path, spec)
+    assert list(df["case_id"]) == [c.case_id for c in spec.cases]
+    assert "stale_metric" not in df.columns
+    assert len(S.read_parts(tmp_path)) == 3  # nothing deleted

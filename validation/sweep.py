@@ -265,11 +265,13 @@ def write_part(parts_dir: Path, row: dict) -> Path:
     return path
 
 
-def read_parts(out: str | Path):
-    """All finished cases' rows (pandas DataFrame, one row per part), sorted by case_id."""
+def read_parts(out: str | Path, ids: set | None = None):
+    """Finished cases' rows (pandas DataFrame, one row per part; only ``ids`` if given),
+    sorted by case_id."""
     import pandas as pd
 
-    parts = sorted((Path(out) / "parts").glob("*.parquet"))
+    parts = sorted(p for p in (Path(out) / "parts").glob("*.parquet")
+                   if ids is None or p.stem in ids)
     if not parts:
         return pd.DataFrame(columns=["case_id", "status", "error"])
     frames = [pd.read_parquet(p) for p in parts]
@@ -281,13 +283,14 @@ def read_parts(out: str | Path):
 def rebuild_table(out: str | Path, spec: SweepSpec | None = None):
     """results.parquet and results.csv from the parts (atomic); returns the DataFrame."""
     out = Path(out)
-    df = read_parts(out)
+    df = read_parts(out, None if spec is None else {c.case_id for c in spec.cases})
     if spec is not None and len(df):
-        # sweep order (the file's), then anything else found in parts
+        # this sweep's cases only, in the file's order (parts of other case ids -- an edited
+        # sweep file or changed defaults -- stay in parts/ but are not this table's rows)
         order = {c.case_id: i for i, c in enumerate(spec.cases)}
-        df = df.assign(_o=df["case_id"].map(order).fillna(len(order))) \
-            .sort_values(["_o", "case_id"], kind="stable").drop(columns="_o") \
-            .reset_index(drop=True)
+        df = df[df["case_id"].isin(order)]
+        df = df.assign(_o=df["case_id"].map(order)).sort_values("_o", kind="stable") \
+            .drop(columns="_o").reset_index(drop=True)
     for name, write in (("results.parquet", lambda p: df.to_parquet(p, index=False)),
                         ("results.csv", lambda p: df.to_csv(p, index=False))):
         fd, tmp = tempfile.mkstemp(prefix=f".{name}.", dir=out)
@@ -340,6 +343,7 @@ class SweepSummary:
                  f"results: {self.out / 'results.parquet'} and results.csv"]
         if self.plots:
             lines.append(f"plots:   {self.out / 'plots'}/ ({len(self.plots)} files)")
+        lines.append(f"summary: {self.out / 'summary.md'}")
         return "\n".join(lines)
 
 
@@ -350,7 +354,7 @@ def _start_client(scheduler: str | None, n_workers: int):
         return Client(scheduler), None
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")  # inherited by the worker processes
     cluster = LocalCluster(n_workers=max(1, int(n_workers)), threads_per_worker=1,
-                           processes=True, dashboard_address=None,
+                           processes=True, dashboard_address=":0",
                            silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
@@ -375,7 +379,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
     parts_dir.mkdir(exist_ok=True)
     if spec.text:
         (out / "sweep.toml").write_text(spec.text)
-    done = read_parts(out)
+    done = read_parts(out, {c.case_id for c in spec.cases})
     status = dict(zip(done["case_id"], done["status"], strict=True)) if len(done) else {}
     todo = [c for c in spec.cases
             if c.case_id not in status or (retry_failed and status[c.case_id] != "ok")]
@@ -428,10 +432,48 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
         _write_recordings_index(out, spec, df)
     n_failed_total = int((df["status"] != "ok").sum()) if len(df) else 0
     plots = plot_sweep(df, spec, out / "plots") if len(df) else []
+    write_summary(df, spec, out, plots)
     _ = pd
     return SweepSummary(out=out, n_cases=len(spec.cases), n_done_before=n_before,
                         n_run=len(todo), n_ok=n_ok, n_failed=n_failed_total,
                         seconds=time.perf_counter() - t0, plots=plots)
+
+
+def write_summary(df, spec: SweepSpec, out: Path, plots: list) -> Path:
+    """OUT/summary.md: what was swept, one line per case (parameters, status, the plotted
+    metrics), and the plots."""
+    import math as _m
+
+    def fmt(v):
+        if isinstance(v, float):
+            return "" if _m.isnan(v) else f"{v:.4g}"
+        return str(v)
+
+    cols = [k for k in spec.swept if k in df.columns]
+    mets = [m for m in spec.metrics if m in df.columns]
+    lines = [f"# sweep {spec.name}", "", spec.description, "",
+             f"{len(spec.cases)} case(s) from {spec.source or 'a sweep dict'}, stages "
+             f"{spec.stages}; {int((df['status'] == 'ok').sum()) if len(df) else 0} ok, "
+             f"{int((df['status'] != 'ok').sum()) if len(df) else 0} failed, "
+             f"{len(spec.cases) - len(df)} not run. Table: results.parquet, results.csv.", "",
+             "| case_id | " + " | ".join(cols + ["status"] + mets) + " |",
+             "|" + "---|" * (len(cols) + len(mets) + 2)]
+    for _, r in df.iterrows():
+        lines.append("| " + " | ".join([str(r["case_id"])] + [fmt(r[c]) for c in cols]
+                                       + [str(r["status"])] + [fmt(r[m]) for m in mets])
+                     + " |")
+    failed = df[df["status"] != "ok"] if len(df) else df
+    if len(failed):
+        lines += ["", "## failed", ""]
+        lines += [f"- {r['case_id']}: {r['error']}" for _, r in failed.iterrows()]
+    if plots:
+        lines += ["", "## plots", ""]
+        lines += [f"![{p.stem}](plots/{p.name})" for p in plots]
+    path = out / "summary.md"
+    tmp = out / ".summary.md.part"
+    tmp.write_text("\n".join(lines) + "\n")
+    os.replace(tmp, path)
+    return path
 
 
 # -- plots ------------------------------------------------------------------------------------
