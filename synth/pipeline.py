@@ -133,8 +133,9 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     camera would have seen it and store it as a recording at ``out`` (a ``.zarr`` directory).
 
     ``frames`` limits the number of frames (the first ones); ``workers`` processes render in
-    parallel (default: the number of CPUs, at most 2); the sensor model is stored, not applied:
-    frames get their noise when read. Returns the path.
+    parallel (default: the number of CPUs, at most 2; spawned, as EGL contexts do not survive
+    fork), each with ``threads`` llvmpipe threads (default 1 when several processes run); the
+    sensor model is stored, not applied: frames get their noise when read. Returns the path.
     """
     import zarr
     from tqdm import tqdm
@@ -167,6 +168,8 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     if workers is None:
         workers = max(1, min(2, os.cpu_count() or 1))
     workers = max(1, min(int(workers), max(1, n // BATCH)))
+    if threads is None and workers > 1:
+        threads = 1  # one llvmpipe thread per process: the processes fill the cores
 
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
