@@ -284,6 +284,7 @@ class SubpixelOptions:
     passes: int = 3
     ray_spacing: float = 1.0  # px between rays along the rim
     max_rays: int = 360
+    pixel_fit: bool = True  # final Gauss-Newton fit on the edge pixels themselves
     level_smooth: int = 3  # levels averaged over 2 k + 1 neighbouring rays
     contrast_bands: tuple[float, ...] = (0.15, 0.3, 0.5)  # |contrast - median| / median kept
 
@@ -323,7 +324,8 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm):
     position from the integral of the normalised profile across a window of 2 ne + 2 samples
     (exact for a sampled step), with the inside/outside levels from nl samples either side.
 
-    Returns s_edge, contrast (inside - outside, signed by polarity), outside std, valid."""
+    Returns s_edge, contrast (inside - outside, signed by polarity), outside std, valid,
+    and the inside and outside levels used."""
     n, ns = prof.shape
     # polarity: inside minus outside at the ends of the band, median over rays
     diffs = np.empty(n)
@@ -338,11 +340,13 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm):
             diffs[m] = (a - b) / nl
             m += 1
     s_edge = np.full(n, np.nan)
+    a_used = np.full(n, np.nan)
+    b_used = np.full(n, np.nan)
     con = np.full(n, np.nan)
     osd = np.full(n, np.nan)
     valid = np.zeros(n, np.bool_)
     if m < 3:
-        return s_edge, con, osd, valid
+        return s_edge, con, osd, valid, a_used, b_used
     sgn = 1.0 if np.median(diffs[:m]) >= 0 else -1.0
     lo = max(ne + nl, int(np.floor((r - w - s0) / ds)))
     hi = min(ns - ne - nl - 3, int(np.ceil((r + w - s0) / ds)))
@@ -376,7 +380,7 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm):
     # the ball's inside level: per ray, unless a spot or shading spoils it (then the median)
     fin = np.isfinite(a_in) & np.isfinite(b_out)
     if fin.sum() < 3:
-        return s_edge, con, osd, valid
+        return s_edge, con, osd, valid, a_used, b_used
     a_med = np.median(a_in[fin])
     c_med = np.median(np.abs(a_in[fin] - b_out[fin]))
     sd_med = np.median(osd[fin])
@@ -427,7 +431,9 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm):
         s_edge[i] = se
         con[i] = abs(c)
         valid[i] = True
-    return s_edge, con, osd, valid
+        a_used[i] = a
+        b_used[i] = b
+    return s_edge, con, osd, valid, a_used, b_used
 
 
 @numba.njit(cache=True)
@@ -521,6 +527,137 @@ def _fit_circle(xs, ys, r_known, free, tukey_c, sigma_floor):
     return cx, cy, r, wts, res
 
 
+@numba.njit(cache=True)
+def _edge_cdf(t, a, b):
+    """Area of a unit pixel on the inner side of a straight edge at signed distance t from its
+    centre, for an edge normal (cos, sin) with |cos| = a >= |sin| = b: the CDF of the sum of
+    two uniform variables of widths a and b. Returns (coverage, density)."""
+    if b < 1e-6:
+        if t <= -0.5 * a:
+            return 0.0, 0.0
+        if t >= 0.5 * a:
+            return 1.0, 0.0
+        return t / a + 0.5, 1.0 / a
+    lo, mid = -0.5 * (a + b), 0.5 * (a - b)
+    if t <= lo:
+        return 0.0, 0.0
+    if t <= -mid:
+        return (t - lo) ** 2 / (2 * a * b), (t - lo) / (a * b)
+    if t <= mid:
+        return (t + 0.5 * a) / a, 1.0 / a
+    if t < -lo:
+        return 1.0 - (-lo - t) ** 2 / (2 * a * b), (-lo - t) / (a * b)
+    return 1.0, 0.0
+
+
+@numba.njit(cache=True)
+def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
+    """Refine the circle on the pixels themselves: each pixel within 1.5 px of the rim, on a
+    ray kept by the robust fit, is modelled as b + (a - b) * (area of the pixel inside the
+    disk) with a straight-edge area model, levels a, b of its ray; Gauss-Newton on the centre
+    (and radius). The contrast is taken pixel by pixel against the background ``bgr``: where
+    the ball covers a background that changes (the trough's contour at the contact, texture),
+    frame - background = b + (a + B_in - B - b) * area, B_in the background ``inset`` px
+    inside the rim where the level a was measured. Uses every edge pixel once with its own
+    weight, which is what the noise allows (Cramer-Rao). Rays whose pixels do not fit are
+    dropped after the first pass. Returns cx, cy, r, centre standard error (px), pixels used."""
+    h, w = rel.shape
+    n = len(ray_ok)
+    npar = 3 if free else 2
+    sig = np.nan
+    npix = 0
+    ray_ok = ray_ok.copy()
+    ray_ss = np.zeros(n)
+    ray_n = np.zeros(n)
+    for it in range(iters):
+        jtj = np.zeros((3, 3))
+        jtr = np.zeros(3)
+        ss = 0.0
+        npix = 0
+        ray_ss[:] = 0.0
+        ray_n[:] = 0.0
+        x0 = max(0, int(cx - r - 2))
+        x1 = min(w - 1, int(cx + r + 3))
+        y0 = max(0, int(cy - r - 2))
+        y1 = min(h - 1, int(cy + r + 3))
+        for iy in range(y0, y1 + 1):
+            for ix in range(x0, x1 + 1):
+                dx = ix - cx
+                dy = iy - cy
+                d = np.sqrt(dx * dx + dy * dy)
+                u = d - r
+                if abs(u) > 1.5 or d == 0.0:
+                    continue
+                phi = np.arctan2(dy, dx)
+                if phi < 0:
+                    phi += 2 * np.pi
+                k = int(phi / (2 * np.pi / n)) % n
+                if not ray_ok[k]:
+                    continue
+                b = b_lv[k]
+                jx = int(np.rint(cx + dx * (r - inset) / d))
+                jy = int(np.rint(cy + dy * (r - inset) / d))
+                jx = min(max(jx, 0), w - 1)
+                jy = min(max(jy, 0), h - 1)
+                a = a_lv[k] + bgr[jy, jx] - bgr[iy, ix]
+                c = abs(dx) / d
+                s_ = abs(dy) / d
+                if s_ > c:
+                    c, s_ = s_, c
+                cov, dens = _edge_cdf(-u, c, s_)
+                res = rel[iy, ix] - (b + (a - b) * cov)
+                # d model / d (cx, cy, r): (a - b) * dens * (dx/d, dy/d, 1)
+                g0 = (a - b) * dens * dx / d
+                g1 = (a - b) * dens * dy / d
+                g2 = (a - b) * dens
+                gg = (g0, g1, g2)
+                for p in range(3):
+                    jtr[p] += gg[p] * res
+                    for q in range(3):
+                        jtj[p, q] += gg[p] * gg[q]
+                ss += res * res
+                npix += 1
+                ray_ss[k] += res * res
+                ray_n[k] += 1
+        if npix < 20:
+            return np.nan, np.nan, np.nan, np.nan, npix
+        if it == 0:
+            # drop rays whose pixels do not fit (shadow edges, spots): rms residual above
+            # 2.5 x the typical ray's, then start again from the same circle
+            used = ray_n > 0
+            rr = np.sqrt(ray_ss[used] / ray_n[used])
+            thr = 2.5 * np.median(rr)
+            drop = 0
+            for q in range(n):
+                if used[q] and np.sqrt(ray_ss[q] / ray_n[q]) > thr:
+                    ray_ok[q] = False
+                    drop += 1
+            if drop > 0:
+                continue
+        if free:
+            st = _solve3(jtj, jtr)
+            s0, s1, s2 = st[0], st[1], st[2]
+        else:
+            det = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
+            if det == 0.0:
+                return np.nan, np.nan, np.nan, np.nan, npix
+            s0 = (jtj[1, 1] * jtr[0] - jtj[0, 1] * jtr[1]) / det
+            s1 = (-jtj[1, 0] * jtr[0] + jtj[0, 0] * jtr[1]) / det
+            s2 = 0.0
+        if not (np.isfinite(s0) and np.isfinite(s1) and np.isfinite(s2)):
+            return np.nan, np.nan, np.nan, np.nan, npix
+        cx += s0
+        cy += s1
+        r += s2
+        # centre standard error from the residual variance and the 2 x 2 block of J^T J
+        var = ss / max(npix - npar, 1)
+        det2 = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
+        sig = np.sqrt(var * (jtj[0, 0] + jtj[1, 1]) / det2) if det2 > 0 else np.nan
+        if abs(s0) + abs(s1) + abs(s2) < 1e-4:
+            break
+    return cx, cy, r, sig, npix
+
+
 _SELECT_FAIL = {
     1: "too few edge points (ball missing, occluded or at the border)",
     2: "ball edge contrast below the noise",
@@ -532,16 +669,17 @@ _SELECT_FAIL = {
 def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor):
     """Edge points of the clean rays: the ball's typical contrast (a tight band first, widened
     only when too few rays pass: real balls vary around the rim) and a flat outside (shadow
-    gradients, spots, the trough contact and occluders fail). Returns status, xs, ys."""
+    gradients, spots, the trough contact and occluders fail). Returns status, xs, ys, ray index."""
     n = len(s_edge)
     empty = np.empty(0)
+    iempty = np.empty(0, np.int64)
     nv = valid.sum()
     if nv < min_rays:
-        return 1, empty, empty
+        return 1, empty, empty, iempty
     cmed = np.median(con[valid])
     nz = noise if noise >= 0 else np.median(out_sd[valid])
     if cmed < max(4.0 * nz, floor):
-        return 2, empty, empty
+        return 2, empty, empty, iempty
     keep = np.zeros(n, np.bool_)
     for tol in bands:
         cnt = 0
@@ -553,17 +691,19 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor)
             break
     m = keep.sum()
     if m < min_rays:
-        return 3, empty, empty
+        return 3, empty, empty, iempty
     xs = np.empty(m)
     ys = np.empty(m)
+    idx = np.empty(m, np.int64)
     j = 0
     for i in range(n):
         if keep[i]:
             phi = (i + 0.5) * (2.0 * np.pi / n)
             xs[j] = lcx + np.cos(phi) * s_edge[i]
             ys[j] = lcy + np.sin(phi) * s_edge[i]
+            idx[j] = i
             j += 1
-    return 0, xs, ys
+    return 0, xs, ys, idx
 
 
 @numba.njit(cache=True)
@@ -628,10 +768,12 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
         rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
         lcx, lcy = cx - x0c, cy - y0c
         prof = _profiles(rel, lcx, lcy, s0, ds, ns, n)
-        s_edge, con, out_sd, valid = _edges(prof, s0, ds, r, w, ne, nl, opts.level_smooth)
-        status, xs, ys = _select(s_edge, con, out_sd, valid, lcx, lcy, opts.contrast_bands,
-                                 opts.min_rays, -1.0 if noise is None else float(noise),
-                                 0.004 * _full_scale(frame.dtype))
+        s_edge, con, out_sd, valid, a_lv, b_lv = _edges(prof, s0, ds, r, w, ne, nl,
+                                                        opts.level_smooth)
+        status, xs, ys, idx = _select(s_edge, con, out_sd, valid, lcx, lcy,
+                                      opts.contrast_bands, opts.min_rays,
+                                      -1.0 if noise is None else float(noise),
+                                      0.004 * _full_scale(frame.dtype))
         if status:
             return Location.missing(_SELECT_FAIL[status])
         fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_px, free, opts.tukey_c,
@@ -645,12 +787,23 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
         if abs(r_seen - r_px) > opts.max_radius_dev * r_px:
             return Location.missing(f"the ball's edge lies on a circle of {r_seen:.2f} px "
                                     f"radius, not {r_px:.2f} px")
+        sigma = rms * math.sqrt(2.0 / n_in)
+        if fine and opts.pixel_fit:
+            ray_ok = np.zeros(n, np.bool_)
+            ray_ok[idx[wts > 0]] = True
+            bgr = bg.astype(np.float32)
+            pcx, pcy, pr, psig, npix = _pixel_fit(rel, bgr, fcx, fcy, fr_ if free else r_px,
+                                                  free, ray_ok, a_lv, b_lv,
+                                                  (ne + 0.5 * nl + 1) * ds, 5)
+            if math.isfinite(pcx) and math.hypot(pcx - fcx, pcy - fcy) < 0.5:
+                fcx, fcy, sigma = pcx, pcy, psig
+                if free:
+                    r_seen = pr
         shift = math.hypot(fcx - lcx, fcy - lcy)
         cx, cy, r = fcx + x0c, fcy + y0c, float(r_seen)
         frac = n_in / n
         ok = frac >= opts.min_inlier_frac
-        loc = Location(x=cx, y=cy, r=r, found=ok, sigma=rms * math.sqrt(2.0 / n_in),
-                       inlier_frac=frac,
+        loc = Location(x=cx, y=cy, r=r, found=ok, sigma=sigma, inlier_frac=frac,
                        reason="" if ok else f"only {100 * frac:.0f} % of the edge fits a circle")
         if fine:
             break
