@@ -179,6 +179,20 @@ def compute_metrics(case: Case, traj, truth, track, fit, fit_truth, setup) -> di
         "engine": case.scenario.engine,
         "surface": case.scenario.surface,
     })
+    # is the stated uncertainty honest? The fit's stderr assumes white residuals; locator
+    # errors are correlated from frame to frame. Inflate by the AR(1) factor of the residuals
+    # (effective sample size n (1 - rho) / (1 + rho)); never below the formal stderr.
+    rho = _lag1_autocorr(np.asarray(track["theta_rad"], float) - np.asarray(fit.curve, float)) \
+        if len(track) == len(fit.curve) else math.nan
+    k = math.sqrt((1 + max(rho, 0.0)) / (1 - max(rho, 0.0))) \
+        if math.isfinite(rho) and rho < 1 else math.nan
+    se_ar = se * k if math.isfinite(k) else math.nan
+    m.update({
+        "residual_lag1_autocorr": rho,
+        "mu_stderr_ar1": se_ar,
+        "mu_true_within_stderr_ar1": bool(abs(mu - mu_true) <= se_ar)
+        if math.isfinite(se_ar) else False,
+    })
     # per-frame comparison, aligned on the frame number
     tr = track.set_index("frame") if "frame" in track.columns else track
     tt = truth
@@ -242,6 +256,17 @@ def compute_metrics(case: Case, traj, truth, track, fit, fit_truth, setup) -> di
     m["amplitude0_deg"] = float(np.degrees(abs(case.scenario.theta0)))
     _ = pd  # pandas is used through the DataFrames' methods
     return m
+
+
+def _lag1_autocorr(r: np.ndarray) -> float:
+    """Lag-1 autocorrelation of a residual series (NaN gaps split the pairs)."""
+    a, b = r[:-1], r[1:]
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 10:
+        return math.nan
+    a, b = a[ok] - np.mean(r[np.isfinite(r)]), b[ok] - np.mean(r[np.isfinite(r)])
+    den = math.sqrt(float(a @ a) * float(b @ b))
+    return float(a @ b) / den if den > 0 else math.nan
 
 
 def per_frame_errors(result: CaseResult):

@@ -189,6 +189,9 @@ def summary_text(result, out: str | Path | None = None) -> str:
         f"   bias {100 * m['mu_bias_rel']:+.3f} %"
         f"   truth within 1 stderr: {'yes' if m['mu_true_within_stderr'] else 'no'}"
         f" (z = {m['mu_z']:+.2f})",
+        f"                 residuals' lag-1 autocorrelation {m['residual_lag1_autocorr']:.2f}:"
+        f" stderr x {m['mu_stderr_ar1'] / m['mu_stderr']:.2f} = {m['mu_stderr_ar1']:.2g},"
+        f" truth within it: {'yes' if m['mu_true_within_stderr_ar1'] else 'no'}",
         f"  mu engine      {m['mu_engine']:.6f}"
         f"   (engine bias {100 * m['mu_engine_bias_rel']:+.3f} %,"
         f" pipeline bias {100 * m['mu_pipeline_bias_rel']:+.3f} %)",
