@@ -13,8 +13,8 @@ the track and the truth).
 
 Without CASE.toml it runs the built-in default: the thesis's 10 mm ball, mu = 0.0079, released
 at 20 deg, thesis lighting (two lamps beside the camera), the "realistic" 8-bit sensor noise,
-the full 1280 x 1024 thesis camera, 1.5 s of 1000 Hz frames (about two half-swings of decay
-on each side; 2-3 min on a 2-core CPU, rendering dominates).
+the full 1280 x 1024 thesis camera, 1.5 s of 1000 Hz frames (about four half-swings; a few
+minutes on a 2-core CPU, rendering dominates).
 
 CASE.toml has the sections [scenario] (the sim scenario form: [scenario.ball], [scenario.motion],
 [scenario.engine], ...), [render] (lighting, noise, motion_blur, [render.sensor],
@@ -41,6 +41,7 @@ retried on resume only with --retry-failed); a worker that dies is replaced and 
 By default a local cluster of worker processes (one renderer each, PYOPENGL_PLATFORM=egl) is
 started; --scheduler ADDRESS uses an existing cluster instead (its workers must see DIR when
 --keep-recordings is used). Example studies ship with the package: `rollfric sweep --list`.
+Exit code 0 when every case is ok, 1 when some failed, 2 on bad input.
 
 SWEEP.toml:
   [sweep]   name, mode = "grid" | "list", seeds = N (repeat each case with render seeds 0..N-1)
