@@ -30,10 +30,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import tomllib
 from pathlib import Path
 from typing import Any
-
-import tomllib
 
 from rollfric.errors import InputError
 from rollfric.setup import THESIS_BALLS, THESIS_TROUGH_RADIUS, Setup
