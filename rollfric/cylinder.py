@@ -5,12 +5,13 @@ contour circle with the vertical line through its lowest point. Here the contour
 the edge points (Canny) that a RANSAC circle search (radius near R / pixel size when known)
 picks out; then the thesis's rule is applied to those points, with sub-pixel averaging:
 
-- the horizontal chords of the contour (leftmost and rightmost contour point in each row):
-  for a circle, (half-width)^2 + y^2 is linear in y and the widest chord lies at its vertex:
-  yc is fitted from every chord, the exact generalisation of "the widest chord" that still
-  works when only the lower half of the trough is visible;
-- the vertical line through the lowest point: xc is the mean midpoint of the chords in the
-  lowest part of the contour.
+- the horizontal chords of the contour (in each row crossed steeply enough, the left and right
+  contour x to sub-pixel precision, where the smoothed intensity crosses the mean of the
+  levels either side): for a circle, (half-width)^2 + y^2 is linear in y and the widest chord
+  lies at its vertex: yc is fitted from every chord, the exact generalisation of "the widest
+  chord" that still works when only the lower half of the trough is visible;
+- the vertical line through the lowest point: xc is the chords' common midpoint (median), the
+  circle's axis of symmetry; the lowest point itself must be in the frame.
 """
 
 from __future__ import annotations

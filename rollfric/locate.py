@@ -10,10 +10,12 @@ origin at the centre of the top-left pixel. Each returns a :class:`Location`.
   the edge and the known diameter (eq. 12), then the candidate in the 15 x 15 neighbourhood
   whose circle of the known radius crosses most radial intensity jumps (eqs. 13-15).
 - ``locate_subpixel`` (beyond the thesis): sub-pixel edge points of the ball silhouette along
-  rays from the current centre, a robust geometric circle fit (Tukey-weighted, known or free
-  radius) that drops rays whose edge contrast or background is spoiled (shadows, specular
-  spots, contact with the trough, occluders), and a per-frame quality: the estimated standard
-  error of the centre in pixels from the fit residuals.
+  rays from the current centre (the integral of the normalised edge profile: exact for an
+  area-sampled step), a robust geometric circle fit (Tukey-weighted, known or free radius) that
+  drops rays whose edge contrast or background is spoiled (shadows, specular spots, contact
+  with the trough, occluders), then a Gauss-Newton fit of an exact area-coverage edge model to
+  the edge pixels of the kept rays (contrast taken against the background pixel by pixel),
+  and a per-frame quality: the estimated standard error of the centre in pixels.
 """
 
 from __future__ import annotations
