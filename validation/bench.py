@@ -20,7 +20,7 @@ import os
 import platform
 import statistics
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -154,6 +154,64 @@ def bench_sim(quick: bool) -> list[Row]:
     return rows
 
 
+# ------------------------------------------------------------------------------- rendering
+def bench_render(quick: bool) -> list[Row]:
+    """The tile renderer vs plain full-frame pyrender of the same scene (synth.bench)."""
+    from synth.bench import render_benchmark
+
+    r = render_benchmark(quick=quick)
+    frame = f"{r['frame']} {r['projection']}, {r['lamps']} lamps, shadows {r['shadows']}"
+    return [
+        Row("rendering", f"tile render, one process ({frame})", r["synth_tile_ms"], "ms/frame",
+            "plain full-frame pyrender, same scene", r["full_frame_ms"],
+            r["full_frame_ms"] / r["synth_tile_ms"], "speed-up",
+            f"max difference {r['max_diff_dn']:g} DN; median tile {r['tile_pixels_median']} px"),
+        Row("rendering", f"sequence of {r['sequence_frames']} frames, "
+            f"{r['sequence_workers']} processes", r["sequence_ms_per_frame"], "ms/frame",
+            "plain full-frame pyrender", r["full_frame_ms"], r["speedup_sequence"], "speed-up",
+            f"{r['sequence_fps']:g} frames/s; 4000 frames in ~{r['est_4000_frames_s']:g} s "
+            f"(target 120 s)"),
+        Row("rendering", "recording size for 4000 frames", r["est_store_4000_mb"], "MB",
+            "8-bit frames stored raw", 4000 * 1.0e-6 * _pixels(r["frame"]),
+            4000 * 1.0e-6 * _pixels(r["frame"]) / r["est_store_4000_mb"], "smaller",
+            f"reading applies the seeded sensor model: {r['read_ms_per_frame']:g} ms/frame"),
+    ]
+
+
+def _pixels(frame: str) -> int:
+    w, h = frame.split("x")
+    return int(w) * int(h)
+
+
+# ----------------------------------------------------------------------------- recognition
+def bench_recognition(quick: bool) -> list[Row]:
+    from validation.bench_locate import bench_recognition as rows
+
+    return rows(quick)
+
+
+# ------------------------------------------------------------------------------ end to end
+def bench_e2e(quick: bool) -> list[Row]:
+    """Seconds per stage of the default ``rollfric validate`` case (shorter with --quick)."""
+    from validation.case import default_case_dict
+    from validation.e2e import run_case
+
+    case = default_case_dict()
+    note = "the default validate case"
+    if quick:
+        case["motion"]["seconds"] = 0.3
+        note = "the default validate case cut to 0.3 s (--quick)"
+    res = run_case(case)
+    m = res.metrics
+    rows = [Row("end-to-end", f"stage {k[2:-2]}", v, "s", note=note)
+            for k, v in sorted(m.items()) if k.startswith("t_") and k.endswith("_s")
+            and k != "t_total_s"]
+    rows.append(Row("end-to-end", "total", m["t_total_s"], "s",
+                    note=f"{m['n_frames']} frames; mu bias {100 * m['mu_bias_rel']:+.3f} %, "
+                         f"centre rms {m['center_rms_px']:.3f} px"))
+    return rows
+
+
 # --------------------------------------------------------------------------------- report
 def machine() -> dict:
     cpu = platform.processor()
@@ -195,6 +253,9 @@ def to_markdown(rows: list[Row], meta: dict) -> str:
 SECTIONS = {
     "fitting": bench_fit,
     "simulation": bench_sim,
+    "rendering": bench_render,
+    "recognition": bench_recognition,
+    "end-to-end": bench_e2e,
 }  # keys match validation.cli_bench.SECTION_NAMES
 
 
@@ -211,7 +272,7 @@ def run_bench(out: str | Path, *, quick: bool = False, sections=None, progress: 
         t0 = time.perf_counter()
         rows.extend(SECTIONS[name](quick))
         timings[name] = time.perf_counter() - t0
-    meta = {"date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+    meta = {"date": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
             "machine": machine(), "quick": quick, "section_seconds": timings}
     md = to_markdown(rows, meta)
     (out / "bench.md").write_text(md)
