@@ -9,8 +9,8 @@ import sim
 from rollfric.eom import energy
 from rollfric.fit import fit_mu
 
-# Tolerances of the accurate (tangent) surfaces over 1 s (measured: angle 0.02-0.03 deg,
-# normal force 0.02-0.3 %, spin 0.4 %, mu +0.75 % (MuJoCo) and < 0.005 % (PyBullet)).
+# Tolerances of the accurate (tangent) surfaces over 1 s (measured: angle 0.02-0.05 deg,
+# normal force 0.02-0.3 %, spin 0.4 %, mu +0.02 % to +0.04 % (MuJoCo) and < 0.005 % (PyBullet)).
 MU_TOL = {"mujoco": 0.01, "pybullet": 0.001}
 ENGINES = ["mujoco", "pybullet"]
 
