@@ -493,8 +493,17 @@ def plot_sweep(df, spec: SweepSpec, plot_dir: Path) -> list[Path]:
     plot_dir.mkdir(parents=True, exist_ok=True)
     written = []
     keys = [k for k in spec.swept if k in ok.columns and k != "render.seed"]
+
+    def determines(a, b):  # every value of a comes with one value of b
+        return bool((ok.groupby(a, dropna=False)[b].nunique(dropna=False) <= 1).all())
+
+    plotted: list = []
     for x in keys:
-        others = [k for k in keys if k != x]
+        if any(determines(x, k) and determines(k, x) for k in plotted):
+            continue  # co-varies one to one with a key already plotted (a list sweep)
+        plotted.append(x)
+        # separate lines only for keys that vary independently of x
+        others = [k for k in keys if k != x and not determines(x, k)]
         metrics = [m for m in spec.metrics if m in ok.columns]
         if not metrics:
             continue
