@@ -105,7 +105,7 @@ def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads):
     _W["bg"] = np.asarray(g["background_clean"][...], dtype=np.int64)
 
 
-def _worker_batch(indices, centres, quats):
+def _worker_batch(indices, centres):
     sr = _W["renderer"]
     diff_arr = _W["diff"]
     bg = _W["bg"]
@@ -121,6 +121,38 @@ def _worker_batch(indices, centres, quats):
                 out[y0:y0 + h, x0:x0 + w] = img.astype(np.int64) - k * bg[y0:y0 + h, x0:x0 + w]
         diff_arr[int(i)] = out
     return len(indices)
+
+
+MAX_POOL_RESTARTS = 3
+
+
+def _render_parallel(batches, centres, workers, init, bar) -> None:
+    """Render batches in ``workers`` spawned processes (EGL contexts do not survive fork).
+
+    A batch writes only its own frames' chunks, so a batch whose process died (llvmpipe has
+    crashed a worker once in a 4000-frame run on this machine) is simply rendered again in a
+    fresh pool, at most MAX_POOL_RESTARTS times.
+    """
+    ctx = mp.get_context("spawn")
+    pending = list(range(len(batches)))
+    for attempt in range(MAX_POOL_RESTARTS + 1):
+        failed = []
+        with cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_worker_init,
+                                    initargs=init) as pool:
+            futs = {pool.submit(_worker_batch, batches[k], centres[batches[k]]): k
+                    for k in pending}
+            for f in cf.as_completed(futs):
+                try:
+                    bar.update(f.result())
+                except cf.process.BrokenProcessPool:
+                    failed.append(futs[f])
+        if not failed:
+            return
+        if attempt == MAX_POOL_RESTARTS:
+            raise RuntimeError(f"render processes kept dying: {len(failed)} batches of "
+                               f"{BATCH} frames not rendered after {attempt} restarts")
+        bar.write(f"a render process died; rendering {len(failed)} batches again")
+        pending = sorted(failed)
 
 
 # -- the public API ----------------------------------------------------------------------------
@@ -164,7 +196,6 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     r_ball, r_cyl = setup.ball_radius, setup.cylinder_radius
     k_sub = scene.motion_blur
     centres = subframe_positions(traj, k_sub, sensor.exposure)
-    quats = np.asarray(traj.quaternion, float)
     if workers is None:
         workers = max(1, min(2, os.cpu_count() or 1))
     workers = max(1, min(int(workers), max(1, n // BATCH)))
@@ -197,17 +228,12 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             _worker_init(*init)
             try:
                 for b in batches:
-                    bar.update(_worker_batch(b, centres[b], quats[b]))
+                    bar.update(_worker_batch(b, centres[b]))
             finally:
                 _W.pop("renderer").close()
                 _W.clear()
         else:
-            ctx = mp.get_context("spawn")  # EGL contexts do not survive fork
-            with cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_worker_init,
-                                        initargs=init) as pool:
-                futs = [pool.submit(_worker_batch, b, centres[b], quats[b]) for b in batches]
-                for f in cf.as_completed(futs):
-                    bar.update(f.result())
+            _render_parallel(batches, centres, workers, init, bar)
         bar.close()
         g.attrs.update({
             "format": FORMAT,
