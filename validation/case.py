@@ -7,7 +7,7 @@ case of ``rollfric validate``)::
 
     [scenario]                 # the sim scenario form (sim/scenario.py), bench units
     ball = { diameter_mm = 10.0, mass_g = 4.07612 }
-    motion = { mu = 0.0079, theta0_deg = 20.0, seconds = 1.5 }
+    motion = { mu = 0.0079, theta0_deg = 20.0, seconds = 2.0 }
     engine = { name = "reference", surface = "tangent" }
 
     [render]                   # synth
@@ -65,12 +65,12 @@ FITS = ("lsq", "paper1_eps", "paper2_grid")
 TOP_KEYS = ("name", "scenario", "render", "measure")
 SCENARIO_SECTIONS = ("cylinder", "ball", "camera", "environment", "motion", "engine")
 
-DEFAULT_SECONDS = 1.5
+DEFAULT_SECONDS = 2.0
 
 
 def default_case_dict() -> dict:
     """The built-in case of ``rollfric validate``: thesis 10 mm ball, mu 0.0079, thesis lighting,
-    realistic noise, the full 1280 x 1024 thesis camera, 1.5 s of 1000 Hz frames, no motion-blur
+    realistic noise, the full 1280 x 1024 thesis camera, 2 s of 1000 Hz frames, no motion-blur
     sub-frames (the blur study covers blur; 4 sub-frames would triple the render time)."""
     return {
         "name": "default",

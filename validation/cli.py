@@ -13,8 +13,8 @@ the track and the truth).
 
 Without CASE.toml it runs the built-in default: the thesis's 10 mm ball, mu = 0.0079, released
 at 20 deg, thesis lighting (two lamps beside the camera), the "realistic" 8-bit sensor noise,
-the full 1280 x 1024 thesis camera, 1.5 s of 1000 Hz frames (about four half-swings; a few
-minutes on a 2-core CPU, rendering dominates).
+the full 1280 x 1024 thesis camera, 2 s of 1000 Hz frames (six half-swings; about 2 min on
+an idle 2-core CPU, rendering and reading the frames through the sensor model dominate).
 
 CASE.toml has the sections [scenario] (the sim scenario form: [scenario.ball], [scenario.motion],
 [scenario.engine], ...), [render] (lighting, noise, motion_blur, [render.sensor],

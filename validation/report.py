@@ -186,15 +186,15 @@ def summary_text(result, out: str | Path | None = None) -> str:
         "",
         f"  mu true        {m['mu_true']:.6f}",
         f"  mu recovered   {m['mu_recovered']:.6f} +- {m['mu_stderr']:.2g}"
-        f"   bias {100 * m['mu_bias_rel']:+.3f} %"
+        f"   bias {100 * m['mu_bias_rel']:+.4f} %"
         f"   truth within 1 stderr: {'yes' if m['mu_true_within_stderr'] else 'no'}"
         f" (z = {m['mu_z']:+.2f})",
         f"                 residuals' lag-1 autocorrelation {m['residual_lag1_autocorr']:.2f}:"
         f" stderr x {m['mu_stderr_ar1'] / m['mu_stderr']:.2f} = {m['mu_stderr_ar1']:.2g},"
         f" truth within it: {'yes' if m['mu_true_within_stderr_ar1'] else 'no'}",
         f"  mu engine      {m['mu_engine']:.6f}"
-        f"   (engine bias {100 * m['mu_engine_bias_rel']:+.3f} %,"
-        f" pipeline bias {100 * m['mu_pipeline_bias_rel']:+.3f} %)",
+        f"   (engine bias {100 * m['mu_engine_bias_rel']:+.4f} %,"
+        f" pipeline bias {100 * m['mu_pipeline_bias_rel']:+.4f} %)",
         f"  centre error   rms {m['center_rms_px']:.4f} px, max {m['center_max_px']:.4f} px,"
         f" bias ({m['center_bias_x_px']:+.4f}, {m['center_bias_y_px']:+.4f}) px",
         f"  theta error    rms {math.degrees(m['theta_rms_rad']):.5f} deg,"
