@@ -22,7 +22,14 @@ import numpy as np
 
 
 def _dir_size(path: Path) -> int:
+    """Bytes in the files of a directory tree."""
     return sum(f.stat().st_size for f in Path(path).rglob("*") if f.is_file())
+
+
+def _disk_usage(path: Path) -> int:
+    """Bytes the tree occupies on disk (allocated blocks, directories included), like du."""
+    paths = [Path(path), *Path(path).rglob("*")]
+    return sum(p.stat().st_blocks * 512 for p in paths)
 
 
 def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | None = None,
@@ -90,6 +97,7 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         t_seq = time.perf_counter() - t0
         n_done = min(n_seq, len(traj))
         size = _dir_size(out)
+        disk = _disk_usage(out)
         rec = synth.open_recording(out)
         rec.frames[0]
         t0 = time.perf_counter()
@@ -121,6 +129,7 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "est_4000_frames_s": round(4000 * t_seq / n_done, 1),
         "store_mb": round(size / 1e6, 2),
         "est_store_4000_mb": round(size / 1e6 * 4000 / n_done, 1),
+        "store_disk_mb": round(disk / 1e6, 2),
         "read_ms_per_frame": round(read_ms, 1),
         "versions": _versions(),
         "cpus": os.cpu_count(),

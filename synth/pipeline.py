@@ -215,8 +215,9 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         bg_dtype = "uint16" if scale <= 65535 else "uint32"
         g.create_array("background_clean", data=bg.astype(bg_dtype), chunks=(H, W))
         diff_dtype = "int16" if frame_scale <= 32767 else "int32"
+        # flat chunk names (0.0.0, 1.0.0, ...): no two directories per frame on disk
         g.create_array("clean_diff", shape=(n, H, W), dtype=diff_dtype, chunks=(1, H, W),
-                       fill_value=0)
+                       fill_value=0, chunk_key_encoding={"name": "v2", "separator": "."})
         tg = g.create_group("truth")
         for name, values in truth_table(traj, cam, r_ball).items():
             arr = tg.create_array(name, data=np.asarray(values, dtype=np.float64))
