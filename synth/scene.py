@@ -235,6 +235,7 @@ class SceneRenderer:
         self._renderer = None
         self._viewport = None
         self._shadow_cache = None
+        self._shadow_prev: dict = {}  # lamp -> texel box the ball covered last
         # shadow-map resolution at each lamp (for the footprint's blur margin)
         self._scene_scale = None
 
@@ -293,6 +294,7 @@ class SceneRenderer:
 
     def render_region(self, x0: int, y0: int, w: int, h: int) -> np.ndarray:
         """Plain pyrender render of full-frame pixels [x0, x0+w) x [y0, y0+h)."""
+        self._shadow_prev = {}  # pyrender rewrites the whole shadow maps
         r = self._ensure_renderer(w, h)
         self._cam.P = self.camera.tile_projection(x0, y0, w, h)
         color, _ = r.render(self.scene, self.flags)
@@ -356,35 +358,77 @@ class SceneRenderer:
         return out
 
     def _ball_shadow_pass(self, inner, flags) -> None:
-        """Each lamp's shadow map: the cached depth of the static caster (the trough) copied
-        in, then the ball drawn over it with the depth test, as pyrender would draw both (the
-        backdrop is the farthest surface and casts on nothing: it is left out)."""
-        from OpenGL.GL import GL_TEXTURE_2D, glCopyImageSubData
+        """Each lamp's shadow map: the cached depth of the static caster (the trough), with the
+        ball drawn over it with the depth test, as pyrender would draw both (the backdrop is
+        the farthest surface and casts on nothing: it is left out).
+
+        Only the texels the ball covered in the previous sub-frame or covers now change: that
+        box is scissored, cleared, restored from the cache and the ball drawn into it; the
+        rest of the map already holds the trough.
+        """
+        from OpenGL.GL import (
+            GL_SCISSOR_TEST,
+            GL_TEXTURE_2D,
+            glCopyImageSubData,
+            glDisable,
+            glEnable,
+            glScissor,
+        )
 
         static = [n.mesh for n in self.scene.mesh_nodes if n.mesh is not self._ball_mesh]
         if self._shadow_cache is None:
             self._shadow_cache = self._make_shadow_cache(inner, flags, static)
         original = inner._configure_shadow_mapping_viewport
-        size = SHADOW_TEX_SZ
         visible = [m.is_visible for m in static]
         try:
             for ln in self.scene.light_nodes:
                 cache = self._shadow_cache[ln.name]
+                now = self._shadow_box(inner, ln, flags)
+                prev = self._shadow_prev.get(ln.name)
+                if prev is None:  # unknown map content: restore all of it
+                    box = (0, 0, SHADOW_TEX_SZ, SHADOW_TEX_SZ)
+                else:
+                    x0, y0 = min(now[0], prev[0]), min(now[1], prev[1])
+                    x1 = max(now[0] + now[2], prev[0] + prev[2])
+                    y1 = max(now[1] + now[3], prev[1] + prev[3])
+                    box = (x0, y0, x1 - x0, y1 - y0)
 
-                def configure(light, fl, cache=cache):
-                    original(light, fl)  # binds the light's map and clears it
-                    glCopyImageSubData(cache._texid, GL_TEXTURE_2D, 0, 0, 0, 0,
-                                       light.shadow_texture._texid, GL_TEXTURE_2D, 0, 0, 0, 0,
-                                       size, size, 1)
+                def configure(light, fl, cache=cache, box=box):
+                    glEnable(GL_SCISSOR_TEST)
+                    glScissor(*box)
+                    original(light, fl)  # binds the light's map, clears the box
+                    glCopyImageSubData(cache._texid, GL_TEXTURE_2D, 0, box[0], box[1], 0,
+                                       light.shadow_texture._texid, GL_TEXTURE_2D, 0,
+                                       box[0], box[1], 0, box[2], box[3], 1)
 
                 inner._configure_shadow_mapping_viewport = configure
                 for m in static:
                     m.is_visible = False
                 inner._shadow_mapping_pass(self.scene, ln, flags)
+                glDisable(GL_SCISSOR_TEST)
+                self._shadow_prev[ln.name] = now
         finally:
+            glDisable(GL_SCISSOR_TEST)
             inner._configure_shadow_mapping_viewport = original
             for m, v in zip(static, visible, strict=True):
                 m.is_visible = v
+
+    def _shadow_box(self, inner, light_node, flags):
+        """Texel box (x, y, w, h) of the lamp's shadow map that the ball covers, with margin."""
+        V, P = inner._get_light_cam_matrices(self.scene, light_node, flags)
+        c = self.scene.get_pose(self._ball_node)[:3, 3]
+        cv = V @ np.append(c, 1.0)
+        r = 1.5 * self.ball_radius
+        pts = np.array([[cv[0] + dx, cv[1] + dy, cv[2] + dz, 1.0]
+                        for dx in (-r, r) for dy in (-r, r) for dz in (-r, r)])
+        clip = pts @ P.T
+        ndc = clip[:, :2] / clip[:, 3:4]
+        t = (ndc + 1.0) / 2.0 * SHADOW_TEX_SZ
+        x0 = int(np.clip(math.floor(t[:, 0].min()) - 4, 0, SHADOW_TEX_SZ))
+        y0 = int(np.clip(math.floor(t[:, 1].min()) - 4, 0, SHADOW_TEX_SZ))
+        x1 = int(np.clip(math.ceil(t[:, 0].max()) + 4, 0, SHADOW_TEX_SZ))
+        y1 = int(np.clip(math.ceil(t[:, 1].max()) + 4, 0, SHADOW_TEX_SZ))
+        return (x0, y0, max(x1 - x0, 1), max(y1 - y0, 1))
 
     def _make_shadow_cache(self, inner, flags, static) -> dict:
         """Render each lamp's shadow map of the trough alone, once, and keep a copy."""

@@ -89,25 +89,31 @@ def test_tiles_equal_full_frame_render(projection, lighting):
         # one low lamp far right: the shadow lands left of the trough's outer edge; a coarser
         # pixel covers ball and shadow in a small frame
         cam = CameraModel(width=320, height=224, pixel_size=0.4e-3, center_px=(300.0, -100.0))
-        thetas = (-0.5, -0.35)
+        thetas = (-0.5, -0.35, -0.2)
     else:
         cam = CameraModel(width=256, height=192, projection=projection, working_distance=0.6,
                           center_px=(128.0, -470.0))
-        thetas = (-0.03, 0.04)
+        thetas = (-0.03, 0.04, 0.02)
     cfg = SceneConfig(camera=cam, lighting=lighting_preset(lighting))
     sr = SceneRenderer(cfg, R_BALL, R_CYL)
     try:
         bg = sr.render_full()
-        worst, shadow_checked = 0, False
+        # tiles of consecutive frames first (the shadow maps are updated incrementally), then
+        # the plain full-frame renders they must equal
+        composites = []
         for theta in thetas:
             c = _centre(theta)
-            pose = sr.ball_pose(c)
-            sr.set_ball(pose)
-            full = sr.render_full()
             tiles = sr.tiles_for(c[None])
             comp = bg.copy()
-            for (x0, y0, w, h), img in zip(tiles, sr.render_tiles([pose], tiles), strict=True):
+            imgs = sr.render_tiles([sr.ball_pose(c)], tiles)
+            for (x0, y0, w, h), img in zip(tiles, imgs, strict=True):
                 comp[y0:y0 + h, x0:x0 + w] = img
+            composites.append(comp)
+        worst, shadow_checked = 0, False
+        for theta, comp in zip(thetas, composites, strict=True):
+            c = _centre(theta)
+            sr.set_ball(sr.ball_pose(c))
+            full = sr.render_full()
             sr.set_ball(None)
             diff = np.abs(comp.astype(int) - full.astype(int)) / (sr.scale / 255)
             worst = max(worst, diff.max())
