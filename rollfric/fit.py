@@ -150,6 +150,15 @@ def initial_guess(t, theta, setup: Setup) -> dict:
     elif tp.size == 2:
         a0, a1 = abs(smooth[tp[0]] - offset), abs(smooth[tp[1]] - offset)
         mu0 = max((a0 - a1) / 2.0, 0.0)
+    # the ball at rest for good at the end of the record?
+    period = 2 * math.pi / math.sqrt(eom.omega_squared(setup.track_radius, setup.gravity))
+    noise = 1.4826 * float(np.median(np.abs(x - smooth - np.median(x - smooth))))
+    tail = max(20, x.size // 50)
+    final = float(np.median(smooth[-tail:]))
+    moving = np.nonzero(np.abs(smooth - final) > max(5 * noise, 1e-7))[0]
+    t_rest = math.inf
+    if moving.size and grid[-1] - grid[moving[-1]] >= 0.25 * period:
+        t_rest = float(grid[moving[-1]])
     # theta and theta' at t0 from a local quadratic on the raw samples (the zero-phase filter
     # is least reliable at the ends of the series)
     n_head = min(int(good.sum()), max(10, int(0.03 * fps)))
@@ -161,6 +170,8 @@ def initial_guess(t, theta, setup: Setup) -> dict:
         "offset": offset,
         "turning_points_s": grid[tp],
         "fps": fps,
+        "t_rest": t_rest,
+        "period": period,
     }
 
 
@@ -190,8 +201,16 @@ def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulo
         raise InputError(f"unknown friction model {model!r} (coulomb, velocity)")
     start = time.perf_counter()
     t, theta, good = _clean(t, theta)
-    tg, yg = t[good], theta[good]
     g0 = guess or initial_guess(t, theta, setup)
+    # Once the ball has stopped for good, where it rests jumps between the two sides of the
+    # bottom as mu crosses the value at which it would have made one more half-swing: the
+    # cost is discontinuous in mu there. The fit therefore ends a quarter period before the
+    # rest seen in the data; the resting samples are not used (their count is reported).
+    fitted = good & (t < g0["t_rest"] - 0.25 * g0["period"])
+    if fitted.sum() < MIN_SAMPLES:
+        raise InputError(f"the ball comes to rest after {int(fitted.sum())} usable samples; "
+                         f"at least {MIN_SAMPLES} samples of motion are needed to fit mu")
+    tg, yg = t[fitted], theta[fitted]
     # name, start, lower, upper, typical scale
     params = [("mu", g0["mu"], 0.0, 1.0, 1e-3),
               ("theta0", g0["theta0"], -math.pi / 2, math.pi / 2, 1e-3),
@@ -217,38 +236,12 @@ def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulo
     sol = optimize.least_squares(residual, x0, bounds=(lower, upper), x_scale=scale,
                                  diff_step=1e-7, xtol=1e-12, ftol=1e-12, gtol=1e-12,
                                  max_nfev=400)
-    x, res = sol.x, sol.fun
+    mu, th0, om0, off, mu1 = unpack(sol.x)
+    res = sol.fun
     err = _stderr(sol.jac, res)
-    polished = False
-    mu, th0, om0, off, mu1 = unpack(x)
-    _, _, t_stop = eom.solve(th0 - off, om0, mu, tg, track_radius=setup.track_radius,
-                             gravity=setup.gravity, mu1=mu1)
-    if t_stop < tg[-1]:
-        # The ball comes to rest inside the record: the cost has a kink where the number of
-        # half-swings before the stop changes, and a gradient method can stall on it.
-        # Polish derivative-free in a box of a few standard errors, then keep the better.
-        step = np.maximum(np.nan_to_num(5 * err, nan=0.0), 1e-3 * scale)
-
-        def cost(z):
-            xx = np.clip(x + z * step, lower, upper)
-            r = residual(xx)
-            return float(r @ r)
-
-        simplex = np.vstack([np.zeros(len(x)), np.eye(len(x))])
-        nm = optimize.minimize(cost, np.zeros(len(x)), method="Nelder-Mead",
-                               options={"initial_simplex": simplex, "xatol": 1e-4,
-                                        "fatol": 1e-14 * max(float(res @ res), 1e-30),
-                                        "maxfev": 400 * len(x)})
-        if nm.fun < float(res @ res):
-            x = np.clip(x + nm.x * step, lower, upper)
-            res = residual(x)
-            jac = optimize.approx_fprime(x, residual, 1e-7 * np.maximum(np.abs(x), scale))
-            err = _stderr(jac, res)
-            polished = True
-        mu, th0, om0, off, mu1 = unpack(x)
     stderr = dict(zip(names, (float(e) for e in err), strict=True))
     curve = np.full_like(t, np.nan)
-    curve[good] = res + yg
+    curve[good] = model_theta(t[good], mu, th0, om0, setup, offset=off, mu1=mu1)
     return FitResult(
         method="lsq",
         mu=float(mu),
@@ -257,15 +250,15 @@ def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulo
         omega0=float(om0),
         t0=float(tg[0]),
         rms_residual=float(np.sqrt(np.mean(res**2))),
-        relative_error=_relative_error(curve[good], yg),
-        n_samples=int(good.sum()),
+        relative_error=_relative_error(res + yg, yg),
+        n_samples=int(fitted.sum()),
         t=t,
         curve=curve,
         offset=float(off),
         mu1=float(mu1),
         stderr=stderr,
         extra={"model": model, "nfev": int(sol.nfev), "converged": bool(sol.success),
-               "polished": polished,
+               "n_rest_excluded": int(good.sum() - fitted.sum()),
                "mu_initial": float(g0["mu"])},
         seconds=time.perf_counter() - start,
     )

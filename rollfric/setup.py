@@ -20,9 +20,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
-
 import tomllib
+from pathlib import Path
 
 from rollfric.errors import InputError
 

@@ -36,7 +36,7 @@ def test_recovers_mu_from_noiseless_theta(ball, mu, theta0_deg):
 @pytest.mark.parametrize("mu", MUS)
 def test_recovers_mu_from_noisy_theta_within_its_uncertainty(ball, mu):
     setup = thesis_setup(ball)
-    rng = np.random.default_rng(hash((ball, mu)) % 2**32)
+    rng = np.random.default_rng(10 * BALLS.index(ball) + MUS.index(mu))
     for theta0_deg in (5, 25):
         sigma = math.radians(0.02)
         y = truth(setup, mu, theta0_deg) + rng.normal(0, sigma, T4.size)
