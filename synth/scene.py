@@ -188,8 +188,12 @@ class SceneRenderer:
             baseColorFactor=[tc, tc, tc, 1.0], metallicFactor=config.trough_metallic,
             roughnessFactor=config.trough_roughness)
         prims = []
-        for mesh, smooth in _trough_meshes(cylinder_radius, config.trough_wall,
-                                           config.trough_length, config.trough_opening):
+        parts = _trough_meshes(cylinder_radius, config.trough_wall, config.trough_length,
+                               config.trough_opening)
+        # two primitives (smooth bore, flat faces): each primitive costs a draw call with
+        # all its uniforms in every pass
+        flat = trimesh.util.concatenate([m for m, smooth in parts if not smooth])
+        for mesh, smooth in [*[(m, True) for m, sm in parts if sm], (flat, False)]:
             prims += pyrender.Mesh.from_trimesh(mesh, material=trough_mat,
                                                 smooth=smooth).primitives
         scene.add(pyrender.Mesh(primitives=prims), name="trough")
