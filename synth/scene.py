@@ -237,11 +237,8 @@ class SceneRenderer:
         if config.shadows:
             self.flags |= pyrender.RenderFlags.SHADOWS_SPOT
         self._renderer = None
-        self._viewport = None
         self._shadow_cache = None
         self._shadow_prev: dict = {}  # lamp -> texel box the ball covered last
-        # shadow-map resolution at each lamp (for the footprint's blur margin)
-        self._scene_scale = None
 
     def silhouette_mode(self) -> None:
         """Switch to an unlit white ball on black (no trough, no backdrop, no shadows): the
@@ -264,7 +261,6 @@ class SceneRenderer:
         else:
             self._renderer.viewport_width = vw
             self._renderer.viewport_height = vh
-        self._viewport = (vw, vh)
         return self._renderer
 
     def ball_pose(self, centre) -> np.ndarray:
