@@ -2,8 +2,9 @@
 beside OpenCV HoughCircles, scikit-image CircleModel + RANSAC, and the Cramer-Rao bound.
 
 Frames are drawn analytically (validation.drawn_frames: exact area coverage, the thesis's
-1280 x 1024 geometry with the 85.3 mm trough at 0.1343 mm/px); renders from ``synth`` can be
-passed in as extra cases (``Case`` with frames, background and truth).
+1280 x 1024 geometry with the 85.3 mm trough at 0.1343 mm/px) and rendered by ``synth``
+(the thesis scene with its lamps, specular spots and shadows; clean and with the realistic
+sensor model), each with its exact truth.
 
 ``bench_locators(quick)`` returns one dict per (case, locator); ``bench_recognition(quick)``
 the same as ``validation.bench.Row`` lines; ``throughput(...)`` the frames/s of the whole
@@ -50,6 +51,56 @@ def drawn_case(ball: str, n: int, *, noise: float = 0.0, shadow: float = 0.0,
     label = f"{ball} drawn" + (f", noise {noise:g} DN" if noise else ", clean") + \
         (", shadow" if shadow else "")
     return Case(label, r_px, bg, frames, truth, noise, contrast, scene.center)
+
+
+def rendered_case(ball: str, n: int, *, noise: str = "none", lighting: str = "thesis",
+                  seed: int = 0) -> Case:
+    """``n`` frames of the ball rendered by ``synth`` (thesis camera, ``lighting`` preset,
+    sensor preset ``noise``), spread over one swing from 20 deg, with the silhouette truth.
+
+    The bound's contrast and noise are measured on the frames: the step between the clean
+    render's levels just outside and just inside the silhouette, and the rms difference of
+    the noisy frame from the clean one in the band around the edge."""
+    import tempfile
+
+    import sim
+    import synth
+    from rollfric.setup import THESIS_BALLS
+
+    diameter, mass = THESIS_BALLS[ball]
+    # frames 20 ms apart: positions spread over the swing
+    sc = sim.Scenario(ball_diameter=diameter, ball_mass=mass, duration=(n - 1) / 50.0,
+                      fps=50.0, seed=seed)
+    traj = sim.simulate(sc)
+    # 2x2 supersampling on top of MSAA: the render itself is then exact to ~0.005 px, below
+    # the locator errors being compared (MSAA alone leaves ~0.015 px)
+    scene = synth.SceneConfig(lighting=synth.lighting_preset(lighting), supersample=2)
+    with tempfile.TemporaryDirectory() as tmp:
+        recs = {}
+        for preset in {"none", noise}:
+            path = synth.render(traj, f"{tmp}/{preset}.zarr", scene=scene,
+                                sensor=synth.noise_preset(preset), seed=seed, workers=1)
+            rec = synth.open_recording(path)
+            recs[preset] = ([rec.frames[i] for i in range(len(rec))], rec.background,
+                            rec.truth, rec.attrs)
+    frames, background, truth_df, attrs = recs[noise]
+    clean = recs["none"][0]
+    truth = truth_df[["sil_x_px", "sil_y_px"]].to_numpy()
+    r_px = float(truth_df["r_px"].median())
+    yy, xx = np.mgrid[0:background.shape[0], 0:background.shape[1]]
+    steps, sq = [], []
+    for k, (cx, cy) in enumerate(truth):
+        d = np.hypot(xx - cx, yy - cy)
+        c = clean[k].astype(float)
+        steps.append(np.median(c[(d > r_px + 2) & (d < r_px + 5)])
+                     - np.median(c[(d > r_px - 5) & (d < r_px - 2)]))
+        band = np.abs(d - r_px) < 3
+        sq.append(np.mean((frames[k].astype(float) - c)[band] ** 2))
+    noise_dn = float(np.sqrt(np.mean(sq)))
+    centre = (float(truth_df["cx_px"].iloc[0]), float(truth_df["cy_px"].iloc[0]))
+    label = f"{ball} rendered, {lighting} lighting, noise {noise}"
+    return Case(label, r_px, background, frames, truth, noise_dn, abs(float(np.median(steps))),
+                centre)
 
 
 def cramer_rao_rms(r_px: float, contrast: float, noise: float, n_theta: int = 200000) -> float:
@@ -210,6 +261,9 @@ def bench_locators(quick: bool = False) -> list[dict]:
     cases = [drawn_case(b, n, seed=i) for i, b in enumerate(BALLS)]
     cases += [drawn_case(b, n, noise=3.0, seed=10 + i) for i, b in enumerate(BALLS)]
     cases += [drawn_case("10mm", n, shadow=0.5, seed=20)]
+    balls = ("10mm",) if quick else tuple(BALLS)
+    cases += [rendered_case(b, n, noise=nz, seed=30 + i) for i, b in enumerate(balls)
+              for nz in ("none", "realistic")]
     rows = []
     for c in cases:
         rows.extend(run_case(c))
