@@ -11,7 +11,18 @@ A recording is one of
 Every reader returns a *FrameSource*: ``len(src)``, ``src[i]`` -> one (H, W) uint8 or uint16
 frame, and the attributes ``shape`` (T, H, W), ``dtype``, ``fps`` (float or None),
 ``background`` ((H, W) array or None) and ``attrs`` (dict). Colour images are converted to
-grayscale. Bad input (unreadable, truncated, mixed frame sizes, unsupported depth) raises
+grayscale.
+
+Regions of interest (an optional part of the FrameSource contract): a FrameSource MAY have
+``read(i, roi)``, roi = (y0, y1, x0, x1) integers with ``0 <= y0 < y1 <= H`` and
+``0 <= x0 < x1 <= W``, returning frame i's region ``[y0:y1, x0:x1]``: the same bytes as
+``src[i][y0:y1, x0:x1]``, ideally without making the rest of the frame. The tracking loop
+(:mod:`rollfric.track`) uses it when present. All the readers here have it: a crop of the full
+frame, except that a Zarr ``frames`` array is sliced (only the chunks touched are decoded), an
+uncompressed TIFF is memory-mapped (only the region's bytes are read), and an entry-point reader
+that has ``read`` is asked for the region itself.
+
+Bad input (unreadable, truncated, mixed frame sizes, unsupported depth) raises
 :class:`RecordingError`, naming the file and the frame.
 """
 
@@ -92,6 +103,26 @@ class _Source:
         for i in range(len(self)):
             yield self[i]
 
+    def _roi(self, roi) -> tuple[int, int, int, int]:
+        try:
+            y0, y1, x0, x1 = (int(v) for v in roi)
+        except (TypeError, ValueError):
+            raise TypeError(f"roi must be (y0, y1, x0, x1) integers, got {roi!r}") from None
+        _, h, w = self.shape
+        if not (0 <= y0 < y1 <= h and 0 <= x0 < x1 <= w):
+            raise IndexError(f"roi {(y0, y1, x0, x1)} (y0, y1, x0, x1) is not a non-empty "
+                             f"region of the {w}x{h} px frames")
+        return y0, y1, x0, x1
+
+    def read(self, i: int, roi: tuple[int, int, int, int]) -> np.ndarray:
+        """Region ``roi`` = (y0, y1, x0, x1) of frame i: the same bytes as
+        ``self[i][y0:y1, x0:x1]``."""
+        i = self._index(i)
+        return self._read_roi(i, *self._roi(roi))
+
+    def _read_roi(self, i: int, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
+        return self[i][y0:y1, x0:x1]
+
 
 class TiffSource(_Source):
     """A multi-page TIFF, one page a frame (or a single page holding a (T, H, W) stack)."""
@@ -117,6 +148,8 @@ class TiffSource(_Source):
             n, hw = self._stack.shape[0], self._stack.shape[1:]
         else:
             hw = shape[:2]
+        self._path = path
+        self._mmap = None  # the whole file, memory-mapped for region reads of plain pages
         super().__init__(str(path), n, hw, first.dtype)
 
     def __getitem__(self, i: int) -> np.ndarray:
@@ -130,6 +163,25 @@ class TiffSource(_Source):
             raise RecordingError(f"{self.name}: cannot read frame {i} (truncated or corrupt "
                                  f"file? {exc})") from None
         return self._check(img, i)
+
+    def _read_roi(self, i: int, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
+        if self._stack is not None:  # (T, H, W) of one dtype, memory-mapped when possible
+            return np.array(self._stack[i, y0:y1, x0:x1])
+        try:
+            page = self._tif.pages[i]
+            plain = (page.is_memmappable and tuple(page.shape) == self.shape[1:]
+                     and np.dtype(page.dtype) == self.dtype)
+        except Exception:
+            plain = False
+        if not plain:  # compressed, tiled, colour, ...: decode the page, then crop
+            return self[i][y0:y1, x0:x1]
+        if self._mmap is None:
+            self._mmap = np.memmap(self._path, dtype=np.uint8, mode="r")
+        h, w = self.shape[1:]
+        dt = self.dtype.newbyteorder(self._tif.byteorder)
+        off = int(page.dataoffsets[0])
+        img = self._mmap[off:off + h * w * dt.itemsize].view(dt).reshape(h, w)
+        return np.ascontiguousarray(img[y0:y1, x0:x1], dtype=self.dtype)
 
 
 class FolderSource(_Source):
@@ -247,6 +299,12 @@ class ZarrArraySource(_Source):
             raise RecordingError(f"{self.name}: cannot read frame {i} ({exc})") from None
         return self._check(img, i)
 
+    def _read_roi(self, i: int, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
+        try:
+            return np.asarray(self._arr[i, y0:y1, x0:x1])
+        except Exception as exc:
+            raise RecordingError(f"{self.name}: cannot read frame {i} ({exc})") from None
+
 
 def zarr_reader_entry_points() -> list:
     """The installed ``rollfric.zarr_readers`` entry points, sorted by name."""
@@ -299,6 +357,16 @@ class _WrappedSource(_Source):
     def __getitem__(self, i: int) -> np.ndarray:
         i = self._index(i)
         return self._check(np.asarray(self._src[i]), i)
+
+    def _read_roi(self, i: int, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
+        if not callable(getattr(self._src, "read", None)):
+            return self[i][y0:y1, x0:x1]
+        img = np.asarray(self._src.read(i, (y0, y1, x0, x1)))
+        if img.shape != (y1 - y0, x1 - x0) or img.dtype != self.dtype:
+            raise RecordingError(f"{self.name}: the reader's read({i}, {(y0, y1, x0, x1)}) gave "
+                                 f"a {img.dtype} array of shape {img.shape}, not "
+                                 f"{self.dtype} {(y1 - y0, x1 - x0)}")
+        return img
 
 
 def open_recording(path: str | Path):

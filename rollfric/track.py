@@ -3,7 +3,9 @@
 ``measure(recording, setup, background=None, method="subpixel")`` reads the frames one at a
 time, locates the ball in each (tracking it with a small region of interest predicted from the
 previous frames, a full-frame search when it is lost), turns centres into angles about the
-cylinder centre, and fits mu with :func:`rollfric.fit.fit_mu`.
+cylinder centre, and fits mu with :func:`rollfric.fit.fit_mu`. When the source has
+``read(i, roi)`` (see :mod:`rollfric.io`), a tracked frame is read only where the locator looks
+(:class:`rollfric.locate.LazyFrame`); the track is the same as from whole frames.
 
 Angles: theta = atan2(x - xc, y - yc) with image y down (positive right of the bottom), or the
 thesis's theta = arcsin((x - xc) / L_px) with L = R - r (``angle="arcsin"``).
@@ -11,6 +13,7 @@ thesis's theta = arcsin((x - xc) / L_px) with L = R - r (``angle="arcsin"``).
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 
@@ -170,9 +173,17 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     bar = tqdm(total=n, desc="locating ball", unit="frame", disable=not progress,
                file=sys.stderr, mininterval=0.5)
     pred_err = math.inf  # how far the last prediction was off (px)
+    read = getattr(source, "read", None)
     for i in range(n):
-        frame = source[i]
         guess = _predict(hist, i)
+        if read is not None and guess is not None:
+            # tracking: the locator reads only the regions it crops around the prediction
+            # (the same pixels as the full frame's; a full-frame search reads the whole frame)
+            frame = locate.LazyFrame(functools.partial(read, i),
+                                     functools.partial(source.__getitem__, i), (h, w),
+                                     source.dtype)
+        else:
+            frame = source[i]
         search = min(0.3 * r_px + 2.0, max(2.0, 4.0 * pred_err + 1.0))
         loc = locate_frame(frame, background, r_px, method, guess, center, opts=opts,
                            search=search)
