@@ -6,17 +6,20 @@ Layout (a directory ``REC.zarr``)::
                                                 and supersamples (white = attrs background_scale)
     clean_diff        (T, H, W)  int16/int32    clean frame minus background, in the same units
                                                 summed over the motion-blur sub-frames
-                                                (white = attrs frame_scale); one chunk per frame,
-                                                zero outside the ball's region, so it compresses
-                                                to a few kB a frame
+                                                (white = attrs frame_scale); one shard (file) per
+                                                frame of CHUNK x CHUNK inner chunks (zero chunks
+                                                are not stored: a few kB a frame), so a region
+                                                of interest decodes only the chunks it touches
     truth/<column>    (T,)       float64        exact ground truth, see TRUTH_COLUMNS
 
 Root attributes: ``format``, ``setup`` (the lab setup, TOML form), ``scene``, ``sensor``,
 ``seed``, ``scenario``, ``versions``, ``fps``, ``n_frames``, scales.
 
 Frames are made when read: clean frame -> the seeded sensor model (``synth.sensor``), the same
-bytes on every read. rollfric reads it through the entry point ``rollfric.zarr_readers`` ->
-``synth.store:open_frames``.
+bytes on every read. ``frames.read(i, (y0, y1, x0, x1))`` makes only that region of interest
+(clean pixels read from the chunks it touches, noise drawn for the sensor tiles it touches):
+the same bytes as ``frames[i][y0:y1, x0:x1]``. rollfric reads it through the entry point
+``rollfric.zarr_readers`` -> ``synth.store:open_frames``.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from synth.config import SensorConfig, SynthError
 from synth.sensor import Sensor
 
 FORMAT = "rollfric-synth-recording/1"
+CHUNK = 128  # px: inner chunk of clean_diff's per-frame shards
 
 TRUTH_COLUMNS = {
     "t_s": "time of the exposure centre (s)",
@@ -68,10 +72,15 @@ class SynthFrames:
     def __len__(self) -> int:
         return self.shape[0]
 
-    def clean_counts(self, i: int) -> np.ndarray:
-        """Clean frame i in integer levels (0..frame_scale = black..white display value)."""
+    def clean_counts(self, i: int, roi: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """Clean frame i in integer levels (0..frame_scale = black..white display value), or
+        its region ``roi`` = (y0, y1, x0, x1)."""
         i = self._index(i)
-        return self._bg_scaled + np.asarray(self._diff[i], dtype=np.int32)
+        if roi is None:
+            return self._bg_scaled + np.asarray(self._diff[i], dtype=np.int32)
+        y0, y1, x0, x1 = self._roi(roi)
+        return self._bg_scaled[y0:y1, x0:x1] + np.asarray(self._diff[i, y0:y1, x0:x1],
+                                                          dtype=np.int32)
 
     def clean(self, i: int) -> np.ndarray:
         """Clean display values in [0, 1] of frame i (float64)."""
@@ -83,6 +92,25 @@ class SynthFrames:
     def __getitem__(self, i: int) -> np.ndarray:
         i = self._index(i)
         return self._sensor.apply(self.clean_counts(i), int(self.frame_scale), i)
+
+    def read(self, i: int, roi: tuple[int, int, int, int]) -> np.ndarray:
+        """Region ``roi`` = (y0, y1, x0, x1) of frame i, ``0 <= y0 < y1 <= H``,
+        ``0 <= x0 < x1 <= W``: the same bytes as ``self[i][y0:y1, x0:x1]``, made from the
+        clean chunks and sensor tiles the region touches only."""
+        i = self._index(i)
+        roi = self._roi(roi)
+        return self._sensor.apply(self.clean_counts(i, roi), int(self.frame_scale), i, roi)
+
+    def _roi(self, roi) -> tuple[int, int, int, int]:
+        try:
+            y0, y1, x0, x1 = (int(v) for v in roi)
+        except (TypeError, ValueError):
+            raise TypeError(f"roi must be (y0, y1, x0, x1) integers, got {roi!r}") from None
+        _, h, w = self.shape
+        if not (0 <= y0 < y1 <= h and 0 <= x0 < x1 <= w):
+            raise IndexError(f"roi {(y0, y1, x0, x1)} (y0, y1, x0, x1) is not a non-empty "
+                             f"region of the {w}x{h} frame")
+        return y0, y1, x0, x1
 
     @property
     def background(self) -> np.ndarray:

@@ -74,6 +74,74 @@ def test_noise_is_deterministic_with_a_seed(rec_path):
     assert measured == pytest.approx(np.sqrt(expected_dn ** 2 + 1 / 12), rel=0.1)
 
 
+def _rois(h, w, k, seed):
+    """Random regions plus the whole frame, the corners and edge strips."""
+    r = np.random.default_rng(seed)
+    out = [(0, h, 0, w), (0, 1, 0, 1), (h - 1, h, w - 1, w), (0, h, w - 5, w), (h - 3, h, 0, w),
+           (60, 70, 60, 70)]
+    for _ in range(k):
+        y0, x0 = int(r.integers(0, h)), int(r.integers(0, w))
+        out.append((y0, int(r.integers(y0 + 1, h + 1)), x0, int(r.integers(x0 + 1, w + 1))))
+    return out
+
+
+@pytest.mark.parametrize("bit_depth", [8, 12])
+def test_sensor_is_block_local(bit_depth):
+    # every part of the model on: a crop is the same crop of the full frame, to the byte, for a
+    # frame size that is not a multiple of the noise tile
+    from synth.sensor import TILE
+
+    cfg = synth.SensorConfig(bit_depth=bit_depth, read_noise=8.0, black_level=3.0,
+                             vignetting=0.2, prnu=0.01, dsnu=5.0)
+    h, w = 150, 203
+    scale = 1000
+    counts = np.random.default_rng(3).integers(0, scale + 1, (h, w)).astype(np.int32)
+    s = Sensor(cfg, (h, w), seed=11)
+    for index in (None, 0, 7):
+        full = s.apply(counts, scale, index)
+        assert full.tobytes() == Sensor(cfg, (h, w), seed=11).apply(counts, scale,
+                                                                      index).tobytes()
+        for y0, y1, x0, x1 in _rois(h, w, 20, seed=0 if index is None else index):
+            crop = s.apply(counts[y0:y1, x0:x1], scale, index, (y0, y1, x0, x1))
+            assert crop.dtype == full.dtype
+            np.testing.assert_array_equal(crop, full[y0:y1, x0:x1])
+    # each tile has its own draws (no tile repeats another's noise)
+    z = s.normals(5, (0, h, 0, w))
+    assert not np.array_equal(z[:TILE, :TILE], z[:TILE, TILE:2 * TILE])
+    assert not np.array_equal(z[:TILE, :TILE], s.normals(6, (0, TILE, 0, TILE)))
+    assert abs(float(z.mean())) < 0.02 and float(z.std()) == pytest.approx(1.0, abs=0.02)
+    with pytest.raises(ValueError, match="roi"):
+        s.apply(counts[:10, :10], scale, 0, (0, 10, 0, 11))
+
+
+def test_read_a_region_is_the_crop_of_the_frame(rec_path):
+    from rollfric import io
+
+    frames = synth.open_recording(rec_path).frames
+    # clean_diff is stored in per-frame shards of small inner chunks (a region decodes only
+    # the chunks it touches)
+    assert frames._diff.shards == (1, 128, 256) and frames._diff.chunks == (1, 128, 128)
+    src = io.open_recording(rec_path)  # through rollfric's reader and the entry point
+    for i in (0, 3, len(frames) - 1):
+        full = frames[i]
+        for roi in _rois(128, 160, 15, seed=i):
+            y0, y1, x0, x1 = roi
+            crop = frames.read(i, roi)
+            assert crop.dtype == np.uint8
+            np.testing.assert_array_equal(crop, full[y0:y1, x0:x1])
+            np.testing.assert_array_equal(src.read(i, roi), crop)
+            np.testing.assert_array_equal(frames.clean_counts(i, roi),
+                                          frames.clean_counts(i)[y0:y1, x0:x1])
+    # same seed, another reader, region first: the same bytes
+    other = synth.open_recording(rec_path).frames
+    assert other.read(4, (10, 90, 20, 150)).tobytes() == frames[4][10:90, 20:150].tobytes()
+    for bad in [(0, 0, 0, 5), (0, 129, 0, 5), (-1, 5, 0, 5), (5, 3, 0, 5)]:
+        with pytest.raises(IndexError, match="roi"):
+            frames.read(0, bad)
+    with pytest.raises(TypeError, match="roi"):
+        frames.read(0, (0, 5))
+
+
 def test_noise_none_is_the_quantised_clean_render(rec_path):
     rec = synth.open_recording(rec_path)
     s = Sensor(synth.noise_preset("none"), rec.frames.shape[1:], seed=0)
