@@ -36,8 +36,8 @@ class Row:
     unit: str
     baseline: str = ""
     baseline_value: float = math.nan
-    gain: float = math.nan  # > 1: better than the baseline (speed-up or error ratio)
-    gain_kind: str = ""  # "speed-up" or "accuracy"
+    gain: float = math.nan  # speed-up or error ratio over the baseline (> 1: better)
+    gain_kind: str = ""  # "speed-up", "accuracy", "smaller"; "x the bound": value / bound
     note: str = ""
 
 
@@ -199,7 +199,7 @@ def bench_e2e(quick: bool) -> list[Row]:
     case = default_case_dict()
     note = "the default validate case"
     if quick:
-        case["motion"]["seconds"] = 0.3
+        case["scenario"]["motion"]["seconds"] = 0.3
         note = "the default validate case cut to 0.3 s (--quick)"
     res = run_case(case)
     m = res.metrics

@@ -285,8 +285,9 @@ def bench_recognition(quick: bool = False) -> list:
         ours = locs["subpixel (ROI)"]
         rows.append(Row("recognition", f"{case}: subpixel centre rms", ours["rms_px"], "px",
                         "Cramer-Rao bound", ours["crb_rms_px"],
-                        ours["crb_rms_px"] / ours["rms_px"] if ours["rms_px"] > 0 else math.nan,
-                        "accuracy", f"max {ours['max_px']:.3g} px, found "
+                        ours["rms_px"] / ours["crb_rms_px"] if ours["crb_rms_px"] > 0
+                        else math.nan,
+                        "x the bound", f"max {ours['max_px']:.3g} px, found "
                         f"{100 * ours['found']:.0f} %, {ours['ms_per_frame']:.2f} ms/frame"))
         for name, r in locs.items():
             if name == "subpixel (ROI)":
