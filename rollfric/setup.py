@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from pathlib import Path
 
 from rollfric.errors import InputError
+from rollfric.tomlfile import read_toml
 
 STANDARD_GRAVITY = 9.81  # m/s^2, the value the thesis uses
 
@@ -157,15 +157,7 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
 
 def load_setup(path: str | Path) -> Setup:
     """Read a lab's setup TOML file (mm, g, Hz)."""
-    path = Path(path)
-    try:
-        with path.open("rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise SetupError(f"setup file not found: {path}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SetupError(f"{path}: not valid TOML: {exc}") from None
-    return setup_from_dict(data, source=str(path))
+    return setup_from_dict(read_toml(path, "setup", SetupError), source=str(path))
 
 
 def dumps_setup(setup: Setup) -> str:

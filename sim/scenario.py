@@ -30,12 +30,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from pathlib import Path
 from typing import Any
 
 from rollfric.errors import InputError
 from rollfric.setup import THESIS_BALLS, THESIS_TROUGH_RADIUS, Setup
+from rollfric.tomlfile import read_toml
 
 ENGINES = ("reference", "mujoco", "pybullet")
 SURFACES = {
@@ -271,15 +271,7 @@ def scenario_from_dict(data: dict, source: str = "scenario") -> Scenario:
 
 def load_scenario(path: str | Path) -> Scenario:
     """Read a scenario TOML file (mm, g, Hz, degrees; see the module docstring)."""
-    path = Path(path)
-    try:
-        with path.open("rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise ScenarioError(f"scenario file not found: {path}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
-    return scenario_from_dict(data, source=str(path))
+    return scenario_from_dict(read_toml(path, "scenario", ScenarioError), source=str(path))
 
 
 def dumps_scenario(scenario: Scenario) -> str:

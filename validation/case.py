@@ -43,10 +43,10 @@ import dataclasses
 import hashlib
 import json
 import math
-import tomllib
 from pathlib import Path
 
 from rollfric.errors import InputError
+from rollfric.tomlfile import read_toml
 
 
 class CaseError(InputError):
@@ -141,14 +141,7 @@ def apply_overrides(base: dict, overrides: dict) -> dict:
 def load_case_dict(path: str | Path) -> dict:
     """A case TOML file merged over the defaults. A plain sim scenario file (top-level
     [ball], [motion], ...) is taken as the [scenario] of a default case."""
-    path = Path(path)
-    try:
-        with path.open("rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise CaseError(f"case file not found: {path}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise CaseError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path, "case", CaseError)
     if data and set(data) <= set(SCENARIO_SECTIONS):
         data = {"scenario": data}
     return merge_case(default_case_dict(), data, source=str(path))
