@@ -105,6 +105,19 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         for i in range(k):
             rec.frames[i]
         read_ms = 1e3 * (time.perf_counter() - t0) / k
+        # a tracker's region of interest: the ball's box plus 20 px a side
+        _, h, w = rec.frames.shape
+        tr = rec.truth
+        rois = []
+        for i in range(k):
+            half = int(tr.r_px[i]) + 20
+            x, y = int(tr.x_px[i]), int(tr.y_px[i])
+            rois.append((max(0, y - half), min(h, y + half + 1), max(0, x - half),
+                         min(w, x + half + 1)))
+        t0 = time.perf_counter()
+        for i in range(k):
+            rec.frames.read(i, rois[i])
+        roi_ms = 1e3 * (time.perf_counter() - t0) / k
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return {
@@ -131,6 +144,8 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "est_store_4000_mb": round(size / 1e6 * 4000 / n_done, 1),
         "store_disk_mb": round(disk / 1e6, 2),
         "read_ms_per_frame": round(read_ms, 1),
+        "read_roi_ms_per_frame": round(roi_ms, 2),
+        "roi_px": int(np.median([(r[1] - r[0]) * (r[3] - r[2]) for r in rois])),
         "versions": _versions(),
         "cpus": os.cpu_count(),
     }

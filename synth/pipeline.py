@@ -14,7 +14,7 @@ import numpy as np
 
 from synth.camera import CameraModel
 from synth.config import SceneConfig, SensorConfig, SynthError
-from synth.store import CHUNK, FORMAT, TRUTH_COLUMNS
+from synth.store import FORMAT, TRUTH_COLUMNS
 
 BATCH = 16  # frames per task (progress granularity)
 
@@ -215,11 +215,11 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         bg_dtype = "uint16" if scale <= 65535 else "uint32"
         g.create_array("background_clean", data=bg.astype(bg_dtype), chunks=(H, W))
         diff_dtype = "int16" if frame_scale <= 32767 else "int32"
-        # one shard (file) per frame, flat names (0.0.0, 1.0.0, ...): no directories per frame
-        # on disk; CHUNK x CHUNK inner chunks so a region of interest decodes only its chunks
-        ch, cw = min(CHUNK, H), min(CHUNK, W)
-        g.create_array("clean_diff", shape=(n, H, W), dtype=diff_dtype, chunks=(1, ch, cw),
-                       shards=(1, math.ceil(H / ch) * ch, math.ceil(W / cw) * cw),
+        # flat chunk names (0.0.0, 1.0.0, ...): no two directories per frame on disk. One chunk
+        # a frame: a region read decodes the whole chunk (mostly zeros: ~1 ms with zarr 3.1),
+        # which measured faster than partial reads of 128 x 128 inner chunks of a per-frame
+        # shard (~1.5 ms, zarr's per-chunk overhead) and keeps the store smaller
+        g.create_array("clean_diff", shape=(n, H, W), dtype=diff_dtype, chunks=(1, H, W),
                        fill_value=0, chunk_key_encoding={"name": "v2", "separator": "."})
         tg = g.create_group("truth")
         for name, values in truth_table(traj, cam, r_ball).items():

@@ -6,10 +6,9 @@ Layout (a directory ``REC.zarr``)::
                                                 and supersamples (white = attrs background_scale)
     clean_diff        (T, H, W)  int16/int32    clean frame minus background, in the same units
                                                 summed over the motion-blur sub-frames
-                                                (white = attrs frame_scale); one shard (file) per
-                                                frame of CHUNK x CHUNK inner chunks (zero chunks
-                                                are not stored: a few kB a frame), so a region
-                                                of interest decodes only the chunks it touches
+                                                (white = attrs frame_scale); one chunk per frame,
+                                                zero outside the ball's region, so it compresses
+                                                to a few kB a frame and decodes in ~1 ms
     truth/<column>    (T,)       float64        exact ground truth, see TRUTH_COLUMNS
 
 Root attributes: ``format``, ``setup`` (the lab setup, TOML form), ``scene``, ``sensor``,
@@ -17,7 +16,7 @@ Root attributes: ``format``, ``setup`` (the lab setup, TOML form), ``scene``, ``
 
 Frames are made when read: clean frame -> the seeded sensor model (``synth.sensor``), the same
 bytes on every read. ``frames.read(i, (y0, y1, x0, x1))`` makes only that region of interest
-(clean pixels read from the chunks it touches, noise drawn for the sensor tiles it touches):
+(the sensor model applied to it alone, noise drawn for the sensor tiles it touches):
 the same bytes as ``frames[i][y0:y1, x0:x1]``. rollfric reads it through the entry point
 ``rollfric.zarr_readers`` -> ``synth.store:open_frames``.
 """
@@ -33,7 +32,6 @@ from synth.config import SensorConfig, SynthError
 from synth.sensor import Sensor
 
 FORMAT = "rollfric-synth-recording/1"
-CHUNK = 128  # px: inner chunk of clean_diff's per-frame shards
 
 TRUTH_COLUMNS = {
     "t_s": "time of the exposure centre (s)",
