@@ -281,24 +281,23 @@ def fit_mu(t, theta, setup: Setup, *, method: str = "lsq", offset: bool = False,
     raise InputError(f"unknown fit method {method!r} (known: {', '.join(METHODS)})")
 
 
-def _json_safe(value):
+def json_safe(value):
+    """``value`` with NumPy scalars made plain and non-finite floats made None (JSON null)."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
     if isinstance(value, float) and not math.isfinite(value):
         return None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (np.floating, np.integer, np.bool_)):
-        return _json_safe(value.item())
     return value
 
 
 def save_fit(result: FitResult, path, **extra) -> None:
     """Write ``result.to_dict()`` plus ``extra`` keys as JSON (NaN becomes null)."""
     import json
-    import os
-    from pathlib import Path
 
-    path = Path(path)
-    data = _json_safe({**result.to_dict(), **extra})
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(data, indent=2) + "\n")
-    os.replace(tmp, path)
+    from rollfric.atomic import write_text
+
+    write_text(path, json.dumps(json_safe({**result.to_dict(), **extra}), indent=2) + "\n")

@@ -129,20 +129,12 @@ def to_markdown(table, duration: float = 4.0) -> str:
 
 
 def write_report(table, out_dir, duration: float = 4.0) -> tuple[Path, Path]:
-    import os
-    import tempfile
+    from rollfric.atomic import write_text
 
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for name, text in (("sim_fidelity.csv", table.to_csv(index=False, float_format="%.10g")),
-                       ("sim_fidelity.md", to_markdown(table, duration))):
-        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", dir=out_dir)
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, out_dir / name)
-        paths.append(out_dir / name)
-    return paths[0], paths[1]
+    return (write_text(out_dir / "sim_fidelity.csv",
+                       table.to_csv(index=False, float_format="%.10g")),
+            write_text(out_dir / "sim_fidelity.md", to_markdown(table, duration)))
 
 
 def main(argv=None) -> int:

@@ -19,12 +19,11 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from rollfric.atomic import write_text
 from sim.scenario import Scenario, ScenarioError, scenario_from_dict
 
 COLUMNS = ("t_s", "theta_rad", "theta_dot_rad_s", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz",
@@ -93,8 +92,8 @@ class Trajectory:
         buf = io.StringIO()
         np.savetxt(buf, self.table(), fmt="%.17g", delimiter=",", header=",".join(COLUMNS),
                    comments="")
-        _atomic_write(path, buf.getvalue())
-        _atomic_write(sidecar_path(path),
+        write_text(path, buf.getvalue())
+        write_text(sidecar_path(path),
                       json.dumps(self.sidecar(), indent=2, sort_keys=False, default=_jsonable)
                       + "\n")
         return path
@@ -112,16 +111,6 @@ def _jsonable(obj):
     raise TypeError(f"not JSON serialisable: {type(obj)}")
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="\n") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def read_trajectory(path: str | Path) -> Trajectory:

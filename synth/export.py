@@ -7,13 +7,11 @@
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from rollfric.atomic import replacing
 from synth.config import SynthError
 from synth.store import open_recording
 
@@ -31,9 +29,8 @@ def export_recording(recording, out_dir, *, progress: bool = False,
     out_dir = Path(out_dir)
     if out_dir.exists() and not overwrite and any(out_dir.iterdir()):
         raise SynthError(f"export directory exists and is not empty: {out_dir}")
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    try:
+    with replacing(out_dir) as tmp:
+        tmp.mkdir()
         frames = rec.frames
         n = len(frames)
         nbytes = n * int(np.prod(frames.shape[1:])) * frames.dtype.itemsize
@@ -48,10 +45,4 @@ def export_recording(recording, out_dir, *, progress: bool = False,
         table = truth[["t_s", "x_px", "y_px", "theta_rad"]].copy()
         table.insert(0, "frame", np.arange(n))
         table.to_csv(tmp / "truth.csv", index=False, float_format="%.10g")
-        if out_dir.exists():
-            shutil.rmtree(out_dir)
-        os.replace(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return out_dir

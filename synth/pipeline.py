@@ -6,12 +6,11 @@ import concurrent.futures as cf
 import math
 import multiprocessing as mp
 import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from rollfric.atomic import replacing
 from synth.camera import CameraModel
 from synth.config import SceneConfig, SensorConfig, SynthError
 from synth.store import FORMAT, TRUTH_COLUMNS
@@ -202,9 +201,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     if threads is None and workers > 1:
         threads = 1  # one llvmpipe thread per process: the processes fill the cores
 
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    with replacing(out) as tmp:
         sr = SceneRenderer(scene, r_ball, r_cyl)
         bg = sr.render_full()
         sr.close()
@@ -256,12 +253,6 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             "gamma": 2.2,
             "truth_columns": TRUTH_COLUMNS,
         })
-        if out.exists():
-            shutil.rmtree(out)
-        os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return out
 
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 
 import matplotlib
@@ -26,31 +25,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-
-def json_safe(value):
-    """NaN/inf -> None, numpy scalars -> Python, recursively."""
-    if isinstance(value, dict):
-        return {str(k): json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_safe(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
-def _atomic_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.part")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+from rollfric.atomic import replacing, write_text  # noqa: E402
+from rollfric.fit import json_safe  # noqa: E402, F401  (validation.cli prints with it)
 
 
 def _savefig(fig, path: Path) -> None:
-    tmp = path.with_name(f".{path.stem}.part.png")
-    fig.savefig(tmp, dpi=110)
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
-    os.replace(tmp, path)
 
 
 def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
@@ -63,23 +45,20 @@ def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     m = result.metrics
-    _atomic_text(out / "metrics.json", json.dumps(json_safe(m), indent=2, sort_keys=True)
-                 + "\n")
-    _atomic_text(out / "case.toml", dumps_case(result.case.data))
+    write_text(out / "metrics.json", json.dumps(json_safe(m), indent=2, sort_keys=True) + "\n")
+    write_text(out / "case.toml", dumps_case(result.case.data))
     save_fit(result.fit, out / "fit.json")
     save_fit(result.fit_truth, out / "fit_truth.json")
     pf = per_frame_errors(result)
-    tmp = out / ".frames.csv.part"
-    pf.to_csv(tmp, index=False, float_format="%.9g")
-    os.replace(tmp, out / "frames.csv")
+    with replacing(out / "frames.csv") as tmp:
+        pf.to_csv(tmp, index=False, float_format="%.9g")
 
     # angle vs model
     tr = result.track
-    tmp_png = out / ".angle_vs_model.part.png"
-    plot_fit(tr["t_s"].to_numpy(float), tr["theta_rad"].to_numpy(float), result.fit, tmp_png,
-             title=(f"{result.case.name}: mu recovered {m['mu_recovered']:.6f} "
-                    f"(true {m['mu_true']:.6f}, bias {100 * m['mu_bias_rel']:+.2f} %)"))
-    os.replace(tmp_png, out / "angle_vs_model.png")
+    with replacing(out / "angle_vs_model.png") as tmp:
+        plot_fit(tr["t_s"].to_numpy(float), tr["theta_rad"].to_numpy(float), result.fit, tmp,
+                 title=(f"{result.case.name}: mu recovered {m['mu_recovered']:.6f} "
+                        f"(true {m['mu_true']:.6f}, bias {100 * m['mu_bias_rel']:+.2f} %)"))
 
     good = pf["found"].to_numpy(bool) & np.isfinite(pf["err_px"].to_numpy(float))
     # centre-error histogram
