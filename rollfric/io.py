@@ -43,6 +43,20 @@ TIFF_SUFFIXES = (".tif", ".tiff")
 ZARR_ENTRY_POINT_GROUP = "rollfric.zarr_readers"
 
 
+def check_roi(roi, frame_shape) -> tuple[int, int, int, int]:
+    """``roi`` as (y0, y1, x0, x1) integers of a non-empty region inside frames of
+    ``frame_shape`` (H, W); TypeError or IndexError otherwise."""
+    try:
+        y0, y1, x0, x1 = (int(v) for v in roi)
+    except (TypeError, ValueError):
+        raise TypeError(f"roi must be (y0, y1, x0, x1) integers, got {roi!r}") from None
+    h, w = frame_shape
+    if not (0 <= y0 < y1 <= h and 0 <= x0 < x1 <= w):
+        raise IndexError(f"roi {(y0, y1, x0, x1)} (y0, y1, x0, x1) is not a non-empty "
+                         f"region of the {w}x{h} px frames")
+    return y0, y1, x0, x1
+
+
 class RecordingError(InputError):
     """A recording (or background image) that cannot be read as a sequence of frames."""
 
@@ -104,15 +118,7 @@ class _Source:
             yield self[i]
 
     def _roi(self, roi) -> tuple[int, int, int, int]:
-        try:
-            y0, y1, x0, x1 = (int(v) for v in roi)
-        except (TypeError, ValueError):
-            raise TypeError(f"roi must be (y0, y1, x0, x1) integers, got {roi!r}") from None
-        _, h, w = self.shape
-        if not (0 <= y0 < y1 <= h and 0 <= x0 < x1 <= w):
-            raise IndexError(f"roi {(y0, y1, x0, x1)} (y0, y1, x0, x1) is not a non-empty "
-                             f"region of the {w}x{h} px frames")
-        return y0, y1, x0, x1
+        return check_roi(roi, self.shape[1:])
 
     def read(self, i: int, roi: tuple[int, int, int, int]) -> np.ndarray:
         """Region ``roi`` = (y0, y1, x0, x1) of frame i: the same bytes as

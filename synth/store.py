@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rollfric.io import check_roi
 from synth.config import SensorConfig, SynthError
 from synth.sensor import Sensor
 
@@ -100,15 +101,7 @@ class SynthFrames:
         return self._sensor.apply(self.clean_counts(i, roi), int(self.frame_scale), i, roi)
 
     def _roi(self, roi) -> tuple[int, int, int, int]:
-        try:
-            y0, y1, x0, x1 = (int(v) for v in roi)
-        except (TypeError, ValueError):
-            raise TypeError(f"roi must be (y0, y1, x0, x1) integers, got {roi!r}") from None
-        _, h, w = self.shape
-        if not (0 <= y0 < y1 <= h and 0 <= x0 < x1 <= w):
-            raise IndexError(f"roi {(y0, y1, x0, x1)} (y0, y1, x0, x1) is not a non-empty "
-                             f"region of the {w}x{h} frame")
-        return y0, y1, x0, x1
+        return check_roi(roi, self.shape[1:])
 
     @property
     def background(self) -> np.ndarray:
