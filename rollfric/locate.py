@@ -197,7 +197,19 @@ def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
                 min_contrast: float | None = None,
                 n_candidates: int = 3) -> tuple[float, float] | None:
     """Full-frame search: a rough centre (px, good to about a pixel) of the ball of radius
-    ``r_px``, or None when nothing ball-like differs from the background.
+    ``r_px``, or None when nothing ball-like differs from the background: the most disk-like
+    of :func:`coarse_candidates`."""
+    cands = coarse_candidates(frame, background, r_px, min_contrast=min_contrast,
+                              n_candidates=n_candidates)
+    return (cands[0][0], cands[0][1]) if cands else None
+
+
+def coarse_candidates(frame: np.ndarray, background: np.ndarray, r_px: float, *,
+                      min_contrast: float | None = None,
+                      n_candidates: int = 3) -> list[tuple[float, float, float]]:
+    """Full-frame search: up to ``n_candidates`` places (x, y, disk-likeness) where a ball of
+    radius ``r_px`` may be, the most disk-like first (a harsh lamp's cast shadow of the ball on
+    the backdrop is a disk too: :func:`locate_subpixel` tries them in turn).
 
     1. Detection at reduced resolution: frame - background (signed) averaged over cells of
        about r/3 px (the noise averages down before it is rectified), |.|, then the mean over a
@@ -218,7 +230,7 @@ def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
     f = max(1, int(r_px // 3))
     hs, ws = h // f, w // f
     if hs < 1 or ws < 1:
-        return None
+        return []
     diff = cv2.subtract(frame[:hs * f, :ws * f], background[:hs * f, :ws * f],
                         dtype=cv2.CV_32F)
     small = cv2.resize(diff, (ws, hs), interpolation=cv2.INTER_AREA) if f > 1 else diff
@@ -249,18 +261,18 @@ def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
             break
         cands.append(((px + 0.5) * f - 0.5, (py + 0.5) * f - 0.5))
         work[max(0, py - sep):py + sep + 1, max(0, px - sep):px + sep + 1] = -np.inf
-    best = None
+    out = []
     for cx, cy in cands:
         # a ball cut by the frame's border can be centred up to ~r beyond where the cut part
         # peaks: search further there
         border = min(cx, cy, w - 1 - cx, h - 1 - cy)
         reach = f + 2.0 + max(0.0, r_px - border)
         got = _refine_candidate(frame, background, r_px, cx, cy, reach=reach)
-        if got is not None and (best is None or got[2] > best[2]):
-            best = got
-    if best is None:
-        return None
-    return best[0], best[1]
+        if got is not None and all(math.hypot(got[0] - o[0], got[1] - o[1]) > 0.5 * r_px
+                                   for o in out):
+            out.append(got)
+    out.sort(key=lambda c: -c[2])
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -881,14 +893,25 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
 
     ``guess``: where the ball centre is expected (from tracking); ``search``: how far (px) the
     edge may be from the guessed circle (default 0.3 r + 2). Without a guess, a full-frame
-    search (:func:`coarse_find`) comes first. ``noise``: pixel noise (DN) used to reject
-    low-contrast rays (default: estimated from the rays).
+    search (:func:`coarse_candidates`) comes first; its candidates are fitted in turn, the
+    most disk-like first, and the first the fit accepts is the answer. ``noise``: pixel noise
+    (DN) used to reject low-contrast rays (default: estimated from the rays).
     """
     if guess is None:
-        guess = coarse_find(frame, background, r_px)
-        if guess is None:
+        cands = coarse_candidates(frame, background, r_px)
+        if not cands:
             return Location.missing("no ball-like change in the frame")
-        search = max(search or 0.0, 0.5 * r_px + 2)
+        # the most disk-like candidate that the fit accepts (a cast shadow may look more
+        # disk-like than the ball; the fit checks the radius and the edge)
+        first = None
+        for cx, cy, _ in cands:
+            loc = locate_subpixel(frame, background, r_px, guess=(cx, cy),
+                                  search=max(search or 0.0, 0.5 * r_px + 2), opts=opts,
+                                  noise=noise)
+            if loc.found:
+                return loc
+            first = first or loc
+        return first
     w = search if search is not None else 0.3 * r_px + 2.0
     w = max(w, 1.5)
     h, wd = frame.shape

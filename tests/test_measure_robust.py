@@ -141,3 +141,4 @@ def test_rendered_noisy_sensor_all_frames_found(rendered, lighting):
         loc = locate_subpixel(frame, rec.background, r_px)
         assert loc.found, f"{lighting} frame {i}: {loc.reason}"
         assert math.hypot(loc.x - truth[i, 0], loc.y - truth[i, 1]) < 0.5
+
