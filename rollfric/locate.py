@@ -455,6 +455,11 @@ class SubpixelOptions:
     pixel_fit: bool = True  # final Gauss-Newton fit on the edge pixels themselves
     level_smooth: int = 3  # levels averaged over 2 k + 1 neighbouring rays
     contrast_bands: tuple[float, ...] = (0.15, 0.3, 0.5)  # |contrast - median| / median kept
+    min_contrast_rel: float = 0.3  # rays with a step below this x the strong rays' carry no edge
+    min_arc_frac: float = 0.2  # fraction of the rim that must fit (known radius, partial arc)
+    free_min_frac: float = 0.45  # free radius only when at least this fraction of the rim fits
+    radius_sigma: float = 0.003  # relative uncertainty of r_px (centre error on partial arcs)
+    max_sigma: float = 0.5  # px: a centre less certain than this is reported not found
 
 
 def _n_rays(r_px: float, spacing: float = 2.5, most: int = 128) -> int:
@@ -487,10 +492,13 @@ def _profiles(rel, cx, cy, s0, ds, ns, n):
 
 
 @numba.njit(cache=True)
-def _edges(prof, s0, ds, r, w, ne, nl, ksm):
+def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel):
     """Per ray: the steepest step of the ball's polarity in [r - w, r + w], then the edge
     position from the integral of the normalised profile across a window of 2 ne + 2 samples
     (exact for a sampled step), with the inside/outside levels from nl samples either side.
+
+    Rays whose step is below ``min_rel`` x the 75th percentile of the rays' steps have no
+    usable contrast and are not valid.
 
     Returns s_edge, contrast (inside - outside, signed by polarity), outside std, valid,
     and the inside and outside levels used."""
@@ -515,7 +523,19 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm):
     valid = np.zeros(n, np.bool_)
     if m < 3:
         return s_edge, con, osd, valid, a_used, b_used
-    sgn = 1.0 if np.median(diffs[:m]) >= 0 else -1.0
+    # polarity: the majority sign among the rays with a clear step (rays where the ball sits
+    # in front of a region of its own level -- a cast shadow, the trough -- have none and
+    # must not outvote the arc that has contrast)
+    absd = np.sort(np.abs(diffs[:m]))
+    tpol = 0.3 * absd[int(0.9 * (m - 1))]
+    npos = 0
+    nneg = 0
+    for i in range(m):
+        if diffs[i] > tpol:
+            npos += 1
+        elif diffs[i] < -tpol:
+            nneg += 1
+    sgn = 1.0 if npos >= nneg else -1.0
     lo = max(ne + nl, int(np.floor((r - w - s0) / ds)))
     hi = min(ns - ne - nl - 3, int(np.ceil((r + w - s0) / ds)))
     kbs = np.full(n, -1)
@@ -545,10 +565,20 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm):
         a_in[i] = a
         b_out[i] = b
         osd[i] = np.sqrt(max(b2 / nl - b * b, 0.0))
-    # the ball's inside level: per ray, unless a spot or shading spoils it (then the median)
+    # rays with contrast: a step of at least min_rel x the typical strong ray's (the 75th
+    # percentile); the others (the ball in front of a cast shadow or of anything of its own
+    # level) carry no edge and are left out of the level statistics below
     fin = np.isfinite(a_in) & np.isfinite(b_out)
     if fin.sum() < 3:
         return s_edge, con, osd, valid, a_used, b_used
+    cr = np.sort(sgn * (a_in[fin] - b_out[fin]))
+    cref = cr[int(0.75 * (len(cr) - 1))]
+    for i in range(n):
+        if fin[i] and sgn * (a_in[i] - b_out[i]) < min_rel * cref:
+            fin[i] = False
+    if fin.sum() < 3:
+        return s_edge, con, osd, valid, a_used, b_used
+    # the ball's inside level: per ray, unless a spot or shading spoils it (then the median)
     a_med = np.median(a_in[fin])
     c_med = np.median(np.abs(a_in[fin] - b_out[fin]))
     sd_med = np.median(osd[fin])
@@ -826,6 +856,23 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
     return cx, cy, r, sig, npix
 
 
+def _arc_leverage(rays: np.ndarray, n: int) -> float:
+    """|(N^T N)^-1 N^T 1| for the unit normals N of rays ``rays`` (of n around the rim): how
+    far a known-radius fit's centre moves per pixel of radius error (0 for the full rim, about
+    1.3 for half of it; large for a short arc)."""
+    if len(rays) < 3:
+        return math.inf
+    phi = (rays + 0.5) * (2.0 * math.pi / n)
+    c, s = np.cos(phi), np.sin(phi)
+    m = np.array([[c @ c, c @ s], [c @ s, s @ s]])
+    v = np.array([c.sum(), s.sum()])
+    try:
+        b = np.linalg.solve(m, v)
+    except np.linalg.LinAlgError:
+        return math.inf
+    return float(math.hypot(b[0], b[1]))
+
+
 _SELECT_FAIL = {
     1: "too few edge points (ball missing, occluded or at the border)",
     2: "ball edge contrast below the noise",
@@ -905,15 +952,23 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
         # disk-like than the ball; the fit checks the radius and the edge)
         first = None
         for cx, cy, _ in cands:
-            loc = locate_subpixel(frame, background, r_px, guess=(cx, cy),
-                                  search=max(search or 0.0, 0.5 * r_px + 2), opts=opts,
-                                  noise=noise)
+            # no prediction to check a partial arc against: the full search accepts only a
+            # ball whose rim mostly fits (a cast shadow's arc would pass a partial-arc fit)
+            loc = _locate_guess(frame, background, r_px, (cx, cy),
+                                max(search or 0.0, 0.5 * r_px + 2), opts, noise, False)
             if loc.found:
                 return loc
             first = first or loc
         return first
+    return _locate_guess(frame, background, r_px, guess, search, opts, noise, True)
+
+
+def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial) -> Location:
+    """:func:`locate_subpixel` from a guess; ``partial``: accept a known-radius fit of a
+    partial arc (at least ``opts.min_arc_frac`` of the rim) near the guess."""
     w = search if search is not None else 0.3 * r_px + 2.0
     w = max(w, 1.5)
+    w0 = w
     h, wd = frame.shape
     cx, cy = float(guess[0]), float(guess[1])
     if not (-r_px < cx < wd - 1 + r_px and -r_px < cy < h - 1 + r_px):
@@ -948,42 +1003,64 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
         lcx, lcy = cx - x0c, cy - y0c
         prof = _profiles(rel, lcx, lcy, s0, ds, ns, n)
         s_edge, con, out_sd, valid, a_lv, b_lv = _edges(prof, s0, ds, r, w, ne, nl,
-                                                        opts.level_smooth)
+                                                        opts.level_smooth, opts.min_contrast_rel)
         status, xs, ys, idx = _select(s_edge, con, out_sd, valid, lcx, lcy,
                                       opts.contrast_bands, opts.min_rays,
                                       -1.0 if noise is None else float(noise),
                                       0.004 * _full_scale(frame.dtype))
         if status:
             return Location.missing(_SELECT_FAIL[status])
-        fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_px, free, opts.tukey_c,
+        # a free radius only on most of the rim: on a partial arc (the rest of the rim without
+        # contrast against a shadow or the trough) the radius and the centre are confounded,
+        # and the known radius is what makes the arc usable
+        free_p = free and len(xs) >= opts.free_min_frac * n
+        fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_px, free_p, opts.tukey_c,
                                               opts.sigma_floor)
         n_in, med_res, rms = _fit_stats(wts, res)
+        if free_p and (n_in < opts.free_min_frac * n or not math.isfinite(fcx)):
+            free_p = False
+            fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_px, False, opts.tukey_c,
+                                                  opts.sigma_floor)
+            n_in, med_res, rms = _fit_stats(wts, res)
         if n_in < opts.min_rays or not math.isfinite(fcx):
             return Location.missing("robust circle fit failed")
         # the ball's radius as seen: the fitted one, or (known radius) the known one plus the
         # median offset of the edge points from that circle
-        r_seen = fr_ if free else r_px + med_res
+        r_seen = fr_ if free_p else r_px + med_res
         if abs(r_seen - r_px) > opts.max_radius_dev * r_px:
             return Location.missing(f"the ball's edge lies on a circle of {r_seen:.2f} px "
                                     f"radius, not {r_px:.2f} px")
         sigma = rms * math.sqrt(2.0 / n_in)
+        inl = idx[wts > 0]
         if fine and opts.pixel_fit:
             ray_ok = np.zeros(n, np.bool_)
-            ray_ok[idx[wts > 0]] = True
+            ray_ok[inl] = True
             bgr = bg.astype(np.float32)
-            pcx, pcy, pr, psig, npix = _pixel_fit(rel, bgr, fcx, fcy, fr_ if free else r_px,
-                                                  free, ray_ok, a_lv, b_lv,
+            pcx, pcy, pr, psig, npix = _pixel_fit(rel, bgr, fcx, fcy, fr_ if free_p else r_px,
+                                                  free_p, ray_ok, a_lv, b_lv,
                                                   (ne + 0.5 * nl + 1) * ds, 5)
             if math.isfinite(pcx) and math.hypot(pcx - fcx, pcy - fcy) < 0.5:
                 fcx, fcy, sigma = pcx, pcy, psig
-                if free:
+                if free_p:
                     r_seen = pr
+        if not free_p:
+            # a known radius that is off by dr moves the centre of a partial arc by |b| dr,
+            # b = (N^T N)^-1 N^T 1 over the arc's unit normals N (0 on the full rim)
+            sigma = math.hypot(sigma, _arc_leverage(inl, n) * opts.radius_sigma * r_px)
         shift = math.hypot(fcx - lcx, fcy - lcy)
         cx, cy, r = fcx + x0c, fcy + y0c, float(r_seen)
         frac = n_in / n
-        ok = frac >= opts.min_inlier_frac
-        loc = Location(x=cx, y=cy, r=r, found=ok, sigma=sigma, inlier_frac=frac,
-                       reason="" if ok else f"only {100 * frac:.0f} % of the edge fits a circle")
+        need = opts.min_inlier_frac if free_p or not partial else min(opts.min_inlier_frac,
+                                                                        opts.min_arc_frac)
+        if frac < need:
+            ok, why = False, f"only {100 * frac:.0f} % of the edge fits a circle"
+        elif not sigma <= opts.max_sigma:
+            ok, why = False, f"centre uncertain ({sigma:.2f} px)"
+        elif math.hypot(cx - guess[0], cy - guess[1]) > w0 + 1.0:
+            ok, why = False, "the fitted circle lies outside the searched band"
+        else:
+            ok, why = True, ""
+        loc = Location(x=cx, y=cy, r=r, found=ok, sigma=sigma, inlier_frac=frac, reason=why)
         if fine:
             break
         w = min(w, max(1.5, 2.0 * shift + 1.0))
