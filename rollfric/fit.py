@@ -163,6 +163,16 @@ def initial_guess(t, theta, setup: Setup) -> dict:
     # is least reliable at the ends of the series)
     n_head = min(int(good.sum()), max(10, int(0.03 * fps)))
     coef = np.polynomial.polynomial.polyfit(tt[:n_head] - tt[0], theta[good][:n_head], 2)
+    if tp.size < 2:
+        # too short for a decay: mu from the start's acceleration, which the equation of
+        # motion splits into gravity and friction (a cubic over up to 0.15 period)
+        n_acc = min(int(good.sum()), max(n_head, int(0.15 * period * fps)))
+        c = np.polynomial.polynomial.polyfit(tt[:n_acc] - tt[0], theta[good][:n_acc], 3)
+        th0, om0, acc = c[0], c[1], 2 * c[2]
+        s = math.copysign(1.0, om0) if abs(om0) > 1e-3 else -math.copysign(1.0, th0)
+        k = 5.0 / (7.0 * setup.track_radius)
+        normal = setup.gravity * math.cos(th0) + setup.track_radius * om0**2
+        mu0 = float(np.clip((-acc / k - setup.gravity * math.sin(th0)) / (s * normal), 0, 0.5))
     return {
         "mu": mu0,
         "theta0": float(coef[0]),

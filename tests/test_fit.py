@@ -124,3 +124,14 @@ def test_cli_fit_bad_input_writes_nothing(tmp_path, capsys):
     assert code == 2
     assert "theta_rad" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_record_shorter_than_a_quarter_swing(seed):
+    # no turning point to measure a decay from: the start must come from the acceleration
+    setup = thesis_setup("10mm")
+    t = T4[:121]
+    y = truth(setup, 0.0079, 8, t=t) + np.random.default_rng(seed).normal(0, 3e-5, t.size)
+    r = fit_mu(t, y, setup)
+    assert abs(r.mu - 0.0079) < 5 * r.mu_stderr
+    assert r.mu_stderr < 1e-4
