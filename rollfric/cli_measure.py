@@ -93,6 +93,11 @@ def run(args) -> int:
                  "center_source": track.attrs["center_source"],
                  "background": track.attrs["background"],
                  "ball_radius_px": track.attrs["ball_radius_px"],
+                 # the apparent radius calibrated from full-rim frames (None: too few)
+                 "ball_radius_px_seen": track.attrs.get("ball_radius_px_seen"),
+                 "ball_radius_px_seen_n": track.attrs.get("ball_radius_px_seen_n", 0),
+                 "n_refitted": track.attrs.get("n_refitted", 0),
+                 "warnings": track.attrs.get("warnings", []),
                  "median_sigma_px": float(track["sigma_px"].median())
                  if track["sigma_px"].notna().any() else None,
                  "recording": track.attrs["recording"]}

@@ -42,6 +42,7 @@ class Location:
     sigma: float = math.nan  # estimated standard error of the centre (px); nan if unknown
     inlier_frac: float = math.nan  # fraction of edge rays kept by the robust fit
     reason: str = ""  # why not found
+    radius_free: bool = False  # r fitted (most of the rim); False: the known radius was used
 
     @staticmethod
     def missing(reason: str) -> Location:
@@ -935,7 +936,8 @@ def _fit_stats(wts, res):
 def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
                     guess: tuple[float, float] | None = None, search: float | None = None,
                     opts: SubpixelOptions = SubpixelOptions(),
-                    noise: float | None = None) -> Location:
+                    noise: float | None = None, r_known: float | None = None,
+                    r_known_sigma: float | None = None) -> Location:
     """Sub-pixel centre of the ball of radius about ``r_px`` px.
 
     ``guess``: where the ball centre is expected (from tracking); ``search``: how far (px) the
@@ -943,7 +945,13 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
     search (:func:`coarse_candidates`) comes first; its candidates are fitted in turn, the
     most disk-like first, and the first the fit accepts is the answer. ``noise``: pixel noise
     (DN) used to reject low-contrast rays (default: estimated from the rays).
+    ``r_known``: the radius (px) a partial arc is fitted with (default ``r_px``; the tracker
+    passes the ball's apparent radius calibrated from its full-rim frames), ``r_known_sigma``
+    its relative uncertainty (default ``opts.radius_sigma``), which adds the arc's leverage
+    times it to the centre's sigma. ``r_px`` still sets the search and the radius check.
     """
+    rk = (float(r_px) if r_known is None else float(r_known),
+          opts.radius_sigma if r_known_sigma is None else float(r_known_sigma))
     if guess is None:
         cands = coarse_candidates(frame, background, r_px)
         if not cands:
@@ -955,17 +963,20 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
             # no prediction to check a partial arc against: the full search accepts only a
             # ball whose rim mostly fits (a cast shadow's arc would pass a partial-arc fit)
             loc = _locate_guess(frame, background, r_px, (cx, cy),
-                                max(search or 0.0, 0.5 * r_px + 2), opts, noise, False)
+                                max(search or 0.0, 0.5 * r_px + 2), opts, noise, False, rk)
             if loc.found:
                 return loc
             first = first or loc
         return first
-    return _locate_guess(frame, background, r_px, guess, search, opts, noise, True)
+    return _locate_guess(frame, background, r_px, guess, search, opts, noise, True, rk)
 
 
-def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial) -> Location:
+def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
+                  rk) -> Location:
     """:func:`locate_subpixel` from a guess; ``partial``: accept a known-radius fit of a
-    partial arc (at least ``opts.min_arc_frac`` of the rim) near the guess."""
+    partial arc (at least ``opts.min_arc_frac`` of the rim) near the guess; ``rk``: (radius
+    of the known-radius fits, its relative uncertainty)."""
+    r_kn, r_kn_sig = rk
     w = search if search is not None else 0.3 * r_px + 2.0
     w = max(w, 1.5)
     w0 = w
@@ -1014,19 +1025,19 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial) 
         # contrast against a shadow or the trough) the radius and the centre are confounded,
         # and the known radius is what makes the arc usable
         free_p = free and len(xs) >= opts.free_min_frac * n
-        fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_px, free_p, opts.tukey_c,
+        fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_kn, free_p, opts.tukey_c,
                                               opts.sigma_floor)
         n_in, med_res, rms = _fit_stats(wts, res)
         if free_p and (n_in < opts.free_min_frac * n or not math.isfinite(fcx)):
             free_p = False
-            fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_px, False, opts.tukey_c,
+            fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_kn, False, opts.tukey_c,
                                                   opts.sigma_floor)
             n_in, med_res, rms = _fit_stats(wts, res)
         if n_in < opts.min_rays or not math.isfinite(fcx):
             return Location.missing("robust circle fit failed")
         # the ball's radius as seen: the fitted one, or (known radius) the known one plus the
         # median offset of the edge points from that circle
-        r_seen = fr_ if free_p else r_px + med_res
+        r_seen = fr_ if free_p else r_kn + med_res
         if abs(r_seen - r_px) > opts.max_radius_dev * r_px:
             return Location.missing(f"the ball's edge lies on a circle of {r_seen:.2f} px "
                                     f"radius, not {r_px:.2f} px")
@@ -1036,7 +1047,7 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial) 
             ray_ok = np.zeros(n, np.bool_)
             ray_ok[inl] = True
             bgr = bg.astype(np.float32)
-            pcx, pcy, pr, psig, npix = _pixel_fit(rel, bgr, fcx, fcy, fr_ if free_p else r_px,
+            pcx, pcy, pr, psig, npix = _pixel_fit(rel, bgr, fcx, fcy, fr_ if free_p else r_kn,
                                                   free_p, ray_ok, a_lv, b_lv,
                                                   (ne + 0.5 * nl + 1) * ds, 5)
             if math.isfinite(pcx) and math.hypot(pcx - fcx, pcy - fcy) < 0.5:
@@ -1046,7 +1057,7 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial) 
         if not free_p:
             # a known radius that is off by dr moves the centre of a partial arc by |b| dr,
             # b = (N^T N)^-1 N^T 1 over the arc's unit normals N (0 on the full rim)
-            sigma = math.hypot(sigma, _arc_leverage(inl, n) * opts.radius_sigma * r_px)
+            sigma = math.hypot(sigma, _arc_leverage(inl, n) * r_kn_sig * r_kn)
         shift = math.hypot(fcx - lcx, fcy - lcy)
         cx, cy, r = fcx + x0c, fcy + y0c, float(r_seen)
         frac = n_in / n
@@ -1060,7 +1071,8 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial) 
             ok, why = False, "the fitted circle lies outside the searched band"
         else:
             ok, why = True, ""
-        loc = Location(x=cx, y=cy, r=r, found=ok, sigma=sigma, inlier_frac=frac, reason=why)
+        loc = Location(x=cx, y=cy, r=r, found=ok, sigma=sigma, inlier_frac=frac, reason=why,
+                       radius_free=bool(free_p))
         if fine:
             break
         w = min(w, max(1.5, 2.0 * shift + 1.0))

@@ -106,11 +106,77 @@ def _predict(hist: list, i: int):
     return hist[-1][1], hist[-1][2]
 
 
-def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=None):
+# apparent-radius calibration: free-radius fits of frames with nearly the whole rim usable
+CAL_MIN_INLIER = 0.9  # fraction of the rim a calibration frame must fit
+CAL_MAX_SIGMA = 0.1  # px: centre sigma of a calibration frame
+CAL_MIN_FRAMES = 5  # calibration frames before the calibrated radius is used
+CAL_WARN_DEV = 0.03  # warn when the apparent radius differs from the setup's by more
+
+
+class RadiusCalibration:
+    """The ball's apparent radius (px) from the free-radius fits of good full-rim frames.
+
+    The outline in the images is not the geometric one (anti-aliasing, gamma, the edge
+    threshold, optics blur shift it by a fraction of a pixel), so a partial arc fitted with the
+    setup's radius is off systematically; fitted with the radius the full rims show, it is not.
+    ``value`` is the median of the radii seen (None until ``min_frames``), ``rel_sigma`` the
+    relative uncertainty of the radius of any one frame (the radii's robust scatter, whatever
+    varies from frame to frame is in it) - what a partial arc's leverage multiplies.
+    """
+
+    def __init__(self, r_setup: float, min_frames: int = CAL_MIN_FRAMES) -> None:
+        self.r_setup = float(r_setup)
+        self.min_frames = min_frames
+        self.radii: list[float] = []  # one float a frame: bounded by the frame count
+
+    def add(self, loc) -> None:
+        if (loc.found and loc.radius_free and loc.inlier_frac >= CAL_MIN_INLIER
+                and loc.sigma <= CAL_MAX_SIGMA and math.isfinite(loc.r)):
+            self.radii.append(float(loc.r))
+
+    @property
+    def value(self) -> float | None:
+        if len(self.radii) < self.min_frames:
+            return None
+        return float(np.median(self.radii))
+
+    @property
+    def rel_sigma(self) -> float | None:
+        v = self.value
+        if v is None:
+            return None
+        r = np.asarray(self.radii)
+        mad = 1.4826 * float(np.median(np.abs(r - v)))
+        # the scatter of one frame's radius, not the median's error: a partial arc's own
+        # apparent radius varies as much; floored at 0.05 % (0.02 px on a 37 px ball)
+        return max(mad / v, 5e-4)
+
+    def summary(self) -> dict:
+        v = self.value
+        out = {"ball_radius_px_seen": v, "ball_radius_px_seen_n": len(self.radii)}
+        if v is not None:
+            out["ball_radius_px_seen_rel_sigma"] = self.rel_sigma
+            out["ball_radius_px_seen_rel_dev"] = v / self.r_setup - 1.0
+        return out
+
+    def warning(self) -> str | None:
+        v = self.value
+        if v is None or abs(v / self.r_setup - 1.0) <= CAL_WARN_DEV:
+            return None
+        return (f"the ball's outline measures {v:.2f} px in radius in {len(self.radii)} "
+                f"full-rim frames, the setup says {self.r_setup:.2f} px "
+                f"({100 * (v / self.r_setup - 1.0):+.1f} %): check ball.diameter_mm and "
+                "camera.pixel_size_mm")
+
+
+def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=None,
+                 r_known=None, r_known_sigma=None):
     """One frame with the chosen locator: ROI search at ``guess`` (edge within ``search`` px of
-    the guessed circle), full frame when lost."""
+    the guessed circle), full frame when lost. ``r_known``, ``r_known_sigma``: the radius that
+    partial arcs are fitted with and its relative uncertainty (subpixel; default the setup's)."""
     if method == "subpixel":
         kw = {"opts": opts} if opts is not None else {}
+        kw.update(r_known=r_known, r_known_sigma=r_known_sigma)
         loc = None
         if guess is not None:
             loc = locate.locate_subpixel(frame, bg, r_px, guess=guess, search=search, **kw)
@@ -156,9 +222,15 @@ def resolve_background(source, background, *, median_frames: int = 41, log=None)
 
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
                     angle: str = "atan2", center: tuple[float, float] | None = None,
-                    progress: bool = True, opts=None) -> pd.DataFrame:
+                    progress: bool = True, opts=None, log=None) -> pd.DataFrame:
     """Locate the ball in every frame of ``source``; one row a frame (see TRACK_COLUMNS), plus
-    r_px, sigma_px (estimated centre error) and inlier_frac where the locator gives them."""
+    r_px, sigma_px (estimated centre error) and inlier_frac where the locator gives them.
+
+    subpixel: the ball's apparent radius is calibrated on the way (:class:`RadiusCalibration`)
+    and partial arcs are fitted with it; the frames fitted with the known radius before the
+    calibration settled (or with a value that moved since) are read once more at the end and
+    fitted again with the final one (a second pass over just those frames). ``attrs`` get the
+    calibration (ball_radius_px_seen, ...) and ``warnings``; ``log`` gets the warnings."""
     from tqdm import tqdm
 
     if method not in locate.METHODS:
@@ -174,28 +246,43 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                file=sys.stderr, mininterval=0.5)
     pred_err = math.inf  # how far the last prediction was off (px)
     read = getattr(source, "read", None)
-    for i in range(n):
-        guess = _predict(hist, i)
+    cal = RadiusCalibration(r_px)
+    revisit: dict[int, float] = {}  # frame -> radius its partial arc was fitted with
+
+    def frame_at(i, guess):
         if read is not None and guess is not None:
             # tracking: the locator reads only the regions it crops around the prediction
             # (the same pixels as the full frame's; a full-frame search reads the whole frame)
-            frame = locate.LazyFrame(functools.partial(read, i),
-                                     functools.partial(source.__getitem__, i), (h, w),
-                                     source.dtype)
-        else:
-            frame = source[i]
-        search = min(0.3 * r_px + 2.0, max(2.0, 4.0 * pred_err + 1.0))
-        loc = locate_frame(frame, background, r_px, method, guess, center, opts=opts,
-                           search=search)
-        if guess is not None and loc.found:
-            pred_err = math.hypot(loc.x - guess[0], loc.y - guess[1])
-        else:
-            pred_err = math.inf
+            return locate.LazyFrame(functools.partial(read, i),
+                                    functools.partial(source.__getitem__, i), (h, w),
+                                    source.dtype)
+        return source[i]
+
+    def accept(loc):
         ok = (loc.found and math.isfinite(loc.x) and -0.5 <= loc.x <= w - 0.5
               and -0.5 <= loc.y <= h - 0.5)
         if ok:
             dist = math.hypot(loc.x - center[0], loc.y - center[1])
             ok = abs(dist - L_px) <= 0.15 * L_px
+        return ok
+
+    for i in range(n):
+        guess = _predict(hist, i)
+        frame = frame_at(i, guess)
+        search = min(0.3 * r_px + 2.0, max(2.0, 4.0 * pred_err + 1.0))
+        r_kn = cal.value
+        loc = locate_frame(frame, background, r_px, method, guess, center, opts=opts,
+                           search=search, r_known=r_kn, r_known_sigma=cal.rel_sigma)
+        if guess is not None and loc.found:
+            pred_err = math.hypot(loc.x - guess[0], loc.y - guess[1])
+        else:
+            pred_err = math.inf
+        ok = accept(loc)
+        if ok and method == "subpixel":
+            if loc.radius_free:
+                cal.add(loc)
+            else:
+                revisit[i] = r_px if r_kn is None else r_kn
         if ok:
             hist.append((i, loc.x, loc.y))
             if len(hist) > 4:
@@ -205,6 +292,23 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
             rows[i, 5] = 0.0
         bar.update(1)
     bar.close()
+    r_cal = cal.value
+    if r_cal is not None:
+        # second pass: the partial arcs fitted with another radius than the final one, again
+        tol = 0.25 * cal.rel_sigma * r_cal
+        redo = [i for i, r_used in revisit.items() if abs(r_used - r_cal) > tol]
+        for i in tqdm(redo, desc="partial arcs, calibrated radius", unit="frame",
+                      disable=not progress or not redo, file=sys.stderr, mininterval=0.5):
+            guess = (rows[i, 0], rows[i, 1])
+            loc = locate_frame(frame_at(i, guess), background, r_px, method, guess, center,
+                               opts=opts, search=2.0, r_known=r_cal,
+                               r_known_sigma=cal.rel_sigma)
+            if accept(loc):
+                rows[i, :5] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac)
+    warnings = [cal.warning()] if cal.warning() else []
+    if log:
+        for msg in warnings:
+            log(f"warning: {msg}")
     found = rows[:, 5] == 1.0
     theta = np.full(n, np.nan)
     theta[found] = angles(rows[found, 0], rows[found, 1], center, method=angle,
@@ -222,7 +326,9 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         "inlier_frac": rows[:, 4],
     })
     df.attrs.update({"center_px": [float(center[0]), float(center[1])], "locator": method,
-                     "angle": angle, "ball_radius_px": r_px, "track_radius_px": L_px})
+                     "angle": angle, "ball_radius_px": r_px, "track_radius_px": L_px,
+                     **cal.summary(), "n_refitted": len(redo) if r_cal is not None else 0,
+                     "warnings": warnings})
     return df
 
 
@@ -290,7 +396,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                 f"{center[1]:.2f}) px")
         check_setup_fits(setup.replace(center_px=center), source.shape)
     df = track_recording(source, setup, bg, method=method, angle=angle, center=center,
-                         progress=progress)
+                         progress=progress, log=log)
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
     df.attrs.update({"background": bg_desc, "center_source": center_desc,

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from rollfric.locate import locate_subpixel
+from rollfric.locate import coarse_candidates, locate_subpixel
 from validation.drawn_frames import disk_coverage
 
 R = 37.2
@@ -46,3 +46,38 @@ def test_partial_arc_within_stated_uncertainty_or_not_found(shadow_frac):
             assert err < 4.0 * loc.sigma + 0.02, (err, loc.sigma)
             assert loc.sigma < 0.5
 
+
+
+def _decoy_frame(seed):
+    """A bright-edged ring that the coarse search ranks above the ball: a faintly brighter disk
+    (+30 DN) inside a 1.5 px outline 130 DN brighter than the backdrop, both of the ball's
+    radius (a washer's rim, a reflection), left; the dark ball with 35 % of its rim in a
+    shadow of its own level (less disk-like to the search), right. (frame, background,
+    ball centre, ring centre)"""
+    h, w = 200, 400
+    rng = np.random.default_rng(seed)
+    bx, by = 290 + rng.uniform(-3, 3), 100 + rng.uniform(-3, 3)
+    dx, dy = 100 + rng.uniform(-3, 3), 100 + rng.uniform(-3, 3)
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    t = R * math.cos(math.pi * 0.35)
+    shade = np.clip(((xx - bx) + (yy - by)) / math.sqrt(2) - t + 0.5, 0.0, 1.0) * (xx > 200)
+    bg = 120.0 * (1 - shade) + 20.0 * shade
+    outer = disk_coverage(h, w, dx, dy, R + 0.75)
+    inner = disk_coverage(h, w, dx, dy, R - 0.75)
+    ball = disk_coverage(h, w, bx, by, R)
+    img = bg * (1 - ball) + 20.0 * ball + 30.0 * inner + 130.0 * (outer - inner)
+    f = np.clip(np.rint(img + rng.normal(0, 2.0, img.shape)), 0, 255).astype(np.uint8)
+    return f, np.clip(np.rint(bg), 0, 255).astype(np.uint8), (bx, by), (dx, dy)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_full_search_falls_through_a_rejected_first_candidate(seed):
+    f, bg, (bx, by), (dx, dy) = _decoy_frame(seed)
+    cands = coarse_candidates(f, bg, R)
+    # the premise: the ring is the most disk-like candidate, and the fit rejects it
+    assert len(cands) >= 2
+    assert math.hypot(cands[0][0] - dx, cands[0][1] - dy) < 3.0, cands
+    assert not locate_subpixel(f, bg, R, guess=cands[0][:2], search=0.5 * R + 2).found
+    loc = locate_subpixel(f, bg, R)
+    assert loc.found, loc.reason
+    assert math.hypot(loc.x - bx, loc.y - by) < 4.0 * loc.sigma + 0.02, (loc.x - bx, loc.y - by)
