@@ -239,6 +239,7 @@ class SceneRenderer:
         self._renderer = None
         self._shadow_cache = None
         self._shadow_prev: dict = {}  # lamp -> texel box the ball covered last
+        self._tile_parts: dict = {}  # tile from tiles_for -> the boxes merged into it
 
     def silhouette_mode(self) -> None:
         """Switch to an unlit white ball on black (no trough, no backdrop, no shadows): the
@@ -303,7 +304,7 @@ class SceneRenderer:
     def render_full(self) -> np.ndarray:
         return self.render_region(0, 0, self.camera.width, self.camera.height)
 
-    def render_tiles(self, poses, tiles) -> list[np.ndarray]:
+    def render_tiles(self, poses, tiles, background=None) -> list[np.ndarray]:
         """Render regions ``tiles`` [(x0, y0, w, h), ...] of the scene with the ball at each of
         ``poses`` (sub-frames) and return, per tile, the sum over the sub-frames.
 
@@ -313,9 +314,12 @@ class SceneRenderer:
         rounds vertex positions differently and flips MSAA samples on the silhouette). Per
         sub-frame the lamps' shadow maps are rendered once (ball over the cached trough) and
         reused by every tile.
-        """
-        from OpenGL.GL import GL_SCISSOR_TEST, glDisable, glEnable, glScissor
 
+        ``background``: the (H, W) static render (``render_full`` without the ball). With it,
+        the pixels of a tile from ``tiles_for`` that lie outside all the boxes it was merged
+        from (which the ball cannot change) are masked in the depth buffer, so llvmpipe skips
+        shading them, and are copied from the background instead.
+        """
         pr = self._pyrender
         W, H, s = self.camera.width, self.camera.height, self.ss
         r = self._ensure_renderer(W, H)
@@ -325,37 +329,113 @@ class SceneRenderer:
         inner.viewport_width, inner.viewport_height = W * s, H * s
         flags = self.flags | pr.RenderFlags.OFFSCREEN
         out = [None] * len(tiles)
-        configure, read = inner._configure_forward_pass_viewport, inner._read_main_framebuffer
-        box = {}
-
-        def configure_scissored(fl):
-            configure(fl)
-            glEnable(GL_SCISSOR_TEST)
-            glScissor(*box["gl"])
-
-        def read_box(scene, fl):
-            glDisable(GL_SCISSOR_TEST)
-            return _read_region(inner, *box["gl"]), None
-
-        inner._configure_forward_pass_viewport = configure_scissored
-        inner._read_main_framebuffer = read_box
+        gl_box = [(x0 * s, (H - y0 - h) * s, w * s, h * s) for x0, y0, w, h in tiles]
+        masks = [None] * len(tiles)
+        if background is not None:
+            for k, tile in enumerate(tiles):
+                parts = self._tile_parts.get(tuple(tile))
+                if parts and len(parts) > 1:
+                    masks[k] = parts
         try:
             for pose in poses:
                 self.set_ball(pose)
                 inner._update_context(self.scene, flags)
                 if self.config.shadows:
                     self._ball_shadow_pass(inner, flags)
-                for k, (x0, y0, w, h) in enumerate(tiles):
-                    box["gl"] = (x0 * s, (H - y0 - h) * s, w * s, h * s)
-                    color, _ = inner._forward_pass(self.scene, flags)
+                for k in range(len(tiles)):
+                    parts = None
+                    if masks[k] is not None:
+                        parts = [(a * s, (H - y1) * s, (x1 - a) * s, (y1 - b) * s)
+                                 for a, b, x1, y1 in masks[k]]
+                    color = self._forward_tile(inner, flags, gl_box[k], parts)
                     c = self._reduce(color)
                     out[k] = c if out[k] is None else out[k] + c
         finally:
-            glDisable(GL_SCISSOR_TEST)
-            inner._configure_forward_pass_viewport = configure
-            inner._read_main_framebuffer = read
             r._platform.make_uncurrent()
+        n = len(poses)
+        for k, (x0, y0, w, h) in enumerate(tiles):
+            if masks[k] is None:
+                continue
+            keep = np.ones((h, w), bool)
+            for a, b, x1, y1 in masks[k]:
+                keep[b - y0:y1 - y0, a - x0:x1 - x0] = False
+            out[k][keep] = n * background[y0:y0 + h, x0:x0 + w][keep]
         return out
+
+    def _forward_tile(self, inner, flags, box, parts=None) -> np.ndarray:
+        """pyrender's forward pass (Renderer._forward_pass) scissored to ``box`` (GL window
+        coordinates): the same draws in the same order with the same uniform values, but the
+        camera and lamp uniforms are set once per shader program instead of once per
+        primitive (they are equal for all). ``parts``: boxes inside ``box`` to shade; the rest
+        of ``box`` gets depth 0, which fails every fragment's depth test."""
+        from OpenGL.GL import (
+            GL_COLOR_BUFFER_BIT,
+            GL_DEPTH_BUFFER_BIT,
+            GL_MULTISAMPLE,
+            GL_SCISSOR_TEST,
+            glClear,
+            glClearColor,
+            glClearDepth,
+            glDisable,
+            glEnable,
+            glFlush,
+            glScissor,
+        )
+
+        pr = self._pyrender
+        RF = pr.RenderFlags
+        scene = self.scene
+        inner._configure_forward_pass_viewport(flags)
+        glEnable(GL_SCISSOR_TEST)
+        try:
+            glScissor(*box)
+            glClearColor(*scene.bg_color)
+            glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT)
+            if parts:
+                glClearDepth(0.0)
+                glClear(GL_DEPTH_BUFFER_BIT)
+                glClearDepth(1.0)
+                for p in parts:
+                    glScissor(*p)
+                    glClear(GL_DEPTH_BUFFER_BIT)
+                glScissor(*box)
+            glEnable(GL_MULTISAMPLE)
+            V, P = inner._get_camera_matrices(scene)
+            cam_pos = scene.get_pose(scene.main_camera_node)[:3, 3]
+            lit = not (flags & RF.DEPTH_ONLY or flags & RF.FLAT or flags & RF.SEG)
+            # material textures would take texture units after the shadow maps: then the
+            # lamps are bound for every primitive, as pyrender does
+            textured = any(p.material.tex_flags for n in scene.mesh_nodes
+                           for p in n.mesh.primitives)
+            ready = set()
+            program = None
+            for node in inner._sorted_mesh_nodes(scene):
+                if not node.mesh.is_visible:
+                    continue
+                pose = scene.get_pose(node)
+                for primitive in node.mesh.primitives:
+                    program = inner._get_primitive_program(primitive, flags,
+                                                           pr.constants.ProgramFlags.USE_MATERIAL)
+                    program._bind()
+                    if id(program) not in ready or textured:
+                        program.set_uniform("V", V)
+                        program.set_uniform("P", P)
+                        program.set_uniform("cam_pos", cam_pos)
+                        if lit:
+                            # shadow maps on texture units 0..: the bindings stay for the
+                            # later primitives
+                            inner._bind_lighting(scene, program, node, flags)
+                        ready.add(id(program))
+                    inner._bind_and_draw_primitive(primitive=primitive, pose=pose,
+                                                   program=program, flags=flags)
+                    inner._reset_active_textures()
+            if program is not None:
+                program._unbind()
+            glFlush()
+            glDisable(GL_SCISSOR_TEST)
+            return _read_region(inner, *box)
+        finally:
+            glDisable(GL_SCISSOR_TEST)
 
     def _ball_shadow_pass(self, inner, flags) -> None:
         """Each lamp's shadow map: the cached depth of the static caster (the trough), with the
@@ -574,6 +654,7 @@ class SceneRenderer:
             x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
             if x1 > x0 and y1 > y0:
                 clipped.append((x0, y0, x1, y1))
+        parts = [[b] for b in clipped]
         merged = True
         while merged and len(clipped) > 1:
             merged = False
@@ -583,12 +664,15 @@ class SceneRenderer:
                     u = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
                     if _area(u) - (_area(a) + _area(b)) <= MERGE_PX:
                         clipped[i] = u
-                        del clipped[j]
+                        parts[i] += parts[j]
+                        del clipped[j], parts[j]
                         merged = True
                         break
                 if merged:
                     break
-        return [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
+        tiles = [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
+        self._tile_parts = dict(zip(tiles, parts, strict=True))
+        return tiles
 
 
 def _read_region(inner, x: int, y: int, w: int, h: int) -> np.ndarray:

@@ -100,23 +100,28 @@ def test_tiles_equal_full_frame_render(projection, lighting):
         bg = sr.render_full()
         # tiles of consecutive frames first (the shadow maps are updated incrementally), then
         # the plain full-frame renders they must equal
-        composites = []
+        # (with the background given, the pixels of a merged tile outside the boxes it was
+        # merged from are masked in the depth buffer and taken from the background)
+        composites, masked = [], []
         for theta in thetas:
             c = _centre(theta)
             tiles = sr.tiles_for(c[None])
-            comp = bg.copy()
-            imgs = sr.render_tiles([sr.ball_pose(c)], tiles)
-            for (x0, y0, w, h), img in zip(tiles, imgs, strict=True):
-                comp[y0:y0 + h, x0:x0 + w] = img
-            composites.append(comp)
+            masked.append(any(len(sr._tile_parts[t]) > 1 for t in tiles))
+            for background in (None, bg):
+                comp = bg.copy()
+                imgs = sr.render_tiles([sr.ball_pose(c)], tiles, background=background)
+                for (x0, y0, w, h), img in zip(tiles, imgs, strict=True):
+                    comp[y0:y0 + h, x0:x0 + w] = img
+                composites.append(comp)
         worst, shadow_checked = 0, False
-        for theta, comp in zip(thetas, composites, strict=True):
+        for k, theta in enumerate(thetas):
             c = _centre(theta)
             sr.set_ball(sr.ball_pose(c))
             full = sr.render_full()
             sr.set_ball(None)
-            diff = np.abs(comp.astype(int) - full.astype(int)) / (sr.scale / 255)
-            worst = max(worst, diff.max())
+            for comp in composites[2 * k:2 * k + 2]:
+                diff = np.abs(comp.astype(int) - full.astype(int)) / (sr.scale / 255)
+                worst = max(worst, diff.max())
             # pixels the ball changed outside its own box: its shadows, which the tiles held
             changed = np.argwhere(full != bg)
             x0, y0, x1, y1 = sr.ball_box(c[None])
@@ -127,6 +132,7 @@ def test_tiles_equal_full_frame_render(projection, lighting):
         sr.close()
     assert worst <= 1.0, worst
     assert shadow_checked, "no shadow in view: the test would not check the shadow tiles"
+    assert any(masked), "no merged tile: the test would not check the depth mask"
 
 
 def test_motion_blur_subframes_average():
