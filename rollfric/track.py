@@ -13,6 +13,7 @@ thesis's theta = arcsin((x - xc) / L_px) with L = R - r (``angle="arcsin"``).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import sys
@@ -128,28 +129,42 @@ class RadiusCalibration:
         self.r_setup = float(r_setup)
         self.min_frames = min_frames
         self.radii: list[float] = []  # one float a frame: bounded by the frame count
+        self._n = 0  # len(radii) when value and rel_sigma were last computed
+        self._value: float | None = None
+        self._rel_sigma: float | None = None
 
     def add(self, loc) -> None:
         if (loc.found and loc.radius_free and loc.inlier_frac >= CAL_MIN_INLIER
                 and loc.sigma <= CAL_MAX_SIGMA and math.isfinite(loc.r)):
             self.radii.append(float(loc.r))
 
+    def _update(self, final: bool = False) -> None:
+        n = len(self.radii)
+        # recomputed on every new radius while few, then every 32nd (or when asked): the
+        # median barely moves, and the streaming loop asks once a frame
+        if n == self._n or n < self.min_frames or (n > 64 and n % 32 and not final):
+            return
+        r = np.asarray(self.radii)
+        v = float(np.median(r))
+        mad = 1.4826 * float(np.median(np.abs(r - v)))
+        self._n, self._value = n, v
+        # the scatter of one frame's radius, not the median's error: a partial arc's own
+        # apparent radius varies as much; floored at 0.05 % (0.02 px on a 37 px ball)
+        self._rel_sigma = max(mad / v, 5e-4)
+
+    def finish(self) -> None:
+        """Compute the final value from all the radii seen."""
+        self._update(final=True)
+
     @property
     def value(self) -> float | None:
-        if len(self.radii) < self.min_frames:
-            return None
-        return float(np.median(self.radii))
+        self._update()
+        return self._value
 
     @property
     def rel_sigma(self) -> float | None:
-        v = self.value
-        if v is None:
-            return None
-        r = np.asarray(self.radii)
-        mad = 1.4826 * float(np.median(np.abs(r - v)))
-        # the scatter of one frame's radius, not the median's error: a partial arc's own
-        # apparent radius varies as much; floored at 0.05 % (0.02 px on a 37 px ball)
-        return max(mad / v, 5e-4)
+        self._update()
+        return self._rel_sigma
 
     def summary(self) -> dict:
         v = self.value
@@ -247,6 +262,11 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     pred_err = math.inf  # how far the last prediction was off (px)
     read = getattr(source, "read", None)
     cal = RadiusCalibration(r_px)
+    # once calibrated, a free radius only on (nearly) the full rim: on a partial arc the free
+    # radius and the centre are confounded (centres 0.1-0.15 px off on the harsh lamp's arcs
+    # over half of the rim), the calibrated one pins the centre
+    base = opts if opts is not None else locate.SubpixelOptions()
+    opts_cal = dataclasses.replace(base, free_min_frac=max(base.free_min_frac, CAL_MIN_INLIER))
     revisit: dict[int, float] = {}  # frame -> radius its partial arc was fitted with
 
     def frame_at(i, guess):
@@ -271,8 +291,9 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         frame = frame_at(i, guess)
         search = min(0.3 * r_px + 2.0, max(2.0, 4.0 * pred_err + 1.0))
         r_kn = cal.value
-        loc = locate_frame(frame, background, r_px, method, guess, center, opts=opts,
-                           search=search, r_known=r_kn, r_known_sigma=cal.rel_sigma)
+        loc = locate_frame(frame, background, r_px, method, guess, center,
+                           opts=opts if r_kn is None else opts_cal, search=search,
+                           r_known=r_kn, r_known_sigma=cal.rel_sigma)
         if guess is not None and loc.found:
             pred_err = math.hypot(loc.x - guess[0], loc.y - guess[1])
         else:
@@ -281,6 +302,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         if ok and method == "subpixel":
             if loc.radius_free:
                 cal.add(loc)
+                if loc.inlier_frac < CAL_MIN_INLIER:
+                    revisit[i] = math.inf  # a free radius on a partial arc: always again
             else:
                 revisit[i] = r_px if r_kn is None else r_kn
         if ok:
@@ -292,16 +315,18 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
             rows[i, 5] = 0.0
         bar.update(1)
     bar.close()
+    cal.finish()
     r_cal = cal.value
     if r_cal is not None:
-        # second pass: the partial arcs fitted with another radius than the final one, again
+        # second pass: the partial arcs fitted with a free radius or another radius than the
+        # final one, again
         tol = 0.25 * cal.rel_sigma * r_cal
         redo = [i for i, r_used in revisit.items() if abs(r_used - r_cal) > tol]
         for i in tqdm(redo, desc="partial arcs, calibrated radius", unit="frame",
                       disable=not progress or not redo, file=sys.stderr, mininterval=0.5):
             guess = (rows[i, 0], rows[i, 1])
             loc = locate_frame(frame_at(i, guess), background, r_px, method, guess, center,
-                               opts=opts, search=2.0, r_known=r_cal,
+                               opts=opts_cal, search=2.0, r_known=r_cal,
                                r_known_sigma=cal.rel_sigma)
             if accept(loc):
                 rows[i, :5] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac)
