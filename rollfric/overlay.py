@@ -12,6 +12,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from rollfric.atomic import replacing  # noqa: E402
+
 
 def choose_frames(track, k: int = 6) -> list[int]:
     """k frames spread over those where the ball was found."""
@@ -69,6 +71,7 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
         ax.tick_params(labelsize=7)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return path

@@ -10,6 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from rollfric.atomic import replacing  # noqa: E402
+
 
 def plot_fit(t, theta, result, path, *, title: str | None = None) -> Path:
     """Measured theta(t) (dots) against the fitted model (line), and the residual below."""
@@ -32,6 +34,7 @@ def plot_fit(t, theta, result, path, *, title: str | None = None) -> Path:
     axr.grid(alpha=0.3)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=120)
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=120)
     plt.close(fig)
     return path

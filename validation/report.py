@@ -55,10 +55,10 @@ def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
 
     # angle vs model
     tr = result.track
-    with replacing(out / "angle_vs_model.png") as tmp:
-        plot_fit(tr["t_s"].to_numpy(float), tr["theta_rad"].to_numpy(float), result.fit, tmp,
-                 title=(f"{result.case.name}: mu recovered {m['mu_recovered']:.6f} "
-                        f"(true {m['mu_true']:.6f}, bias {100 * m['mu_bias_rel']:+.2f} %)"))
+    plot_fit(tr["t_s"].to_numpy(float), tr["theta_rad"].to_numpy(float), result.fit,
+             out / "angle_vs_model.png",
+             title=(f"{result.case.name}: mu recovered {m['mu_recovered']:.6f} "
+                    f"(true {m['mu_true']:.6f}, bias {100 * m['mu_bias_rel']:+.2f} %)"))
 
     good = pf["found"].to_numpy(bool) & np.isfinite(pf["err_px"].to_numpy(float))
     # centre-error histogram

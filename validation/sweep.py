@@ -41,12 +41,12 @@ import logging
 import math
 import os
 import socket
-import tempfile
 import time
 import tomllib
 import traceback
 from pathlib import Path
 
+from rollfric.atomic import replacing, write_text
 from rollfric.errors import InputError
 from validation.case import (
     apply_overrides,
@@ -254,14 +254,8 @@ def write_part(parts_dir: Path, row: dict) -> Path:
 
     parts_dir.mkdir(parents=True, exist_ok=True)
     path = parts_dir / f"{row['case_id']}.parquet"
-    fd, tmp = tempfile.mkstemp(prefix=f".{row['case_id']}.", suffix=".part", dir=parts_dir)
-    os.close(fd)
-    try:
+    with replacing(path) as tmp:
         pd.DataFrame([row]).to_parquet(tmp, index=False)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return path
 
 
@@ -293,14 +287,8 @@ def rebuild_table(out: str | Path, spec: SweepSpec | None = None):
             .drop(columns="_o").reset_index(drop=True)
     for name, write in (("results.parquet", lambda p: df.to_parquet(p, index=False)),
                         ("results.csv", lambda p: df.to_csv(p, index=False))):
-        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", dir=out)
-        os.close(fd)
-        try:
+        with replacing(out / name) as tmp:
             write(tmp)
-            os.replace(tmp, out / name)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
     return df
 
 
@@ -318,9 +306,8 @@ def _write_recordings_index(out: Path, spec: SweepSpec, df) -> None:
                          **{k: _scalar(v) for k, v in sc.params.items()},
                          "case_json": json.dumps(sc.case, sort_keys=True)})
     if rows:
-        tmp = rec_dir / ".index.csv.part"
-        pd.DataFrame(rows).to_csv(tmp, index=False)
-        os.replace(tmp, rec_dir / "index.csv")
+        with replacing(rec_dir / "index.csv") as tmp:
+            pd.DataFrame(rows).to_csv(tmp, index=False)
 
 
 # -- the sweep --------------------------------------------------------------------------------
@@ -469,11 +456,7 @@ def write_summary(df, spec: SweepSpec, out: Path, plots: list) -> Path:
     if plots:
         lines += ["", "## plots", ""]
         lines += [f"![{p.stem}](plots/{p.name})" for p in plots]
-    path = out / "summary.md"
-    tmp = out / ".summary.md.part"
-    tmp.write_text("\n".join(lines) + "\n")
-    os.replace(tmp, path)
-    return path
+    return write_text(out / "summary.md", "\n".join(lines) + "\n")
 
 
 # -- plots ------------------------------------------------------------------------------------
@@ -537,9 +520,8 @@ def plot_sweep(df, spec: SweepSpec, plot_dir: Path) -> list[Path]:
         fig.suptitle(f"{spec.name}: {', '.join(metrics)} vs {x}", fontsize=10)
         fig.tight_layout()
         path = plot_dir / f"{x.replace('.', '_')}.png"
-        tmp = plot_dir / f".{path.stem}.part.png"
-        fig.savefig(tmp, dpi=100)
+        with replacing(path) as tmp:
+            fig.savefig(tmp, dpi=100)
         plt.close(fig)
-        os.replace(tmp, path)
         written.append(path)
     return written
