@@ -1,10 +1,11 @@
 """Benchmarks of the synth renderer (called by ``rollfric bench``; also ``python -m synth.bench``).
 
 Compares, side by side in one run on the same scene: the plain pyrender full-frame render (the
-"stock" way: one OffscreenRenderer.render of the whole 1280 x 1024 frame with the ball) and
-synth's renderer (static background once, then only the ball's and shadows' tiles, shadow maps
-once per frame); the largest difference between the two in 8-bit DN; the throughput of a whole
-recording with both cores; the size of the store.
+"stock" way: one OffscreenRenderer.render of the whole 1280 x 1024 frame with the ball, with
+pyrender's own shaders) and synth's renderer (static background once, then only the ball's and
+shadows' tiles, shadow maps once per frame, the shadow filter read with gathers); the largest
+difference between the two in 8-bit DN; the throughput of a whole recording with both cores;
+the size of the store.
 
 Stock pyrender 0.1.45 cannot be installed beside the fork (both are the ``pyrender`` module, and
 0.1.45 breaks under NumPy 2), so the baseline is the same library's plain full-frame render.
@@ -58,7 +59,7 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         dn = sr.scale / 255.0
         # warm up both paths (shader compilation, buffers)
         sr.set_ball(sr.ball_pose(traj.position[0]))
-        sr.render_full()
+        sr.render_full(stock_shaders=True)
         pose0 = sr.ball_pose(traj.position[0])
         sr.render_tiles([pose0], sr.tiles_for(traj.position[:1]))
         full_times, tile_times, max_dn, tile_px = [], [], 0.0, []
@@ -66,16 +67,22 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         for i in idx_full:
             sr.set_ball(sr.ball_pose(traj.position[i]))
             t0 = time.perf_counter()
-            fulls[i] = sr.render_full()
+            fulls[i] = sr.render_full(stock_shaders=True)
             full_times.append(time.perf_counter() - t0)
+        # synth's full frame: the background with the tiles pasted in; the previous frame's
+        # tiles are put back to background first (a video is made frame after frame)
+        comp = bg.copy()
+        prev: list = []
         for i in sorted(set(idx_tile) | set(idx_full)):
             pose = sr.ball_pose(traj.position[i])
             t0 = time.perf_counter()
             tiles = sr.tiles_for(traj.position[i:i + 1])
             imgs = sr.render_tiles([pose], tiles, background=bg)
-            comp = bg.copy()
+            for x0, y0, w, h in prev:
+                comp[y0:y0 + h, x0:x0 + w] = bg[y0:y0 + h, x0:x0 + w]
             for (x0, y0, w, h), img in zip(tiles, imgs, strict=True):
                 comp[y0:y0 + h, x0:x0 + w] = img
+            prev = tiles
             dt = time.perf_counter() - t0
             if i in idx_tile:
                 tile_times.append(dt)

@@ -10,7 +10,9 @@ Speed: the static scene (everything but the ball) is rendered once, full frame; 
 renders only the pixels the ball and its shadows can change (the footprint, from lamp-to-ball
 tangent rays), with the projection shifted so the tile lines up with the full frame pixel for
 pixel. Shader programs and mesh buffers persist in the renderer; each frame's shadow maps are
-rendered once and reused by every tile of that frame.
+rendered once and reused by every tile of that frame. The mesh shader is pyrender's with its
+shadow filter reading the maps by gathers (synth.shaders: the same pixels, a third faster);
+``stock_shaders=True`` renders with pyrender's own, for the benchmark's baseline.
 """
 
 from __future__ import annotations
@@ -237,6 +239,7 @@ class SceneRenderer:
         if config.shadows:
             self.flags |= pyrender.RenderFlags.SHADOWS_SPOT
         self._renderer = None
+        self._programs: dict = {}  # stock? -> pyrender program cache
         self._shadow_cache = None
         self._shadow_prev: dict = {}  # lamp -> texel box the ball covered last
         self._tile_parts: dict = {}  # tile from tiles_for -> the boxes merged into it
@@ -255,13 +258,21 @@ class SceneRenderer:
 
     # -- low level -------------------------------------------------------------------------
 
-    def _ensure_renderer(self, w: int, h: int):
+    def _ensure_renderer(self, w: int, h: int, stock_shaders: bool = False):
+        """The offscreen renderer at w x h output pixels, compiling pyrender's own shaders
+        (``stock_shaders``) or synth's (its shadow filter read with gathers, synth.shaders)."""
         vw, vh = w * self.ss, h * self.ss
         if self._renderer is None:
+            from synth.shaders import program_cache
+
             self._renderer = self._pyrender.OffscreenRenderer(vw, vh)
+            self._programs = {True: self._renderer._renderer._program_cache,
+                              False: program_cache()}
+            _cache_light_matrices(self._renderer._renderer)
         else:
             self._renderer.viewport_width = vw
             self._renderer.viewport_height = vh
+        self._renderer._renderer._program_cache = self._programs[bool(stock_shaders)]
         return self._renderer
 
     def ball_pose(self, centre) -> np.ndarray:
@@ -293,16 +304,19 @@ class SceneRenderer:
             c = c.reshape(h, s, w, s).sum(axis=(1, 3))
         return c
 
-    def render_region(self, x0: int, y0: int, w: int, h: int) -> np.ndarray:
-        """Plain pyrender render of full-frame pixels [x0, x0+w) x [y0, y0+h)."""
+    def render_region(self, x0: int, y0: int, w: int, h: int, *,
+                      stock_shaders: bool = False) -> np.ndarray:
+        """Plain pyrender render of full-frame pixels [x0, x0+w) x [y0, y0+h); with
+        ``stock_shaders`` pyrender's own shaders (the benchmark's baseline)."""
         self._shadow_prev = {}  # pyrender rewrites the whole shadow maps
-        r = self._ensure_renderer(w, h)
+        r = self._ensure_renderer(w, h, stock_shaders)
         self._cam.P = self.camera.tile_projection(x0, y0, w, h)
         color, _ = r.render(self.scene, self.flags)
         return self._reduce(color)
 
-    def render_full(self) -> np.ndarray:
-        return self.render_region(0, 0, self.camera.width, self.camera.height)
+    def render_full(self, *, stock_shaders: bool = False) -> np.ndarray:
+        return self.render_region(0, 0, self.camera.width, self.camera.height,
+                                  stock_shaders=stock_shaders)
 
     def render_tiles(self, poses, tiles, background=None) -> list[np.ndarray]:
         """Render regions ``tiles`` [(x0, y0, w, h), ...] of the scene with the ball at each of
@@ -673,6 +687,31 @@ class SceneRenderer:
         tiles = [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
         self._tile_parts = dict(zip(tiles, parts, strict=True))
         return tiles
+
+
+def _cache_light_matrices(inner) -> None:
+    """Keep pyrender's shadow-camera matrices of each lamp instead of rebuilding them.
+
+    pyrender builds a new shadow camera and inverts the lamp's pose for every draw that uses a
+    lamp (~0.15 ms each, 6-8 times a frame); the matrices depend only on the lamp's pose and the
+    scene's scale and centroid, which form the key here, so the values are the same.
+    """
+    original = inner._get_light_cam_matrices
+    cache: dict = {}
+
+    def cached(scene, light_node, flags):
+        key = (id(light_node), scene.get_pose(light_node).tobytes(), float(scene.scale),
+               scene.centroid.tobytes())
+        if key not in cache:
+            if len(cache) > 64:
+                cache.clear()
+            V, P = original(scene, light_node, flags)
+            V.setflags(write=False)
+            P.setflags(write=False)
+            cache[key] = (V, P)
+        return cache[key]
+
+    inner._get_light_cam_matrices = cached
 
 
 def _read_region(inner, x: int, y: int, w: int, h: int) -> np.ndarray:

@@ -1,0 +1,99 @@
+"""pyrender's own shaders, with the shadow filter of its mesh shader computed from four gathers.
+
+pyrender's fragment shader (``mesh.frag``) softens every shadow-map lookup with ``PCF``: a 3 x 3
+grid of bilinear lookups, each of four depth compares on the NEAREST-filtered map: 36 texture
+reads per lamp per fragment. The nine 2 x 2 footprints are shifted by whole texels, so they
+cover only a 4 x 4 block of texels, and the sum weights that block's compares by
+``(1 - f, 1, 1, f)`` along each axis (``f`` the fractional texel position the bilinear mix uses).
+The replacement reads the same 16 texels with four ``textureGather`` calls and applies the same
+weights: the same function of the same depths, in a different order of additions. On llvmpipe
+the texture reads were the largest single cost of a tile frame (a fragment shaded in ~2/3 of
+the time); the rendered pixels are bit-identical in every comparison run so far (the
+tests allow the 1 DN that a rounding flip could cost, and the benchmark reports the largest
+difference against the stock shader).
+
+Everything else is pyrender's text, read from the installed package, so a renderer built on
+these shaders draws what stock pyrender draws.
+"""
+
+from __future__ import annotations
+
+import atexit
+import functools
+import os
+import shutil
+import tempfile
+
+# pyrender's function, replaced from this line up to the next function
+_PCF_HEAD = "float PCF(sampler2D depths, vec2 size, vec2 uv, float compare){"
+_NEXT = "float shadow_calc("
+_VERSION = "#version 330 core"
+
+_GATHER_PCF = """float PCF(sampler2D depths, vec2 size, vec2 uv, float compare){
+    // pyrender's 3 x 3 bilinear 2 x 2 compares = the 4 x 4 texels from c, weighted
+    // (1 - f, 1, 1, f) per axis; each gather at a texel corner returns the 2 x 2 texels
+    // around it as (x0, y1), (x1, y1), (x1, y0), (x0, y0)
+    vec2 g = uv * size + 0.5;
+    vec2 f = fract(g);
+    vec2 c = floor(g) - 1.0;
+    vec4 wx = vec4(1.0 - f.x, 1.0, 1.0, f.x);
+    vec4 wy = vec4(1.0 - f.y, 1.0, 1.0, f.y);
+    vec4 cv = vec4(compare);
+    vec4 s00 = vec4(greaterThan(cv, textureGather(depths, (c + vec2(1.0, 1.0)) / size)));
+    vec4 s10 = vec4(greaterThan(cv, textureGather(depths, (c + vec2(3.0, 1.0)) / size)));
+    vec4 s01 = vec4(greaterThan(cv, textureGather(depths, (c + vec2(1.0, 3.0)) / size)));
+    vec4 s11 = vec4(greaterThan(cv, textureGather(depths, (c + vec2(3.0, 3.0)) / size)));
+    float result = wy.x * dot(wx, vec4(s00.w, s00.z, s10.w, s10.z))
+                 + wy.y * dot(wx, vec4(s00.x, s00.y, s10.x, s10.y))
+                 + wy.z * dot(wx, vec4(s01.w, s01.z, s11.w, s11.z))
+                 + wy.w * dot(wx, vec4(s01.x, s01.y, s11.x, s11.y));
+    return result / 9.0;
+}
+
+"""
+
+
+def gather_mesh_shader(text: str) -> str:
+    """pyrender's ``mesh.frag`` text with ``PCF`` replaced by the four-gather version.
+
+    Raises RuntimeError when the text does not hold pyrender's function (another pyrender
+    version): nothing is patched silently."""
+    start = text.find(_PCF_HEAD)
+    end = text.find(_NEXT, start)
+    if start < 0 or end < 0 or not text.startswith(_VERSION):
+        raise RuntimeError("pyrender's mesh.frag has no PCF function as expected: this pyrender "
+                           "version is not supported by synth.shaders")
+    body = text[start:end]
+    # the function being replaced: 3 x 3 calls of the 2 x 2 bilinear compare
+    for piece in ("x=-1; x<=1", "y=-1; y<=1", "texture2DShadowLerp", "result/9.0"):
+        if piece not in body:
+            raise RuntimeError(f"pyrender's PCF differs from the one synth.shaders replaces "
+                               f"(no {piece!r})")
+    text = text[:start] + _GATHER_PCF + text[end:]
+    # textureGather is core in GLSL 4.00; 3.30 needs the extension (llvmpipe has both)
+    return text.replace(_VERSION, _VERSION + "\n#extension GL_ARB_texture_gather : require", 1)
+
+
+@functools.cache
+def shader_dir() -> str:
+    """A directory holding pyrender's shaders with ``mesh.frag`` patched (one per process,
+    removed at exit)."""
+    import pyrender
+
+    src = os.path.join(os.path.dirname(pyrender.__file__), "shaders")
+    out = tempfile.mkdtemp(prefix="synth-shaders-")
+    atexit.register(shutil.rmtree, out, ignore_errors=True)
+    for name in os.listdir(src):
+        shutil.copy(os.path.join(src, name), out)
+    with open(os.path.join(src, "mesh.frag")) as f:
+        text = gather_mesh_shader(f.read())
+    with open(os.path.join(out, "mesh.frag"), "w") as f:
+        f.write(text)
+    return out
+
+
+def program_cache():
+    """A pyrender ShaderProgramCache that compiles the patched shaders."""
+    from pyrender.shader_program import ShaderProgramCache
+
+    return ShaderProgramCache(shader_dir=shader_dir())

@@ -1,0 +1,75 @@
+"""synth's mesh shader (pyrender's, with the shadow filter read by gathers) against pyrender's."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+
+from synth.camera import CameraModel
+from synth.config import SceneConfig, lighting_preset
+from synth.scene import SceneRenderer
+from synth.shaders import gather_mesh_shader
+
+R_CYL = 0.0853
+R_BALL = 0.005
+
+
+def _stock_mesh_frag() -> str:
+    import pyrender
+
+    with open(os.path.join(os.path.dirname(pyrender.__file__), "shaders", "mesh.frag")) as f:
+        return f.read()
+
+
+def test_only_the_shadow_filter_is_replaced():
+    stock = _stock_mesh_frag()
+    ours = gather_mesh_shader(stock)
+    assert ours.count("textureGather(") == 4
+    a, b = stock.index("float PCF("), stock.index("float shadow_calc(")
+    # everything outside the PCF function is pyrender's text (plus the extension line)
+    head = stock[:a].replace("#version 330 core", "#version 330 core\n"
+                             "#extension GL_ARB_texture_gather : require", 1)
+    assert ours.startswith(head) and ours.endswith(stock[b:])
+
+
+def test_an_unknown_shader_is_refused():
+    stock = _stock_mesh_frag()
+    with pytest.raises(RuntimeError, match="PCF"):
+        gather_mesh_shader(stock.replace("float PCF(", "float PCF2("))
+    with pytest.raises(RuntimeError, match="result/9.0"):
+        gather_mesh_shader(stock.replace("result/9.0", "result/8.0"))
+
+
+@pytest.mark.parametrize("lighting", ["thesis", "harsh"])
+def test_frames_equal_pyrender_own_shaders(lighting):
+    """Full frames with the ball and its soft shadows: synth's shader against pyrender's,
+    at most 1 DN apart (a different order of additions could flip a rounding)."""
+    if lighting == "harsh":
+        cam = CameraModel(width=320, height=224, pixel_size=0.4e-3, center_px=(300.0, -100.0))
+        theta = -0.35
+    else:
+        cam = CameraModel(width=256, height=192, center_px=(128.0, -470.0))
+        theta = 0.04
+    L = R_CYL - R_BALL
+    c = np.array([L * math.sin(theta), -L * math.cos(theta), 0.0])
+    sr = SceneRenderer(SceneConfig(camera=cam, lighting=lighting_preset(lighting)), R_BALL, R_CYL)
+    try:
+        bg = sr.render_full(stock_shaders=True)
+        sr.set_ball(sr.ball_pose(c))
+        stock = sr.render_full(stock_shaders=True)
+        ours = sr.render_full()
+        # both sets of programs were really compiled and used
+        assert all(cache._program_cache for cache in sr._programs.values())
+    finally:
+        sr.close()
+    dn = np.abs(ours.astype(int) - stock.astype(int)) / (sr.scale / 255)
+    assert dn.max() <= 1.0, dn.max()
+    # the comparison covers the shadow filter: shadow pixels outside the ball's box, some of
+    # them in the penumbra (neither the lit nor the fully shadowed value)
+    x0, y0, x1, y1 = sr.ball_box(c[None])
+    changed = stock != bg
+    changed[max(y0, 0):y1, max(x0, 0):x1] = False
+    assert changed.sum() > 50
+    drop = (bg.astype(int) - stock.astype(int))[changed]
+    assert len(np.unique(drop)) > 10
