@@ -77,7 +77,7 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
             pose = sr.ball_pose(traj.position[i])
             t0 = time.perf_counter()
             tiles = sr.tiles_for(traj.position[i:i + 1])
-            imgs = sr.render_tiles([pose], tiles, background=bg)
+            imgs = sr.render_tiles([pose], tiles)
             for x0, y0, w, h in prev:
                 comp[y0:y0 + h, x0:x0 + w] = bg[y0:y0 + h, x0:x0 + w]
             for (x0, y0, w, h), img in zip(tiles, imgs, strict=True):

@@ -115,7 +115,7 @@ def _worker_batch(indices, centres):
         tiles = sr.tiles_for(centres[n])
         out = np.zeros(bg.shape, dtype=dtype)
         if tiles:
-            rendered = sr.render_tiles(poses, tiles, background=bg)
+            rendered = sr.render_tiles(poses, tiles)
             for (x0, y0, w, h), img in zip(tiles, rendered, strict=True):
                 out[y0:y0 + h, x0:x0 + w] = img.astype(np.int64) - k * bg[y0:y0 + h, x0:x0 + w]
         diff_arr[int(i)] = out

@@ -242,7 +242,6 @@ class SceneRenderer:
         self._programs: dict = {}  # stock? -> pyrender program cache
         self._shadow_cache = None
         self._shadow_prev: dict = {}  # lamp -> texel box the ball covered last
-        self._tile_parts: dict = {}  # tile from tiles_for -> the boxes merged into it
 
     def silhouette_mode(self) -> None:
         """Switch to an unlit white ball on black (no trough, no backdrop, no shadows): the
@@ -318,7 +317,7 @@ class SceneRenderer:
         return self.render_region(0, 0, self.camera.width, self.camera.height,
                                   stock_shaders=stock_shaders)
 
-    def render_tiles(self, poses, tiles, background=None) -> list[np.ndarray]:
+    def render_tiles(self, poses, tiles) -> list[np.ndarray]:
         """Render regions ``tiles`` [(x0, y0, w, h), ...] of the scene with the ball at each of
         ``poses`` (sub-frames) and return, per tile, the sum over the sub-frames.
 
@@ -328,11 +327,6 @@ class SceneRenderer:
         rounds vertex positions differently and flips MSAA samples on the silhouette). Per
         sub-frame the lamps' shadow maps are rendered once (ball over the cached trough) and
         reused by every tile.
-
-        ``background``: the (H, W) static render (``render_full`` without the ball). With it,
-        the pixels of a tile from ``tiles_for`` that lie outside all the boxes it was merged
-        from (which the ball cannot change) are masked in the depth buffer, so llvmpipe skips
-        shading them, and are copied from the background instead.
         """
         pr = self._pyrender
         W, H, s = self.camera.width, self.camera.height, self.ss
@@ -344,12 +338,6 @@ class SceneRenderer:
         flags = self.flags | pr.RenderFlags.OFFSCREEN
         out = [None] * len(tiles)
         gl_box = [(x0 * s, (H - y0 - h) * s, w * s, h * s) for x0, y0, w, h in tiles]
-        masks = [None] * len(tiles)
-        if background is not None:
-            for k, tile in enumerate(tiles):
-                parts = self._tile_parts.get(tuple(tile))
-                if parts and len(parts) > 1:
-                    masks[k] = parts
         try:
             for pose in poses:
                 self.set_ball(pose)
@@ -357,31 +345,17 @@ class SceneRenderer:
                 if self.config.shadows:
                     self._ball_shadow_pass(inner, flags)
                 for k in range(len(tiles)):
-                    parts = None
-                    if masks[k] is not None:
-                        parts = [(a * s, (H - y1) * s, (x1 - a) * s, (y1 - b) * s)
-                                 for a, b, x1, y1 in masks[k]]
-                    color = self._forward_tile(inner, flags, gl_box[k], parts)
-                    c = self._reduce(color)
+                    c = self._reduce(self._forward_tile(inner, flags, gl_box[k]))
                     out[k] = c if out[k] is None else out[k] + c
         finally:
             r._platform.make_uncurrent()
-        n = len(poses)
-        for k, (x0, y0, w, h) in enumerate(tiles):
-            if masks[k] is None:
-                continue
-            keep = np.ones((h, w), bool)
-            for a, b, x1, y1 in masks[k]:
-                keep[b - y0:y1 - y0, a - x0:x1 - x0] = False
-            out[k][keep] = n * background[y0:y0 + h, x0:x0 + w][keep]
         return out
 
-    def _forward_tile(self, inner, flags, box, parts=None) -> np.ndarray:
+    def _forward_tile(self, inner, flags, box) -> np.ndarray:
         """pyrender's forward pass (Renderer._forward_pass) scissored to ``box`` (GL window
         coordinates): the same draws in the same order with the same uniform values, but the
         camera and lamp uniforms are set once per shader program instead of once per
-        primitive (they are equal for all). ``parts``: boxes inside ``box`` to shade; the rest
-        of ``box`` gets depth 0, which fails every fragment's depth test."""
+        primitive (they are equal for all)."""
         from OpenGL.GL import (
             GL_COLOR_BUFFER_BIT,
             GL_DEPTH_BUFFER_BIT,
@@ -389,7 +363,6 @@ class SceneRenderer:
             GL_SCISSOR_TEST,
             glClear,
             glClearColor,
-            glClearDepth,
             glDisable,
             glEnable,
             glFlush,
@@ -405,14 +378,6 @@ class SceneRenderer:
             glScissor(*box)
             glClearColor(*scene.bg_color)
             glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT)
-            if parts:
-                glClearDepth(0.0)
-                glClear(GL_DEPTH_BUFFER_BIT)
-                glClearDepth(1.0)
-                for p in parts:
-                    glScissor(*p)
-                    glClear(GL_DEPTH_BUFFER_BIT)
-                glScissor(*box)
             glEnable(GL_MULTISAMPLE)
             V, P = inner._get_camera_matrices(scene)
             cam_pos = scene.get_pose(scene.main_camera_node)[:3, 3]
@@ -668,7 +633,6 @@ class SceneRenderer:
             x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
             if x1 > x0 and y1 > y0:
                 clipped.append((x0, y0, x1, y1))
-        parts = [[b] for b in clipped]
         merged = True
         while merged and len(clipped) > 1:
             merged = False
@@ -678,15 +642,12 @@ class SceneRenderer:
                     u = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
                     if _area(u) - (_area(a) + _area(b)) <= MERGE_PX:
                         clipped[i] = u
-                        parts[i] += parts[j]
-                        del clipped[j], parts[j]
+                        del clipped[j]
                         merged = True
                         break
                 if merged:
                     break
-        tiles = [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
-        self._tile_parts = dict(zip(tiles, parts, strict=True))
-        return tiles
+        return [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
 
 
 def _cache_light_matrices(inner) -> None:
