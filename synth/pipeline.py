@@ -170,6 +170,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     """
     import zarr
     from tqdm import tqdm
+    from zarr.codecs import ZstdCodec
 
     from rollfric.setup import Setup
     from synth.scene import SceneRenderer
@@ -216,8 +217,11 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         # a frame: a region read decodes the whole chunk (mostly zeros: ~1 ms with zarr 3.1),
         # which measured faster than partial reads of 128 x 128 inner chunks of a per-frame
         # shard (~1.5 ms, zarr's per-chunk overhead) and keeps the store smaller
+        # zstd level 1: writing a frame's chunk took 2.6 ms instead of 3.8 ms at zarr's default
+        # level, for 2 % more bytes
         g.create_array("clean_diff", shape=(n, H, W), dtype=diff_dtype, chunks=(1, H, W),
-                       fill_value=0, chunk_key_encoding={"name": "v2", "separator": "."})
+                       fill_value=0, chunk_key_encoding={"name": "v2", "separator": "."},
+                       compressors=[ZstdCodec(level=1)])
         tg = g.create_group("truth")
         for name, values in truth_table(traj, cam, r_ball).items():
             arr = tg.create_array(name, data=np.asarray(values, dtype=np.float64))

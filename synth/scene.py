@@ -654,23 +654,29 @@ def _cache_light_matrices(inner) -> None:
     """Keep pyrender's shadow-camera matrices of each lamp instead of rebuilding them.
 
     pyrender builds a new shadow camera and inverts the lamp's pose for every draw that uses a
-    lamp (~0.15 ms each, 6-8 times a frame); the matrices depend only on the lamp's pose and the
-    scene's scale and centroid, which form the key here, so the values are the same.
+    lamp (~0.15 ms each, 6-8 times a frame). The matrices depend only on the lamp's pose and the
+    scene's bounds (scale, centroid): the cache is emptied when those change. pyrender renews
+    its bounds object whenever a node moves, so they are compared only then.
     """
     original = inner._get_light_cam_matrices
-    cache: dict = {}
+    state: dict = {"bounds": None, "key": None, "cache": {}}
 
     def cached(scene, light_node, flags):
-        key = (id(light_node), scene.get_pose(light_node).tobytes(), float(scene.scale),
-               scene.centroid.tobytes())
-        if key not in cache:
-            if len(cache) > 64:
-                cache.clear()
+        bounds = scene.bounds
+        if bounds is not state["bounds"]:
+            state["bounds"] = bounds
+            key = (bounds.tobytes(),
+                   *(scene.get_pose(n).tobytes() for n in scene.light_nodes))
+            if key != state["key"]:
+                state["key"] = key
+                state["cache"] = {}
+        cache = state["cache"]
+        if light_node not in cache:
             V, P = original(scene, light_node, flags)
             V.setflags(write=False)
             P.setflags(write=False)
-            cache[key] = (V, P)
-        return cache[key]
+            cache[light_node] = (V, P)
+        return cache[light_node]
 
     inner._get_light_cam_matrices = cached
 
