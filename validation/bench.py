@@ -163,12 +163,12 @@ def bench_render(quick: bool) -> list[Row]:
     frame = f"{r['frame']} {r['projection']}, {r['lamps']} lamps, shadows {r['shadows']}"
     return [
         Row("rendering", f"tile render, one process ({frame})", r["synth_tile_ms"], "ms/frame",
-            "plain full-frame pyrender, same scene", r["full_frame_ms"],
+            "stock pyrender, full frame, same scene", r["full_frame_ms"],
             r["full_frame_ms"] / r["synth_tile_ms"], "speed-up",
             f"max difference {r['max_diff_dn']:g} DN; median tile {r['tile_pixels_median']} px"),
         Row("rendering", f"sequence of {r['sequence_frames']} frames, "
             f"{r['sequence_workers']} processes", r["sequence_ms_per_frame"], "ms/frame",
-            "plain full-frame pyrender", r["full_frame_ms"], r["speedup_sequence"], "speed-up",
+            "stock pyrender, full frame", r["full_frame_ms"], r["speedup_sequence"], "speed-up",
             f"{r['sequence_fps']:g} frames/s; 4000 frames in ~{r['est_4000_frames_s']:g} s "
             f"(target 120 s)"),
         Row("rendering", "recording size for 4000 frames", r["est_store_4000_mb"], "MB",
