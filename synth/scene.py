@@ -11,8 +11,9 @@ renders only the pixels the ball and its shadows can change (the footprint, from
 tangent rays), with the projection shifted so the tile lines up with the full frame pixel for
 pixel. Shader programs and mesh buffers persist in the renderer; each frame's shadow maps are
 rendered once and reused by every tile of that frame. The mesh shader is pyrender's with its
-shadow filter reading the maps by gathers (synth.shaders: the same pixels, a third faster);
-``stock_shaders=True`` renders with pyrender's own, for the benchmark's baseline.
+shadow filter reading the maps by gathers and its light loops bounded by the scene's lamp count
+(synth.shaders: the same pixels, less than half the time); ``stock_shaders=True`` renders with
+pyrender's own, for the benchmark's baseline.
 """
 
 from __future__ import annotations
@@ -266,7 +267,7 @@ class SceneRenderer:
 
             self._renderer = self._pyrender.OffscreenRenderer(vw, vh)
             self._programs = {True: self._renderer._renderer._program_cache,
-                              False: program_cache()}
+                              False: program_cache(self.scene)}
             _cache_light_matrices(self._renderer._renderer)
         else:
             self._renderer.viewport_width = vw

@@ -1,4 +1,5 @@
-"""synth's mesh shader (pyrender's, with the shadow filter read by gathers) against pyrender's."""
+"""synth's mesh shader (pyrender's, with the shadow filter read by gathers and the light loops
+bounded by the scene's light counts) against pyrender's."""
 
 import math
 import os
@@ -9,7 +10,7 @@ import pytest
 from synth.camera import CameraModel
 from synth.config import SceneConfig, lighting_preset
 from synth.scene import SceneRenderer
-from synth.shaders import gather_mesh_shader
+from synth.shaders import fixed_light_loops, gather_mesh_shader
 
 R_CYL = 0.0853
 R_BALL = 0.005
@@ -33,12 +34,27 @@ def test_only_the_shadow_filter_is_replaced():
     assert ours.startswith(head) and ours.endswith(stock[b:])
 
 
+def test_light_loops_get_the_scene_counts_and_keep_their_bound():
+    stock = _stock_mesh_frag()
+    ours = fixed_light_loops(stock, 0, 2, 0)
+    for kind, n in (("directional", 0), ("spot", 2), ("point", 0)):
+        assert f"for (int i = 0; i < n_{kind}_lights; i++)" not in ours
+        assert (f"for (int i = 0; i < {n}; i++) {{\n        if (i >= n_{kind}_lights) break;"
+                in ours)
+    # nothing else changed
+    assert ours.count("\n") == stock.count("\n") + 3
+    with pytest.raises(ValueError, match="n_spot"):
+        fixed_light_loops(stock, 0, -1, 0)
+
+
 def test_an_unknown_shader_is_refused():
     stock = _stock_mesh_frag()
     with pytest.raises(RuntimeError, match="PCF"):
         gather_mesh_shader(stock.replace("float PCF(", "float PCF2("))
     with pytest.raises(RuntimeError, match="result/9.0"):
         gather_mesh_shader(stock.replace("result/9.0", "result/8.0"))
+    with pytest.raises(RuntimeError, match="spot-light loop"):
+        fixed_light_loops(stock.replace("i < n_spot_lights", "i < n_spot_lights - 0"), 0, 2, 0)
 
 
 @pytest.mark.parametrize("lighting", ["thesis", "harsh"])
