@@ -125,20 +125,24 @@ def _worker_batch(indices, centres):
 MAX_POOL_RESTARTS = 3
 
 
-def _render_parallel(batches, centres, workers, init, bar) -> None:
+def _render_parallel(batches, centres, workers, init, bar, *, initializer=None,
+                     batch_fn=None) -> None:
     """Render batches in ``workers`` spawned processes (EGL contexts do not survive fork).
 
     A batch writes only its own frames' chunks, so a batch whose process died (llvmpipe has
     crashed a worker once in a 4000-frame run on this machine) is simply rendered again in a
-    fresh pool, at most MAX_POOL_RESTARTS times.
+    fresh pool, at most MAX_POOL_RESTARTS times. ``initializer(*init)`` prepares each process
+    and ``batch_fn(indices, centres)`` renders a batch (default: _worker_init, _worker_batch).
     """
+    initializer = initializer or _worker_init
+    batch_fn = batch_fn or _worker_batch
     ctx = mp.get_context("spawn")
     pending = list(range(len(batches)))
     for attempt in range(MAX_POOL_RESTARTS + 1):
         failed = []
-        with cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_worker_init,
+        with cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=initializer,
                                     initargs=init) as pool:
-            futs = {pool.submit(_worker_batch, batches[k], centres[batches[k]]): k
+            futs = {pool.submit(batch_fn, batches[k], centres[batches[k]]): k
                     for k in pending}
             for f in cf.as_completed(futs):
                 try:
