@@ -240,7 +240,7 @@ class SceneRenderer:
         if config.shadows:
             self.flags |= pyrender.RenderFlags.SHADOWS_SPOT
         self._renderer = None
-        self._programs: dict = {}  # stock? -> pyrender program cache
+        self._programs: dict = {}  # "stock" or light counts -> pyrender program cache
         self._shadow_cache = None
         self._shadow_prev: dict = {}  # lamp -> texel box the ball covered last
 
@@ -260,19 +260,22 @@ class SceneRenderer:
 
     def _ensure_renderer(self, w: int, h: int, stock_shaders: bool = False):
         """The offscreen renderer at w x h output pixels, compiling pyrender's own shaders
-        (``stock_shaders``) or synth's (its shadow filter read with gathers, synth.shaders)."""
+        (``stock_shaders``) or synth's (synth.shaders: built for the scene's light counts, so
+        a scene whose lights change gets programs for its new counts)."""
+        from synth.shaders import light_counts, program_cache
+
         vw, vh = w * self.ss, h * self.ss
         if self._renderer is None:
-            from synth.shaders import program_cache
-
             self._renderer = self._pyrender.OffscreenRenderer(vw, vh)
-            self._programs = {True: self._renderer._renderer._program_cache,
-                              False: program_cache(self.scene)}
+            self._programs = {"stock": self._renderer._renderer._program_cache}
             _cache_light_matrices(self._renderer._renderer)
         else:
             self._renderer.viewport_width = vw
             self._renderer.viewport_height = vh
-        self._renderer._renderer._program_cache = self._programs[bool(stock_shaders)]
+        key = "stock" if stock_shaders else light_counts(self.scene)
+        if key not in self._programs:
+            self._programs[key] = program_cache(key)
+        self._renderer._renderer._program_cache = self._programs[key]
         return self._renderer
 
     def ball_pose(self, centre) -> np.ndarray:

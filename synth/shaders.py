@@ -122,11 +122,15 @@ def shader_dir(n_directional: int, n_spot: int, n_point: int) -> str:
     return out
 
 
-def program_cache(scene):
-    """A pyrender ShaderProgramCache compiling the patched shaders for ``scene`` (a
-    pyrender.Scene whose lights are all added)."""
+def light_counts(scene) -> tuple[int, int, int]:
+    """(directional, spot, point) lights of a pyrender.Scene: what the loops are bounded by."""
+    return (len(scene.directional_light_nodes), len(scene.spot_light_nodes),
+            len(scene.point_light_nodes))
+
+
+def program_cache(counts: tuple[int, int, int]):
+    """A pyrender ShaderProgramCache compiling the patched shaders for a scene with ``counts``
+    (directional, spot, point) lights."""
     from pyrender.shader_program import ShaderProgramCache
 
-    return ShaderProgramCache(shader_dir=shader_dir(len(scene.directional_light_nodes),
-                                                    len(scene.spot_light_nodes),
-                                                    len(scene.point_light_nodes)))
+    return ShaderProgramCache(shader_dir=shader_dir(*counts))

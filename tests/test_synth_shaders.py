@@ -89,3 +89,26 @@ def test_frames_equal_pyrender_own_shaders(lighting):
     assert changed.sum() > 50
     drop = (bg.astype(int) - stock.astype(int))[changed]
     assert len(np.unique(drop)) > 10
+
+
+def test_a_lamp_added_after_the_first_render_is_drawn():
+    """The programs are built for the scene's light counts: a lamp added later gets programs
+    for the new count (a loop bounded by the old count would leave it dark)."""
+    import pyrender
+
+    from synth.scene import _look_at
+
+    cam = CameraModel(width=256, height=192, center_px=(128.0, -470.0))
+    sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
+    try:
+        before = sr.render_full()
+        lamp = pyrender.SpotLight(color=[1.0, 1.0, 1.0], intensity=0.05,
+                                  innerConeAngle=0.2, outerConeAngle=0.4)
+        sr.scene.add(lamp, pose=_look_at([0.0, -0.05, 0.3], [0.0, -0.08, 0.0]), name="extra")
+        ours = sr.render_full()
+        stock = sr.render_full(stock_shaders=True)
+    finally:
+        sr.close()
+    dn = sr.scale / 255
+    assert np.abs(ours.astype(int) - before.astype(int)).max() / dn > 5  # the lamp lights
+    assert np.abs(ours.astype(int) - stock.astype(int)).max() / dn <= 1.0
