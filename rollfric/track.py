@@ -373,6 +373,17 @@ def check_track_fits(df: pd.DataFrame, setup: Setup) -> None:
                          " (ball.diameter_mm / camera.pixel_size_mm)")
 
 
+def fps_mismatch(recording_fps, setup_fps: float) -> str | None:
+    """A note when the recording carries a frame rate other than the setup's, else None.
+
+    The setup's rate is the one used: a high-speed camera's video export often carries a
+    playback rate (25, 30 fps), not the rate the frames were taken at."""
+    if not recording_fps or abs(recording_fps - setup_fps) <= 1e-6 * setup_fps:
+        return None
+    return (f"the recording says {recording_fps:g} frames/s, the setup {setup_fps:g} Hz: times "
+            "use the setup's (camera.fps); a video export's rate is often a playback rate")
+
+
 def measure(recording, setup: Setup | str | None = None, background=None, *,
             method: str = "subpixel", angle: str = "atan2", fit_method: str = "lsq",
             offset: bool = False, fit: bool = True, progress: bool = False,
@@ -401,6 +412,9 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     if method not in locate.METHODS:
         raise InputError(f"unknown locator {method!r} (known: {', '.join(locate.METHODS)})")
     check_setup_fits(setup, source.shape)
+    fps_note = fps_mismatch(getattr(source, "fps", None), setup.fps)
+    if fps_note and log:
+        log(f"warning: {fps_note}")
     bg, bg_desc = resolve_background(source, background, median_frames=median_frames, log=log)
     if setup.center_px is not None:
         center, center_desc = setup.center_px, "setup center_px"
@@ -426,7 +440,9 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     n_found = int(df["found"].sum())
     df.attrs.update({"background": bg_desc, "center_source": center_desc,
                      "n_frames": len(df), "n_found": n_found,
-                     "recording": str(getattr(source, "name", recording))})
+                     "recording": str(getattr(source, "name", recording)),
+                     "warnings": list(df.attrs.get("warnings", [])) + ([fps_note] if fps_note
+                                                                        else [])})
     if n_found < len(df) and log:
         log(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of the fit)")
     result = None

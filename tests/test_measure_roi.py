@@ -206,3 +206,19 @@ def test_subpixel_on_a_lazy_frame_reads_one_region():
     b = locate_subpixel(frame, rec.background, r_px, guess=guess, search=3.0)
     assert a == b and a.found
     assert 1 <= len(reads) <= 2
+
+
+def test_a_recording_frame_rate_other_than_the_setup_is_reported():
+    rec = make_recording(12, noise=1.0)
+    frames = [np.asarray(f) for f in rec.frames]
+    src = _Plain(frames)
+    src.fps = 30.0  # a video export's playback rate
+    logs = []
+    df, _ = measure(src, rec.setup, rec.background, fit=False, log=logs.append)
+    assert any("30 frames/s" in m and "setup" in m for m in df.attrs["warnings"])
+    assert any(m.startswith("warning: the recording says 30") for m in logs)
+    # times still come from the setup's rate
+    np.testing.assert_allclose(df["t_s"].to_numpy(), np.arange(12) / rec.setup.fps)
+    src.fps = rec.setup.fps
+    df, _ = measure(src, rec.setup, rec.background, fit=False)
+    assert not any("frames/s" in m for m in df.attrs["warnings"])
