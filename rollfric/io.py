@@ -394,22 +394,6 @@ def open_recording(path: str | Path):
                          f"images, video {', '.join(VIDEO_SUFFIXES)}, or Zarr store)")
 
 
-def median_background(source, max_frames: int = 41) -> np.ndarray:
-    """Per-pixel median of up to ``max_frames`` frames spread evenly over the recording.
-
-    Frames are streamed; at most ``max_frames`` are held at once, so memory stays bounded.
-    Valid as a background only when the ball moves by more than its diameter in that sample.
-    """
-    n = len(source)
-    k = min(n, max(3, int(max_frames)))
-    idx = np.unique(np.linspace(0, n - 1, k).round().astype(int))
-    stack = np.empty((len(idx),) + tuple(source.shape[1:]), dtype=source.dtype)
-    for j, i in enumerate(idx):
-        stack[j] = source[int(i)]
-    med = np.median(stack, axis=0)
-    return np.rint(med).astype(source.dtype)
-
-
 def check_background(background: np.ndarray, source, what: str = "background") -> np.ndarray:
     """The background as a 2-D array of the frames' size, or RecordingError."""
     bg = _to_gray(np.asarray(background), what)

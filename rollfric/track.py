@@ -218,21 +218,30 @@ def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=No
     raise InputError(f"unknown locator {method!r} (known: {', '.join(locate.METHODS)})")
 
 
-def resolve_background(source, background, *, median_frames: int = 41, log=None):
-    """(background array, description): the given image, the recording's own, or the median."""
+def resolve_background(source, background, *, r_px: float, median_frames: int = 41,
+                       log=None):
+    """(background array, description, notes): the given image, the recording's own, or the
+    median of frames (:func:`rollfric.background.median_background`, repaired where the ball
+    of radius ``r_px`` rested in most of them; notes say so)."""
     if background is not None:
         if isinstance(background, np.ndarray):
-            return io.check_background(background, source), "given array"
+            return io.check_background(background, source), "given array", []
         bg = io.read_image(background)
-        return io.check_background(bg, source, f"background {background}"), str(background)
+        return io.check_background(bg, source, f"background {background}"), str(background), []
     if getattr(source, "background", None) is not None:
         return io.check_background(source.background, source, "the recording's background"), \
-            "stored in the recording"
+            "stored in the recording", []
+    from rollfric.background import median_background
+
+    k = min(len(source), median_frames)
     if log:
-        log(f"no background given: using the per-pixel median of "
-            f"{min(len(source), median_frames)} frames spread over the recording")
-    bg = io.median_background(source, median_frames)
-    return bg, f"per-pixel median of {min(len(source), median_frames)} frames"
+        log(f"no background given: using the per-pixel median of {k} frames spread over the "
+            "recording")
+    bg, notes = median_background(source, r_px, median_frames)
+    for msg in notes:
+        if log:
+            log(f"warning: {msg}")
+    return bg, f"per-pixel median of {k} frames" + (", repaired" if notes else ""), notes
 
 
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
@@ -415,7 +424,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     fps_note = fps_mismatch(getattr(source, "fps", None), setup.fps)
     if fps_note and log:
         log(f"warning: {fps_note}")
-    bg, bg_desc = resolve_background(source, background, median_frames=median_frames, log=log)
+    bg, bg_desc, bg_notes = resolve_background(source, background, median_frames=median_frames,
+                                               log=log, r_px=ball_radius_px(setup))
     if setup.center_px is not None:
         center, center_desc = setup.center_px, "setup center_px"
     else:
@@ -441,8 +451,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     df.attrs.update({"background": bg_desc, "center_source": center_desc,
                      "n_frames": len(df), "n_found": n_found,
                      "recording": str(getattr(source, "name", recording)),
-                     "warnings": list(df.attrs.get("warnings", [])) + ([fps_note] if fps_note
-                                                                        else [])})
+                     "warnings": list(df.attrs.get("warnings", [])) + bg_notes
+                     + ([fps_note] if fps_note else [])})
     if n_found < len(df) and log:
         log(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of the fit)")
     result = None

@@ -14,7 +14,6 @@ import zarr
 from rollfric.io import (
     RecordingError,
     check_background,
-    median_background,
     open_recording,
     read_image,
 )
@@ -144,9 +143,11 @@ def test_median_background_streams_a_subsample():
             f[i % 8, :] = 250  # a 'ball' that moves: never in the median
             return f
 
+    from rollfric.background import median_background
+
     src = Counting()
-    bg = median_background(src, max_frames=21)
-    assert src.reads == 21
+    bg, notes = median_background(src, 1.0, max_frames=21)
+    assert src.reads == 21 and notes == []
     np.testing.assert_array_equal(bg, 100)
 
 
