@@ -238,8 +238,8 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
         log(f"no background given: using the per-pixel median of {k} frames spread over the "
             "recording")
     bg, notes = median_background(source, r_px, median_frames)
-    for msg in notes:
-        if log:
+    if log:
+        for msg in notes:
             log(f"warning: {msg}")
     return bg, f"per-pixel median of {k} frames" + (", repaired" if notes else ""), notes
 

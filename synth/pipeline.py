@@ -125,8 +125,8 @@ def _worker_batch(indices, centres):
 MAX_POOL_RESTARTS = 3
 
 
-def _render_parallel(batches, centres, workers, init, bar, *, initializer=None,
-                     batch_fn=None) -> None:
+def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worker_init,
+                     batch_fn=_worker_batch) -> None:
     """Render batches in ``workers`` spawned processes (EGL contexts do not survive fork).
 
     A batch writes only its own frames' chunks, so a batch whose process died (llvmpipe has
@@ -134,8 +134,6 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=None,
     fresh pool, at most MAX_POOL_RESTARTS times. ``initializer(*init)`` prepares each process
     and ``batch_fn(indices, centres)`` renders a batch (default: _worker_init, _worker_batch).
     """
-    initializer = initializer or _worker_init
-    batch_fn = batch_fn or _worker_batch
     ctx = mp.get_context("spawn")
     pending = list(range(len(batches)))
     for attempt in range(MAX_POOL_RESTARTS + 1):
