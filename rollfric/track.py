@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from rollfric import io, locate
+from rollfric.background import median_background
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
 from rollfric.setup import Setup, SetupError, setup_from_dict
@@ -231,8 +232,6 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
     if getattr(source, "background", None) is not None:
         return io.check_background(source.background, source, "the recording's background"), \
             "stored in the recording", []
-    from rollfric.background import median_background
-
     k = min(len(source), median_frames)
     if log:
         log(f"no background given: using the per-pixel median of {k} frames spread over the "
