@@ -128,13 +128,6 @@ def relative_image(frame: np.ndarray, background: np.ndarray) -> np.ndarray:
     return frame.astype(np.float32) - background.astype(np.float32)
 
 
-def _box_mean(img: np.ndarray, ones_sum: np.ndarray, k: int) -> np.ndarray:
-    """Mean of ``img`` over the k x k box at each pixel, counting only pixels inside the image
-    (``ones_sum``: the same box sum of an all-ones image)."""
-    s = cv2.boxFilter(img, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
-    return s / ones_sum
-
-
 def _ring_template(r: float, width: float) -> np.ndarray:
     """A ring of radius r (px) with a Gaussian cross-section of sigma ``width`` px: the
     matched filter for the gradient magnitude of a smoothed disk edge."""
