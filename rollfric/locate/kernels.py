@@ -1,0 +1,448 @@
+"""The sub-pixel locator's numba kernels: ray profiles, edge points, the robust circle fit and
+the pixel-level edge-model fit (compiled once, cached on disk)."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def _profiles(rel, cx, cy, s0, ds, ns, n):
+    """Bilinear samples of rel along n rays from (cx, cy) at s0 + j ds; NaN outside rel."""
+    h, w = rel.shape
+    prof = np.empty((n, ns), np.float64)
+    for i in range(n):
+        phi = (i + 0.5) * (2.0 * np.pi / n)
+        c, sn = np.cos(phi), np.sin(phi)
+        for j in range(ns):
+            t = s0 + j * ds
+            x = cx + c * t
+            y = cy + sn * t
+            if x < 0.0 or y < 0.0 or x > w - 1 or y > h - 1:
+                prof[i, j] = np.nan
+                continue
+            ix = min(int(x), w - 2)
+            iy = min(int(y), h - 2)
+            fx = x - ix
+            fy = y - iy
+            prof[i, j] = ((1 - fy) * ((1 - fx) * rel[iy, ix] + fx * rel[iy, ix + 1])
+                          + fy * ((1 - fx) * rel[iy + 1, ix] + fx * rel[iy + 1, ix + 1]))
+    return prof
+
+
+@numba.njit(cache=True)
+def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel):
+    """Per ray: the steepest step of the ball's polarity in [r - w, r + w], then the edge
+    position from the integral of the normalised profile across a window of 2 ne + 2 samples
+    (exact for a sampled step), with the inside/outside levels from nl samples either side.
+
+    Rays whose step is below ``min_rel`` x the 75th percentile of the rays' steps have no
+    usable contrast and are not valid.
+
+    Returns s_edge, contrast (inside - outside, signed by polarity), outside std, valid,
+    and the inside and outside levels used."""
+    n, ns = prof.shape
+    # polarity: inside minus outside at the ends of the band, median over rays
+    diffs = np.empty(n)
+    m = 0
+    for i in range(n):
+        a = 0.0
+        b = 0.0
+        for j in range(nl):
+            a += prof[i, j]
+            b += prof[i, ns - 1 - j]
+        if np.isfinite(a) and np.isfinite(b):
+            diffs[m] = (a - b) / nl
+            m += 1
+    s_edge = np.full(n, np.nan)
+    a_used = np.full(n, np.nan)
+    b_used = np.full(n, np.nan)
+    con = np.full(n, np.nan)
+    osd = np.full(n, np.nan)
+    valid = np.zeros(n, np.bool_)
+    if m < 3:
+        return s_edge, con, osd, valid, a_used, b_used
+    # polarity: the majority sign among the rays with a clear step (rays where the ball sits
+    # in front of a region of its own level -- a cast shadow, the trough -- have none and
+    # must not outvote the arc that has contrast)
+    absd = np.sort(np.abs(diffs[:m]))
+    tpol = 0.3 * absd[int(0.9 * (m - 1))]
+    npos = 0
+    nneg = 0
+    for i in range(m):
+        if diffs[i] > tpol:
+            npos += 1
+        elif diffs[i] < -tpol:
+            nneg += 1
+    sgn = 1.0 if npos >= nneg else -1.0
+    lo = max(ne + nl, int(np.floor((r - w - s0) / ds)))
+    hi = min(ns - ne - nl - 3, int(np.ceil((r + w - s0) / ds)))
+    kbs = np.full(n, -1)
+    a_in = np.full(n, np.nan)
+    b_out = np.full(n, np.nan)
+    for i in range(n):
+        best = -np.inf
+        kb = -1
+        for k in range(lo, hi + 1):
+            g = sgn * ((prof[i, k - 1] + prof[i, k]) - (prof[i, k + 1] + prof[i, k + 2]))
+            if g > best:  # NaN never wins
+                best = g
+                kb = k
+        if kb < 0:
+            continue
+        a = 0.0
+        b = 0.0
+        b2 = 0.0
+        for j in range(nl):
+            a += prof[i, kb - ne - 1 - j]
+            v = prof[i, kb + ne + 2 + j]
+            b += v
+            b2 += v * v
+        a /= nl
+        b /= nl
+        kbs[i] = kb
+        a_in[i] = a
+        b_out[i] = b
+        osd[i] = np.sqrt(max(b2 / nl - b * b, 0.0))
+    # rays with contrast: a step of at least min_rel x the typical strong ray's (the 75th
+    # percentile); the others (the ball in front of a cast shadow or of anything of its own
+    # level) carry no edge and are left out of the level statistics below
+    fin = np.isfinite(a_in) & np.isfinite(b_out)
+    if fin.sum() < 3:
+        return s_edge, con, osd, valid, a_used, b_used
+    cr = np.sort(sgn * (a_in[fin] - b_out[fin]))
+    cref = cr[int(0.75 * (len(cr) - 1))]
+    for i in range(n):
+        if fin[i] and sgn * (a_in[i] - b_out[i]) < min_rel * cref:
+            fin[i] = False
+    if fin.sum() < 3:
+        return s_edge, con, osd, valid, a_used, b_used
+    # the ball's inside level: per ray, unless a spot or shading spoils it (then the median)
+    a_med = np.median(a_in[fin])
+    c_med = np.median(np.abs(a_in[fin] - b_out[fin]))
+    sd_med = np.median(osd[fin])
+    spoiled = np.abs(a_in - a_med) > 0.08 * c_med + 3.0 * sd_med
+    # drop those rays when enough clean ones remain, else use the median inside level
+    drop = (fin & ~spoiled).sum() >= 0.5 * fin.sum()
+    # levels averaged over neighbouring rays (2 ksm + 1, clean ones only): less noise
+    a_sm = np.full(n, np.nan)
+    b_sm = np.full(n, np.nan)
+    for i in range(n):
+        sa = 0.0
+        sb = 0.0
+        na = 0
+        nb = 0
+        for j in range(-ksm, ksm + 1):
+            q = (i + j) % n
+            if fin[q]:
+                sb += b_out[q]
+                nb += 1
+                if not spoiled[q]:
+                    sa += a_in[q]
+                    na += 1
+        if na > 0:
+            a_sm[i] = sa / na
+        if nb > 0:
+            b_sm[i] = sb / nb
+    for i in range(n):
+        kb = kbs[i]
+        if kb < 0 or not fin[i]:
+            continue
+        a = a_sm[i] if np.isfinite(a_sm[i]) else a_med
+        if spoiled[i]:
+            if drop:
+                continue
+            a = a_med
+        b = b_sm[i]
+        c = a - b
+        if c * sgn <= 0:
+            continue
+        acc = 0.0
+        nw = 2 * ne + 2
+        for j in range(nw):
+            f = (prof[i, kb - ne + j] - b) / c
+            acc += 0.5 * f if (j == 0 or j == nw - 1) else f
+        se = s0 + (kb - ne) * ds + ds * acc
+        if not np.isfinite(se) or se <= s0 + (kb - ne) * ds or se >= s0 + (kb + ne + 1) * ds:
+            continue
+        s_edge[i] = se
+        con[i] = abs(c)
+        valid[i] = True
+        a_used[i] = a
+        b_used[i] = b
+    return s_edge, con, osd, valid, a_used, b_used
+
+
+@numba.njit(cache=True)
+def _solve3(m, v):
+    det = (m[0, 0] * (m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1])
+           - m[0, 1] * (m[1, 0] * m[2, 2] - m[1, 2] * m[2, 0])
+           + m[0, 2] * (m[1, 0] * m[2, 1] - m[1, 1] * m[2, 0]))
+    out = np.empty(3)
+    if det == 0.0 or not np.isfinite(det):
+        out[:] = np.nan
+        return out
+    for c in range(3):
+        mm = m.copy()
+        for r in range(3):
+            mm[r, c] = v[r]
+        out[c] = (mm[0, 0] * (mm[1, 1] * mm[2, 2] - mm[1, 2] * mm[2, 1])
+                  - mm[0, 1] * (mm[1, 0] * mm[2, 2] - mm[1, 2] * mm[2, 0])
+                  + mm[0, 2] * (mm[1, 0] * mm[2, 1] - mm[1, 1] * mm[2, 0])) / det
+    return out
+
+
+@numba.njit(cache=True)
+def _fit_circle(xs, ys, r_known, free, tukey_c, sigma_floor):
+    """Robust geometric circle fit: algebraic (Kasa) start, then Gauss-Newton on the
+    point-to-circle distances with Tukey biweights (scale from the MAD, floored at
+    sigma_floor). Returns cx, cy, r, weights, residuals."""
+    n = len(xs)
+    ata = np.zeros((3, 3))
+    atb = np.zeros(3)
+    for i in range(n):
+        row = (xs[i], ys[i], 1.0)
+        z = xs[i] * xs[i] + ys[i] * ys[i]
+        for p in range(3):
+            atb[p] += row[p] * z
+            for q in range(3):
+                ata[p, q] += row[p] * row[q]
+    sol = _solve3(ata, atb)
+    cx = 0.5 * sol[0]
+    cy = 0.5 * sol[1]
+    r = np.sqrt(max(sol[2] + cx * cx + cy * cy, 1e-12)) if free else r_known
+    wts = np.ones(n)
+    res = np.zeros(n)
+    d = np.zeros(n)
+    if not (np.isfinite(cx) and np.isfinite(cy)):
+        return np.nan, np.nan, np.nan, wts, res
+    for it in range(30):
+        for i in range(n):
+            d[i] = max(np.hypot(xs[i] - cx, ys[i] - cy), 1e-9)
+            res[i] = d[i] - r
+        good = res[wts > 0]
+        if len(good) < 3:
+            return np.nan, np.nan, np.nan, wts, res
+        med = np.median(good)
+        scale = max(1.4826 * np.median(np.abs(good - med)), sigma_floor)
+        jtj = np.zeros((3, 3))
+        jtr = np.zeros(3)
+        wsum = 0.0
+        for i in range(n):
+            u = (res[i] - med) / (tukey_c * scale)
+            wi = (1.0 - u * u) ** 2 if abs(u) < 1.0 else 0.0
+            wts[i] = wi
+            wsum += wi
+            j0 = -(xs[i] - cx) / d[i]
+            j1 = -(ys[i] - cy) / d[i]
+            jj = (j0, j1, -1.0)
+            for p in range(3):
+                jtr[p] += wi * jj[p] * res[i]
+                for q in range(3):
+                    jtj[p, q] += wi * jj[p] * jj[q]
+        if wsum < 3.0:
+            return np.nan, np.nan, np.nan, wts, res
+        if not free:  # 2 x 2 system
+            det = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
+            if det == 0.0:
+                return np.nan, np.nan, np.nan, wts, res
+            s0 = -(jtj[1, 1] * jtr[0] - jtj[0, 1] * jtr[1]) / det
+            s1 = -(-jtj[1, 0] * jtr[0] + jtj[0, 0] * jtr[1]) / det
+            s2 = 0.0
+        else:
+            st = _solve3(jtj, -jtr)
+            s0, s1, s2 = st[0], st[1], st[2]
+        if not (np.isfinite(s0) and np.isfinite(s1) and np.isfinite(s2)):
+            return np.nan, np.nan, np.nan, wts, res
+        cx += s0
+        cy += s1
+        r += s2
+        if abs(s0) + abs(s1) + abs(s2) < 1e-6 and it > 1:
+            break
+    for i in range(n):
+        res[i] = np.hypot(xs[i] - cx, ys[i] - cy) - r
+    return cx, cy, r, wts, res
+
+
+@numba.njit(cache=True)
+def _edge_cdf(t, a, b):
+    """Area of a unit pixel on the inner side of a straight edge at signed distance t from its
+    centre, for an edge normal (cos, sin) with |cos| = a >= |sin| = b: the CDF of the sum of
+    two uniform variables of widths a and b. Returns (coverage, density)."""
+    if b < 1e-6:
+        if t <= -0.5 * a:
+            return 0.0, 0.0
+        if t >= 0.5 * a:
+            return 1.0, 0.0
+        return t / a + 0.5, 1.0 / a
+    lo, mid = -0.5 * (a + b), 0.5 * (a - b)
+    if t <= lo:
+        return 0.0, 0.0
+    if t <= -mid:
+        return (t - lo) ** 2 / (2 * a * b), (t - lo) / (a * b)
+    if t <= mid:
+        return (t + 0.5 * a) / a, 1.0 / a
+    if t < -lo:
+        return 1.0 - (-lo - t) ** 2 / (2 * a * b), (-lo - t) / (a * b)
+    return 1.0, 0.0
+
+
+@numba.njit(cache=True)
+def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
+    """Refine the circle on the pixels themselves: each pixel within 1.5 px of the rim, on a
+    ray kept by the robust fit, is modelled as b + (a - b) * (area of the pixel inside the
+    disk) with a straight-edge area model, levels a, b of its ray; Gauss-Newton on the centre
+    (and radius). The contrast is taken pixel by pixel against the background ``bgr``: where
+    the ball covers a background that changes (the trough's contour at the contact, texture),
+    frame - background = b + (a + B_in - B - b) * area, B_in the background ``inset`` px
+    inside the rim where the level a was measured. Uses every edge pixel once with its own
+    weight, which is what the noise allows (Cramer-Rao). Rays whose pixels do not fit are
+    dropped after the first pass. Returns cx, cy, r, centre standard error (px), pixels used."""
+    h, w = rel.shape
+    n = len(ray_ok)
+    npar = 3 if free else 2
+    sig = np.nan
+    npix = 0
+    ray_ok = ray_ok.copy()
+    ray_ss = np.zeros(n)
+    ray_n = np.zeros(n)
+    for it in range(iters):
+        jtj = np.zeros((3, 3))
+        jtr = np.zeros(3)
+        ss = 0.0
+        npix = 0
+        ray_ss[:] = 0.0
+        ray_n[:] = 0.0
+        x0 = max(0, int(cx - r - 2))
+        x1 = min(w - 1, int(cx + r + 3))
+        y0 = max(0, int(cy - r - 2))
+        y1 = min(h - 1, int(cy + r + 3))
+        for iy in range(y0, y1 + 1):
+            for ix in range(x0, x1 + 1):
+                dx = ix - cx
+                dy = iy - cy
+                d = np.sqrt(dx * dx + dy * dy)
+                u = d - r
+                if abs(u) > 1.5 or d == 0.0:
+                    continue
+                phi = np.arctan2(dy, dx)
+                if phi < 0:
+                    phi += 2 * np.pi
+                k = int(phi / (2 * np.pi / n)) % n
+                if not ray_ok[k]:
+                    continue
+                b = b_lv[k]
+                jx = int(np.rint(cx + dx * (r - inset) / d))
+                jy = int(np.rint(cy + dy * (r - inset) / d))
+                jx = min(max(jx, 0), w - 1)
+                jy = min(max(jy, 0), h - 1)
+                a = a_lv[k] + bgr[jy, jx] - bgr[iy, ix]
+                c = abs(dx) / d
+                s_ = abs(dy) / d
+                if s_ > c:
+                    c, s_ = s_, c
+                cov, dens = _edge_cdf(-u, c, s_)
+                res = rel[iy, ix] - (b + (a - b) * cov)
+                # d model / d (cx, cy, r): (a - b) * dens * (dx/d, dy/d, 1)
+                g0 = (a - b) * dens * dx / d
+                g1 = (a - b) * dens * dy / d
+                g2 = (a - b) * dens
+                gg = (g0, g1, g2)
+                for p in range(3):
+                    jtr[p] += gg[p] * res
+                    for q in range(3):
+                        jtj[p, q] += gg[p] * gg[q]
+                ss += res * res
+                npix += 1
+                ray_ss[k] += res * res
+                ray_n[k] += 1
+        if npix < 20:
+            return np.nan, np.nan, np.nan, np.nan, npix
+        if it == 0:
+            # drop rays whose pixels do not fit (shadow edges, spots): rms residual above
+            # 2.5 x the typical ray's, then start again from the same circle
+            used = ray_n > 0
+            rr = np.sqrt(ray_ss[used] / ray_n[used])
+            thr = 2.5 * np.median(rr)
+            drop = 0
+            for q in range(n):
+                if used[q] and np.sqrt(ray_ss[q] / ray_n[q]) > thr:
+                    ray_ok[q] = False
+                    drop += 1
+            if drop > 0:
+                continue
+        if free:
+            st = _solve3(jtj, jtr)
+            s0, s1, s2 = st[0], st[1], st[2]
+        else:
+            det = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
+            if det == 0.0:
+                return np.nan, np.nan, np.nan, np.nan, npix
+            s0 = (jtj[1, 1] * jtr[0] - jtj[0, 1] * jtr[1]) / det
+            s1 = (-jtj[1, 0] * jtr[0] + jtj[0, 0] * jtr[1]) / det
+            s2 = 0.0
+        if not (np.isfinite(s0) and np.isfinite(s1) and np.isfinite(s2)):
+            return np.nan, np.nan, np.nan, np.nan, npix
+        cx += s0
+        cy += s1
+        r += s2
+        # centre standard error from the residual variance and the 2 x 2 block of J^T J
+        var = ss / max(npix - npar, 1)
+        det2 = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
+        sig = np.sqrt(var * (jtj[0, 0] + jtj[1, 1]) / det2) if det2 > 0 else np.nan
+        if abs(s0) + abs(s1) + abs(s2) < 1e-4:
+            break
+    return cx, cy, r, sig, npix
+
+
+@numba.njit(cache=True)
+def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor):
+    """Edge points of the clean rays: the ball's typical contrast (a tight band first, widened
+    only when too few rays pass: real balls vary around the rim) and a flat outside (shadow
+    gradients, spots, the trough contact and occluders fail). Returns status, xs, ys, ray index."""
+    n = len(s_edge)
+    empty = np.empty(0)
+    iempty = np.empty(0, np.int64)
+    nv = valid.sum()
+    if nv < min_rays:
+        return 1, empty, empty, iempty
+    cmed = np.median(con[valid])
+    nz = noise if noise >= 0 else np.median(out_sd[valid])
+    if cmed < max(4.0 * nz, floor):
+        return 2, empty, empty, iempty
+    keep = np.zeros(n, np.bool_)
+    for tol in bands:
+        cnt = 0
+        for i in range(n):
+            keep[i] = (valid[i] and out_sd[i] < 0.02 * cmed + 2.5 * nz
+                       and abs(con[i] - cmed) < tol * cmed + 3.0 * nz)
+            cnt += keep[i]
+        if cnt >= max(min_rays, 0.4 * nv):
+            break
+    m = keep.sum()
+    if m < min_rays:
+        return 3, empty, empty, iempty
+    xs = np.empty(m)
+    ys = np.empty(m)
+    idx = np.empty(m, np.int64)
+    j = 0
+    for i in range(n):
+        if keep[i]:
+            phi = (i + 0.5) * (2.0 * np.pi / n)
+            xs[j] = lcx + np.cos(phi) * s_edge[i]
+            ys[j] = lcy + np.sin(phi) * s_edge[i]
+            idx[j] = i
+            j += 1
+    return 0, xs, ys, idx
+
+
+@numba.njit(cache=True)
+def _fit_stats(wts, res):
+    """Inliers, their median residual and weighted rms residual."""
+    inl = wts > 0
+    n_in = inl.sum()
+    if n_in == 0:
+        return 0, np.nan, np.nan
+    sw = wts.sum()
+    return n_in, np.median(res[inl]), np.sqrt((wts * res * res).sum() / max(sw, 1e-12))

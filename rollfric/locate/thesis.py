@@ -1,0 +1,175 @@
+"""The thesis's two locators.
+
+- ``locate_small_thesis`` (thesis paper 1, sec. 3): background subtraction, a 15 x 15 window
+  summed over a sub-image, the brightest pixel inside the best window. Integer pixels.
+- ``locate_large_thesis`` (thesis paper 2, sec. 4, steps 1-7): sub-image around the specular
+  spots, the quarter of the ball chosen by the side, binarisation and Canny, a rough centre from
+  the edge and the known diameter (eq. 12), then the candidate in the 15 x 15 neighbourhood
+  whose circle of the known radius crosses most radial intensity jumps (eqs. 13-15).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from rollfric.locate.location import Location
+from rollfric.locate.regions import _crop, _full_scale, relative_image
+from rollfric.locate.search import coarse_find
+
+# --------------------------------------------------------------------------------------------
+# thesis, paper 1: the small-ball locator
+
+
+def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
+                        roi: tuple[int, int, int, int] | None = None, window: int = 15,
+                        polarity: str = "abs") -> Location:
+    """Thesis paper 1: sum the relative image over a ``window`` x ``window`` window traversing
+    the sub-image ``roi`` = (x0, y0, x1, y1) (default: the whole frame); the centre is the
+    brightest pixel (largest frame - background) in the window of largest sum.
+
+    ``polarity`` of the summed relative image: "abs" (|frame - background|, default: finds a
+    dark ball with a bright spot as well as a bright one), "bright" (frame - background, as
+    for the thesis's bright spot) or "dark" (background - frame).
+    """
+    h, w = frame.shape
+    x0, y0, x1, y1 = (0, 0, w, h) if roi is None else roi
+    fr, x0, y0 = _crop(frame, x0, y0, x1, y1)
+    if fr is None:
+        return Location.missing("search region outside the frame")
+    bg = background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]]
+    rel = relative_image(fr, bg)
+    if polarity == "dark":
+        summed = -rel
+    elif polarity == "abs":
+        summed = np.abs(rel)
+    elif polarity == "bright":
+        summed = rel
+    else:
+        raise ValueError(f"polarity must be bright, dark or abs, got {polarity!r}")
+    sums = cv2.boxFilter(summed, -1, (window, window), normalize=False,
+                         borderType=cv2.BORDER_CONSTANT)
+    _, smax, _, (bx, by) = cv2.minMaxLoc(sums)
+    if smax < 0.1 * _full_scale(frame.dtype):  # 25 DN summed over the window (8 bit)
+        return Location.missing("no spot in the search region")
+    half = window // 2
+    sub, sx0, sy0 = _crop(rel, bx - half, by - half, bx + half + 1, by + half + 1)
+    _, vmax, _, (px, py) = cv2.minMaxLoc(sub)
+    return Location(x=float(px + sx0 + x0), y=float(py + sy0 + y0), found=True)
+
+
+# --------------------------------------------------------------------------------------------
+# thesis, paper 2: the large-ball locator
+
+
+def _circle_known_radius(xs, ys, r, cx, cy, iters=20):
+    """Least-squares centre of points on a circle of known radius r (eq. 12), Gauss-Newton."""
+    for _ in range(iters):
+        dx, dy = xs - cx, ys - cy
+        d = np.hypot(dx, dy)
+        d[d == 0] = 1e-9
+        res = d - r
+        jac = np.stack([-dx / d, -dy / d], axis=1)
+        step, *_ = np.linalg.lstsq(jac, -res, rcond=None)
+        cx, cy = cx + step[0], cy + step[1]
+        if abs(step[0]) + abs(step[1]) < 1e-6:
+            break
+    return cx, cy
+
+
+def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, *,
+                        side: int = 1, guess: tuple[float, float] | None = None,
+                        threshold: float | None = None, neighbourhood: int = 15,
+                        step: float = 0.025) -> Location:
+    """Thesis paper 2, steps 1-7, for a ball of radius ``r_px`` (px).
+
+    ``side`` is the sign of theta (+1 right of the bottom: the upper-left quarter is used,
+    -1: the upper-right). ``guess`` is where to look for the specular spots (default: the whole
+    frame via :func:`coarse_find`). ``threshold`` is the binarisation threshold on
+    |frame - background| (default: Otsu's threshold on the quarter) and also the intensity jump
+    that counts in step 6. Ties in step 6 are averaged.
+    """
+    rel_full_abs = None
+    if guess is None:
+        guess = coarse_find(frame, background, r_px)
+        if guess is None:
+            return Location.missing("no ball-like change in the frame")
+    # step 1: the specular spots near the guess -> 101 x 101 (for the 10 mm ball) sub-image
+    half_s = int(round(1.3 * r_px))
+    fr, x0, y0 = _crop(frame, int(round(guess[0])) - half_s, int(round(guess[1])) - half_s,
+                       int(round(guess[0])) + half_s + 1, int(round(guess[1])) + half_s + 1)
+    if fr is None:
+        return Location.missing("search region outside the frame")
+    rel = relative_image(fr, background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]])
+    spots = cv2.blur(rel, (3, 3))
+    _, _, _, (sx, sy) = cv2.minMaxLoc(spots)
+    scx, scy = sx + x0, sy + y0
+    half = int(round(r_px + 13))  # 50 for the 10 mm ball: the thesis's 101 x 101
+    # step 2: background subtraction on the sub-image
+    fr, x0, y0 = _crop(frame, scx - half, scy - half, scx + half + 1, scy + half + 1)
+    if fr is None or min(fr.shape) < half:
+        return Location.missing("ball too close to the frame border")
+    rel = relative_image(fr, background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]])
+    rel_full_abs = np.abs(rel)
+    # step 3: the upper-left quarter when theta > 0, the upper-right one when theta < 0
+    cxl, cyl = scx - x0, scy - y0
+    qy0, qy1 = max(0, cyl - half), cyl + 1
+    if side >= 0:
+        qx0, qx1 = max(0, cxl - half), cxl + 1
+    else:
+        qx0, qx1 = cxl, min(rel.shape[1], cxl + half + 1)
+    quarter = rel_full_abs[qy0:qy1, qx0:qx1]
+    if quarter.size < 16:
+        return Location.missing("ball quarter outside the frame")
+    # step 4: mask the (dark) part near the centre, binarise, Canny
+    yy, xx = np.mgrid[qy0:qy1, qx0:qx1]
+    inner = np.hypot(xx - cxl, yy - cyl) < 0.7 * r_px
+    if threshold is None:
+        q8 = cv2.normalize(quarter, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
+        t8, _ = cv2.threshold(q8, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+        qmin, qmax = float(quarter.min()), float(quarter.max())
+        threshold = qmin + (t8 + 0.5) / 255.0 * (qmax - qmin)
+    binary = ((quarter > threshold) | inner).astype(np.uint8) * 255
+    edges = cv2.Canny(binary, 50, 150)
+    ey, ex = np.nonzero(edges)
+    # keep edge points that can belong to the ball (not the quarter's cut lines)
+    d = np.hypot(ex + qx0 - cxl, ey + qy0 - cyl)
+    keep = (d > 0.6 * r_px) & (d < 1.5 * r_px)
+    ex, ey = ex[keep] + qx0, ey[keep] + qy0
+    if len(ex) < 5:
+        return Location.missing("no ball edge in the chosen quarter")
+    # step 5: rough centre from the edge and the known diameter (eq. 12)
+    rcx, rcy = _circle_known_radius(ex.astype(float), ey.astype(float), r_px, float(cxl),
+                                    float(cyl))
+    if not (np.isfinite(rcx) and np.isfinite(rcy)):
+        return Location.missing("rough centre fit failed")
+    # step 6: count radial intensity jumps on circles centred in the 15 x 15 neighbourhood
+    nh = neighbourhood // 2
+    c0x, c0y = int(round(rcx)), int(round(rcy))
+    offs = np.arange(-nh, nh + 1)
+    cand_x = (c0x + offs)[None, :].repeat(len(offs), 0).ravel()
+    cand_y = (c0y + offs)[:, None].repeat(len(offs), 1).ravel()
+    rho = np.arange(0.0, 2 * math.pi, step)
+    cos, sin = np.cos(rho), np.sin(rho)
+    hh, ww = rel.shape
+    x1 = np.rint(cand_x[:, None] + r_px * cos).astype(int)
+    y1 = np.rint(cand_y[:, None] + r_px * sin).astype(int)
+    x2 = np.rint(cand_x[:, None] + (r_px + 1) * cos).astype(int)
+    y2 = np.rint(cand_y[:, None] + (r_px + 1) * sin).astype(int)
+    same = (x1 == x2) & (y1 == y2)
+    x2 = np.where(same, np.rint(cand_x[:, None] + (r_px + 2) * cos).astype(int), x2)
+    y2 = np.where(same, np.rint(cand_y[:, None] + (r_px + 2) * sin).astype(int), y2)
+    inside = (x1 >= 0) & (x1 < ww) & (y1 >= 0) & (y1 < hh) & (x2 >= 0) & (x2 < ww) \
+        & (y2 >= 0) & (y2 < hh)
+    i1 = rel[np.clip(y1, 0, hh - 1), np.clip(x1, 0, ww - 1)]
+    i2 = rel[np.clip(y2, 0, hh - 1), np.clip(x2, 0, ww - 1)]
+    jumps = ((np.abs(i1 - i2) > threshold) & inside).sum(axis=1)
+    best = jumps.max()
+    if best == 0:
+        return Location.missing("no intensity jumps around the rough centre")
+    win = jumps == best
+    # step 7: back to frame coordinates
+    return Location(x=float(cand_x[win].mean() + x0), y=float(cand_y[win].mean() + y0),
+                    r=float(r_px), found=True, inlier_frac=float(best) / len(rho))
