@@ -109,7 +109,7 @@ def _merge(base: dict, over: dict) -> dict:
 
 
 def set_dotted(d: dict, key: str, value) -> None:
-    """d["a"]["b"]["c"] = value for key "a.b.c" (creating tables on the way)."""
+    """``d["a"]["b"]["c"] = value`` for key ``"a.b.c"`` (creating tables on the way)."""
     parts = key.split(".")
     if not all(parts):
         raise CaseError(f"bad parameter key {key!r}")
