@@ -30,12 +30,44 @@ __all__ = [
 
 
 def eps_from_mu(mu: float, track_radius: float, gravity: float = STANDARD_GRAVITY) -> float:
-    """Friction parameter eps (1/s^2) for mu in our convention (M = mu r N, N ~ m g)."""
+    """Friction parameter eps of the small-angle model for mu in our convention.
+
+    With M = mu r N and N ~ m g at small angles, eps = mu omega^2.
+
+    Parameters
+    ----------
+    mu : float
+        Rolling friction coefficient (M = mu r N).
+    track_radius : float
+        L = R - r, radius of the circle the ball's centre moves on (m).
+    gravity : float, optional
+        Gravitational acceleration (m/s^2).
+
+    Returns
+    -------
+    float
+        eps (1/s^2).
+    """
     return mu * omega_squared(track_radius, gravity)
 
 
 def mu_from_eps(eps: float, track_radius: float, gravity: float = STANDARD_GRAVITY) -> float:
-    """mu in our convention (M = mu r N) from the friction parameter eps (1/s^2)."""
+    """mu in our convention (M = mu r N) from the friction parameter eps.
+
+    Parameters
+    ----------
+    eps : float
+        Friction parameter of the small-angle model (1/s^2).
+    track_radius : float
+        L = R - r (m).
+    gravity : float, optional
+        Gravitational acceleration (m/s^2).
+
+    Returns
+    -------
+    float
+        mu = eps / omega^2.
+    """
     return eps / omega_squared(track_radius, gravity)
 
 
@@ -45,6 +77,22 @@ def paper1_mu_from_eps(eps: float, theta0: float, track_radius: float,
 
     mu_1 = 7 eps L / (g (17 - 10 cos theta0) - 14 eps theta0 L), theta0 the release angle.
     For theta0 -> 0 this is eps L / g = (5/7) mu.
+
+    Parameters
+    ----------
+    eps : float
+        Friction parameter (1/s^2).
+    theta0 : float
+        Release angle (rad); its sign is ignored.
+    track_radius : float
+        L = R - r (m).
+    gravity : float, optional
+        Gravitational acceleration (m/s^2).
+
+    Returns
+    -------
+    float
+        The first paper's coefficient mu_1.
     """
     theta0 = abs(theta0)
     L = track_radius
@@ -53,14 +101,48 @@ def paper1_mu_from_eps(eps: float, theta0: float, track_radius: float,
 
 def paper1_mu_from_mu(mu: float, theta0: float, track_radius: float,
                       gravity: float = STANDARD_GRAVITY) -> float:
-    """The first paper's coefficient for a ball released at theta0, given our mu."""
+    """The first paper's coefficient for a ball released at theta0, given our mu.
+
+    Parameters
+    ----------
+    mu : float
+        Rolling friction coefficient in our convention (M = mu r N).
+    theta0 : float
+        Release angle (rad).
+    track_radius : float
+        L = R - r (m).
+    gravity : float, optional
+        Gravitational acceleration (m/s^2).
+
+    Returns
+    -------
+    float
+        mu_1 of the first paper's eq. 13.
+    """
     return paper1_mu_from_eps(eps_from_mu(mu, track_radius, gravity), theta0, track_radius,
                               gravity)
 
 
 def mu_from_paper1_mu(mu_1: float, theta0: float, track_radius: float,
                       gravity: float = STANDARD_GRAVITY) -> float:
-    """Our mu from the first paper's coefficient (inverse of its eq. 13)."""
+    """Our mu from the first paper's coefficient (the inverse of its eq. 13).
+
+    Parameters
+    ----------
+    mu_1 : float
+        The first paper's coefficient.
+    theta0 : float
+        Release angle (rad); its sign is ignored.
+    track_radius : float
+        L = R - r (m).
+    gravity : float, optional
+        Gravitational acceleration (m/s^2).
+
+    Returns
+    -------
+    float
+        mu in our convention (M = mu r N).
+    """
     theta0 = abs(theta0)
     L = track_radius
     # solve mu_1 (g (17 - 10 cos) - 14 eps theta0 L) = 7 eps L for eps
@@ -69,14 +151,44 @@ def mu_from_paper1_mu(mu_1: float, theta0: float, track_radius: float,
 
 
 def decay_per_half_swing(eps: float, omega2: float) -> float:
-    """Amplitude lost per half-swing in the small-angle model: 2 eps / omega^2 (rad)."""
+    """Amplitude lost per half-swing in the small-angle model.
+
+    Parameters
+    ----------
+    eps : float
+        Friction parameter (1/s^2).
+    omega2 : float
+        omega^2 = 5 g / (7 L) (1/s^2).
+
+    Returns
+    -------
+    float
+        2 eps / omega^2 (rad).
+    """
     return 2.0 * eps / omega2
 
 
 def roll_down(t, theta0: float, eps: float, omega2: float) -> np.ndarray:
-    """Paper 1, eq. 7: released from rest at theta0 at t = 0, until the bottom.
+    """Paper 1, eq. 7: the roll-down stage, released from rest at theta0 at t = 0.
 
-    theta(t) = c + (theta0 - c) cos(omega t) with c = sign(theta0) eps / omega^2.
+    theta(t) = c + (theta0 - c) cos(omega t) with c = sign(theta0) eps / omega^2, valid until
+    the ball reaches the bottom.
+
+    Parameters
+    ----------
+    t : array_like
+        Times since the release (s).
+    theta0 : float
+        Release angle (rad).
+    eps : float
+        Friction parameter (1/s^2).
+    omega2 : float
+        omega^2 (1/s^2).
+
+    Returns
+    -------
+    numpy.ndarray
+        theta at ``t`` (rad).
     """
     w = math.sqrt(omega2)
     c = math.copysign(eps / omega2, theta0)
@@ -84,9 +196,25 @@ def roll_down(t, theta0: float, eps: float, omega2: float) -> np.ndarray:
 
 
 def climb(t, omega_m: float, eps: float, omega2: float) -> np.ndarray:
-    """Paper 1, eq. 11: leaving the bottom at t = 0 with angular velocity omega_m (signed).
+    """Paper 1, eq. 11: the climb stage, leaving the bottom at t = 0 with angular velocity omega_m.
 
     theta(t) = (omega_m / omega) sin(omega t) - sign(omega_m) (eps / omega^2) (1 - cos(omega t)).
+
+    Parameters
+    ----------
+    t : array_like
+        Times since the ball passed the bottom (s).
+    omega_m : float
+        Angular velocity at the bottom (rad/s, signed).
+    eps : float
+        Friction parameter (1/s^2).
+    omega2 : float
+        omega^2 (1/s^2).
+
+    Returns
+    -------
+    numpy.ndarray
+        theta at ``t`` (rad).
     """
     w = math.sqrt(omega2)
     t = np.asarray(t, dtype=float)
@@ -98,7 +226,29 @@ def solve_small_angle(theta0: float, omega0: float, eps: float, omega2: float, t
     """Exact solution of theta'' + omega^2 theta + eps sign(theta') = 0 from t[0].
 
     Half-swing by half-swing, with the sticking rule |theta| <= eps / omega^2 at a turning
-    point (the small-angle form of |tan theta| <= mu). Returns (theta, theta_dot, t_stop).
+    point (the small-angle form of |tan theta| <= mu).
+
+    Parameters
+    ----------
+    theta0 : float
+        theta at t[0] (rad).
+    omega0 : float
+        theta' at t[0] (rad/s).
+    eps : float
+        Friction parameter (1/s^2).
+    omega2 : float
+        omega^2 (1/s^2).
+    t : array_like
+        Increasing sample times (s).
+
+    Returns
+    -------
+    theta : numpy.ndarray
+        Angle at ``t`` (rad).
+    theta_dot : numpy.ndarray
+        Angular velocity at ``t`` (rad/s).
+    t_stop : float
+        Time the ball came to rest for good (``inf`` if not within ``t``).
     """
     t = np.asarray(t, dtype=float)
     w = math.sqrt(omega2)
