@@ -26,8 +26,24 @@ MIN_FRAMES_SHOWING = 3
 
 
 def sample(source, max_frames: int = 41) -> tuple[np.ndarray, np.ndarray]:
-    """(frame indices, stack): up to ``max_frames`` frames spread evenly over the recording,
-    streamed (at most ``max_frames`` held at once)."""
+    """Up to ``max_frames`` frames spread evenly over the recording.
+
+    Streamed: at most ``max_frames`` frames are held at once.
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording (``len``, ``shape``, ``dtype`` and ``source[i]``).
+    max_frames : int, optional
+        How many frames to sample (at least 3, at most the recording's length).
+
+    Returns
+    -------
+    indices : numpy.ndarray
+        The sampled frame indices, increasing.
+    stack : numpy.ndarray
+        The sampled frames, shape (k, H, W), the recording's dtype.
+    """
     n = len(source)
     k = min(n, max(3, int(max_frames)))
     idx = np.unique(np.linspace(0, n - 1, k).round().astype(int))
@@ -38,13 +54,43 @@ def sample(source, max_frames: int = 41) -> tuple[np.ndarray, np.ndarray]:
 
 
 def median(stack: np.ndarray) -> np.ndarray:
+    """Per-pixel median of a stack of frames, rounded to the frames' dtype.
+
+    Parameters
+    ----------
+    stack : numpy.ndarray
+        Frames, shape (k, ...).
+
+    Returns
+    -------
+    numpy.ndarray
+        The median over the first axis, in ``stack.dtype``.
+    """
     return np.rint(np.median(stack, axis=0)).astype(stack.dtype)
 
 
 def median_background(source, r_px: float, max_frames: int = 41) -> tuple[np.ndarray, list]:
-    """(background, notes): the per-pixel median of up to ``max_frames`` frames, with the discs
-    where the ball (or its cast shadow) rested in most of them replaced by the median of the
-    frames that show the backdrop there. ``notes`` says what was repaired, or why not."""
+    """The per-pixel median of up to ``max_frames`` frames, repaired where the ball rested.
+
+    The discs where the ball (or its cast shadow) rested in most of the sampled frames are
+    replaced by the median of the frames that show the backdrop there.
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording.
+    r_px : float
+        The ball's radius in pixels.
+    max_frames : int, optional
+        Frames in the median.
+
+    Returns
+    -------
+    background : numpy.ndarray
+        The background image, the recording's dtype.
+    notes : list of str
+        What was repaired, or why it could not be (then a background image is needed).
+    """
     idx, stack = sample(source, max_frames)
     bg = median(stack)
     cands = [locate.coarse_candidates(f, bg, r_px, n_candidates=3) for f in stack]

@@ -31,6 +31,19 @@ class ContourError(InputError):
 
 @dataclasses.dataclass(frozen=True)
 class CylinderContour:
+    """The trough's contour circle found in a background image.
+
+    Attributes
+    ----------
+    center : tuple of float
+        (xc, yc), the cylinder axis in pixels.
+    radius : float
+        Radius of the contour circle (px).
+    n_points : int
+        Contour points used.
+    arc_deg : float
+        Angular extent of the contour points seen (deg).
+    """
     center: tuple[float, float]  # (xc, yc) px
     radius: float  # px, of the contour circle
     n_points: int  # contour points used
@@ -68,9 +81,27 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
                          seed: int = 0, min_arc_deg: float = 60.0) -> CylinderContour:
     """Centre (px) of the trough's contour circle in ``background``.
 
-    ``radius_px``: the expected contour radius (cylinder radius / pixel size), used to pick the
-    right circle among the edges. Raises :class:`ContourError` when no circular contour with
-    a visible lowest point and enough arc is found.
+    Parameters
+    ----------
+    background : numpy.ndarray
+        Background image (H, W), without the ball.
+    radius_px : float, optional
+        The expected contour radius (cylinder radius / pixel size), used to pick the right
+        circle among the edges.
+    seed : int, optional
+        Seed of the RANSAC circle search.
+    min_arc_deg : float, optional
+        Smallest angular extent of contour points accepted (deg).
+
+    Returns
+    -------
+    CylinderContour
+        The centre, radius and support of the contour.
+
+    Raises
+    ------
+    ContourError
+        When no circular contour with a visible lowest point and enough arc is found.
     """
     img = background.astype(np.float32)
     img = cv2.GaussianBlur(img, (0, 0), 1.5)

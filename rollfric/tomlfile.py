@@ -9,8 +9,28 @@ from rollfric.errors import InputError
 
 
 def read_toml(path: str | Path, what: str, error: type[InputError] = InputError) -> dict:
-    """The table in the TOML file at ``path``; ``error`` (naming ``what`` and the path) when
-    the file is missing or not valid TOML."""
+    """The table in the TOML file at ``path``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+    what : str
+        What the file is ("setup", "scenario", ...), for the error message.
+    error : type, optional
+        The :class:`~rollfric.errors.InputError` subclass raised.
+
+    Returns
+    -------
+    dict
+        The parsed table.
+
+    Raises
+    ------
+    InputError
+        ``error``, naming ``what`` and the path, when the file is missing, a directory, or not
+        valid TOML.
+    """
     path = Path(path)
     try:
         with path.open("rb") as f:
