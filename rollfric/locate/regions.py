@@ -45,7 +45,23 @@ class LazyFrame:
         return self._data
 
     def crop(self, x0: int, y0: int, x1: int, y1: int):
-        """As :func:`_crop`: (frame[y0:y1, x0:x1] clipped to the frame, x0, y0 of the clip)."""
+        """frame[y0:y1, x0:x1] clipped to the frame, read as a region when not already held.
+
+        A region grown by ``margin`` px a side is read when the box is not inside the region held;
+        later crops inside it are sliced from it.
+
+        Parameters
+        ----------
+        x0, y0, x1, y1 : int
+            The box (x0, y0 inclusive, x1, y1 exclusive); may reach outside the frame.
+
+        Returns
+        -------
+        crop : numpy.ndarray or None
+            The clipped box, or None when it is empty.
+        x0, y0 : int
+            Top-left corner of the clipped box in the frame.
+        """
         h, w = self.shape
         x0c, y0c, x1c, y1c = max(0, x0), max(0, y0), min(w, x1), min(h, y1)
         if x1c <= x0c or y1c <= y0c:
@@ -64,7 +80,18 @@ class LazyFrame:
 
 
 def as_array(img) -> np.ndarray:
-    """The whole frame as an array (a :class:`LazyFrame` reads it)."""
+    """The whole frame as an array.
+
+    Parameters
+    ----------
+    img : numpy.ndarray or LazyFrame
+        A frame; a :class:`LazyFrame` reads its whole frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        The frame.
+    """
     return img.full() if isinstance(img, LazyFrame) else img
 
 
@@ -80,6 +107,18 @@ def _crop(img, x0: int, y0: int, x1: int, y1: int):
 
 
 def relative_image(frame: np.ndarray, background: np.ndarray) -> np.ndarray:
-    """Background subtraction: frame - background as float32 (signed; the thesis's relative
-    image up to its sign)."""
+    """Background subtraction: frame - background as float32.
+
+    Signed; the thesis's relative image up to its sign.
+
+    Parameters
+    ----------
+    frame, background : numpy.ndarray
+        Images of the same shape.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32 difference.
+    """
     return frame.astype(np.float32) - background.astype(np.float32)

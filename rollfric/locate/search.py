@@ -72,9 +72,27 @@ def _refine_candidate(frame, background, r_px: float, cx: float, cy: float, reac
 def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
                 min_contrast: float | None = None,
                 n_candidates: int = 3) -> tuple[float, float] | None:
-    """Full-frame search: a rough centre (px, good to about a pixel) of the ball of radius
-    ``r_px``, or None when nothing ball-like differs from the background: the most disk-like
-    of :func:`coarse_candidates`."""
+    """Full-frame search: a rough centre of the ball, good to about a pixel.
+
+    The most disk-like of :func:`coarse_candidates`.
+
+    Parameters
+    ----------
+    frame, background : numpy.ndarray
+        The frame and the background image (same shape).
+    r_px : float
+        The ball's radius (px).
+    min_contrast : float, optional
+        Mean |frame - background| over the ball that counts as a ball (DN); default 1 % of
+        full scale.
+    n_candidates : int, optional
+        Candidates compared.
+
+    Returns
+    -------
+    tuple of float or None
+        (x, y) in px, or None when nothing ball-like differs from the background.
+    """
     cands = coarse_candidates(frame, background, r_px, min_contrast=min_contrast,
                               n_candidates=n_candidates)
     return (cands[0][0], cands[0][1]) if cands else None
@@ -83,9 +101,10 @@ def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
 def coarse_candidates(frame: np.ndarray, background: np.ndarray, r_px: float, *,
                       min_contrast: float | None = None,
                       n_candidates: int = 3) -> list[tuple[float, float, float]]:
-    """Full-frame search: up to ``n_candidates`` places (x, y, disk-likeness) where a ball of
-    radius ``r_px`` may be, the most disk-like first (a harsh lamp's cast shadow of the ball on
-    the backdrop is a disk too: :func:`locate_subpixel` tries them in turn).
+    """Full-frame search: up to ``n_candidates`` places where a ball of radius ``r_px`` may be.
+
+    The most disk-like first (a harsh lamp's cast shadow of the ball on the backdrop is a disk
+    too: :func:`locate_subpixel` tries them in turn).
 
     1. Detection at reduced resolution: frame - background (signed) averaged over cells of
        about r/3 px (the noise averages down before it is rectified), |.|, then the mean over a
@@ -96,8 +115,23 @@ def coarse_candidates(frame: np.ndarray, background: np.ndarray, r_px: float, *,
        correlation of a disk-minus-ring template of the known radius with the smoothed
        |frame - background|); the most disk-like candidate wins.
 
-    ``min_contrast`` (DN): the mean |frame - background| over the ball that counts as a ball;
-    default 1 % of full scale.
+    Parameters
+    ----------
+    frame, background : numpy.ndarray
+        The frame and the background image (same shape).
+    r_px : float
+        The ball's radius (px).
+    min_contrast : float, optional
+        Mean |frame - background| over the ball that counts as a ball (DN); default 1 % of
+        full scale.
+    n_candidates : int, optional
+        Most candidates returned.
+
+    Returns
+    -------
+    list of tuple of float
+        (x, y, disk-likeness) per candidate, the most disk-like first; empty when nothing
+        ball-like differs from the background.
     """
     frame = as_array(frame)
     h, w = frame.shape
