@@ -27,10 +27,21 @@ case of ``rollfric validate``)::
     [render.camera]            # width, height, center_px, projection, working_distance
     width = 1280
 
+    [lab]                      # blind mode: the lab's setup file (validation/lab.py)
+    cylinder = { radius_mm = 85.3, radius_mm_u = 0.05 }   # nominal values the lab types
+    center_error_px = [0.3, -0.2]   # the lab measured the trough centre (absent: contour)
+    draw = false               # true: as-built values drawn from nominal +- _u (lab.seed)
+
     [measure]                  # rollfric
     locator = "subpixel"       # subpixel, thesis-large, thesis-small
     fit = "lsq"                # lsq, paper1_eps, paper2_grid
     offset = false             # also fit an angle offset of the trough bottom
+    oracle = false             # true: rollfric gets the exact geometry and center_px
+
+Blind mode (the default): rollfric gets only what a lab has: the [lab] setup file (nominal
+values; no center_px unless the lab measured it), the recording and its background. The
+[scenario] is the as-built truth. ``measure.oracle = true`` hands rollfric the renderer's own
+setup instead (exact geometry and center_px), to isolate the locator.
 
 A case is kept as this plain dict (validated by :func:`case_from_dict`), so sweeps can address
 any key by its dotted path (``render.sensor.read_noise``) and hash it.
@@ -59,10 +70,10 @@ RENDER_KEYS = {
     "supersample": int, "shadows": bool, "seed": int, "sensor": dict, "camera": dict,
     "scene": dict, "lamps": list,
 }
-MEASURE_KEYS = {"locator": str, "fit": str, "offset": bool}
+MEASURE_KEYS = {"locator": str, "fit": str, "offset": bool, "oracle": bool}
 LOCATORS = ("subpixel", "thesis-large", "thesis-small")
 FITS = ("lsq", "paper1_eps", "paper2_grid")
-TOP_KEYS = ("name", "scenario", "render", "measure")
+TOP_KEYS = ("name", "scenario", "render", "lab", "measure")
 SCENARIO_SECTIONS = ("cylinder", "ball", "camera", "environment", "motion", "engine")
 
 DEFAULT_SECONDS = 2.0
@@ -87,12 +98,14 @@ def default_case_dict() -> dict:
 
 def small_case_dict(seconds: float = 0.4) -> dict:
     """A cheap case for tests and quick checks: the 10 mm ball swinging 8 deg, seen by a
-    cropped 320 x 112 px camera that just holds its path, no motion blur."""
+    cropped 320 x 112 px camera that just holds its path, no motion blur. The crop shows too
+    little of the trough's contour to find its centre: the lab measured it (error 0)."""
     d = default_case_dict()
     d["name"] = "small"
     d["scenario"]["motion"].update(theta0_deg=8.0, seconds=seconds)
     d["render"].update(motion_blur=1, camera={"width": 320, "height": 112,
                                               "center_px": [160.0, -540.0]})
+    d["lab"] = {"center_error_px": [0.0, 0.0]}
     return d
 
 
@@ -180,6 +193,16 @@ class Case:
     fit: str
     offset: bool
     data: dict  # the case dict it came from (merged over the defaults)
+    oracle: bool = False  # rollfric gets the exact setup and center_px (else blind mode)
+    lab: object = None  # validation.lab.Lab: the lab's nominal setup and the as-built truth
+
+    @property
+    def mode(self) -> str:
+        return "oracle" if self.oracle else "blind"
+
+    def lab_setup_dict(self) -> dict:
+        """The setup file the lab hands rollfric in blind mode (lab-file form)."""
+        return self.lab.setup_dict(self.scene.camera.center_px)
 
     @property
     def case_id(self) -> str:
@@ -211,13 +234,24 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
     import sim
     from synth import config as sc
     from synth.camera import CameraModel
+    from validation.lab import apply_asbuilt, parse_lab
 
     d = merge_case(default_case_dict(), d, source)
+    r = _check_types(d.get("render", {}), RENDER_KEYS, f"{source}: render")
     try:
         scenario = sim.scenario_from_dict(d.get("scenario", {}), source=f"{source} [scenario]")
+        as_toml = scenario.to_toml_dict()
+        cam_px = dict(r.get("camera", {})).get("pixel_size")
+        if isinstance(cam_px, (int, float)) and not isinstance(cam_px, bool):
+            as_toml["camera"]["pixel_size_mm"] = float(cam_px) * 1e3  # the camera's own
+        seed0 = r.get("seed", 0)
+        lab, drawn = parse_lab(d.get("lab", {}), as_toml, source=source,
+                               default_seed=seed0 if isinstance(seed0, int) else 0)
+        if drawn:
+            scenario = sim.scenario_from_dict(apply_asbuilt(d.get("scenario", {}), drawn),
+                                              source=f"{source} [scenario] (as built)")
     except InputError as exc:
         raise CaseError(str(exc)) from None
-    r = _check_types(d.get("render", {}), RENDER_KEYS, f"{source}: render")
     m = _check_types(d.get("measure", {}), MEASURE_KEYS, f"{source}: measure")
     if m.get("locator", "subpixel") not in LOCATORS:
         raise CaseError(f"{source}: measure.locator must be one of {', '.join(LOCATORS)}, "
@@ -250,6 +284,8 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
         sensor = dataclasses.replace(sensor, **sensor_over)
         cam_over = dict(r.get("camera", {}))
         cam = CameraModel(pixel_size=scenario.pixel_size)
+        if "camera.pixel_size_mm" in drawn:
+            cam_over.pop("pixel_size", None)  # the drawn as-built pixel size
         _known(cam_over, cam, f"{source}: render.camera")
         if "center_px" in cam_over:
             cam_over["center_px"] = tuple(cam_over["center_px"])
@@ -273,9 +309,16 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
     name = d.get("name", "case")
     if not isinstance(name, str):
         raise CaseError(f"{source}: name must be a string")
-    return Case(name=name, scenario=scenario, scene=scene, sensor=sensor, render_seed=seed,
+    case = Case(name=name, scenario=scenario, scene=scene, sensor=sensor, render_seed=seed,
                 locator=m.get("locator", "subpixel"), fit=m.get("fit", "lsq"),
-                offset=m.get("offset", False), data=d)
+                offset=m.get("offset", False), data=d, oracle=m.get("oracle", False), lab=lab)
+    from rollfric.setup import setup_from_dict
+
+    try:
+        setup_from_dict(case.lab_setup_dict(), source=f"{source} [lab]")
+    except InputError as exc:
+        raise CaseError(str(exc)) from None
+    return case
 
 
 def _known(over: dict, obj, where: str) -> None:

@@ -17,9 +17,15 @@ the full 1280 x 1024 thesis camera, 2 s of 1000 Hz frames (six half-swings; abou
 an idle 2-core CPU, rendering and reading the frames through the sensor model dominate).
 
 CASE.toml has the sections [scenario] (the sim scenario form: [scenario.ball], [scenario.motion],
-[scenario.engine], ...), [render] (lighting, noise, motion_blur, [render.sensor],
-[render.camera], ...) and [measure] (locator, fit, offset); see README "validation". A plain
-sim scenario file (top-level [ball], [motion], ...) is accepted too. Flags override the file.
+[scenario.engine], ...: the as-built truth), [render] (lighting, noise, motion_blur,
+[render.sensor], [render.camera], ...), [lab] (the lab's setup file: nominal values, _u
+tolerances, center_error_px) and [measure] (locator, fit, offset, oracle); see
+docs/lab-validation.md. A plain sim scenario file (top-level [ball], [motion], ...) is accepted
+too. Flags override the file.
+
+Blind mode (the default): rollfric gets only what a lab has: the [lab] setup file (nominal
+values, no center_px unless the lab measured it: the trough centre comes from its contour), the
+recording and its background. --set measure.oracle=true hands it the exact setup and center_px.
 
 Metrics: mu_true, mu_recovered, mu_bias_rel (against the configured mu), mu_engine (the same
 fitter on the engine's ground-truth theta(t)), mu_engine_bias_rel, mu_pipeline_bias_rel (the

@@ -9,6 +9,12 @@ fitter (same method, same options) recovers from the engine's ground-truth theta
 ``mu_engine_bias_rel`` is the physics engine's error and ``mu_pipeline_bias_rel`` (recovered
 against mu_engine) is the camera + locator + fit error on top of it. ``mu_bias_rel`` is the
 total, against the configured mu.
+
+Blind mode (the default, ``measure.oracle = false``): rollfric gets the lab's setup file
+(:mod:`validation.lab`: nominal values, no center_px unless the lab measured it), the recording
+and its background; ``mode``, the lab's errors (``lab_err_<key>``: nominal - as built) and the
+trough centre rollfric used against the true one (``trough_center_err_x_px``, ...) are in the
+metrics. Oracle mode hands it the renderer's own setup (exact geometry and center_px).
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ class CaseResult:
     fit: object  # rollfric.fit.FitResult from the measured track
     fit_truth: object  # the same fitter on the engine's theta(t)
     setup: object  # rollfric.setup.Setup used by the measurement
+    setup_dict: dict  # the setup file rollfric was given (lab-file form)
     recording: Path | None  # the recording, when kept
 
 
@@ -98,9 +105,11 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
         rec = synth.open_recording(rec_path)
         truth = rec.truth
         with _timer(timings, "measure"):
-            track, fit, setup = measure_recording(rec_path, case, progress=progress)
+            track, fit, setup, setup_dict = measure_recording(rec_path, case,
+                                                              progress=progress)
         with _timer(timings, "metrics"):
             metrics = compute_metrics(case, traj, truth, track, fit, fit_truth, setup)
+            metrics.update(mode_metrics(case, track, truth))
         timings["total"] = time.perf_counter() - t_start
         metrics.update({f"t_{k}_s": float(v) for k, v in timings.items()})
         metrics["n_frames"] = int(len(truth))
@@ -110,7 +119,7 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
             else math.nan
         result = CaseResult(case=case, metrics=metrics, timings=dict(timings), trajectory=traj,
                             truth=truth, track=track, fit=fit, fit_truth=fit_truth, setup=setup,
-                            recording=rec_path)
+                            setup_dict=setup_dict, recording=rec_path)
         if report_dir is not None:
             from validation.report import write_report
 
@@ -126,20 +135,49 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
 # -- the measurement (rollfric) ---------------------------------------------------------------
 
 def measure_recording(path: Path, case: Case, *, progress: bool = False):
-    """rollfric's measurement of a recording: (track DataFrame, FitResult, Setup).
+    """rollfric's measurement of a recording: (track DataFrame, FitResult, Setup, setup dict).
 
-    Exactly what ``rollfric measure REC.zarr`` does: the recording opened through rollfric's
-    reader (synth's Zarr entry point), the setup and background it carries, the case's locator
-    and fit method (:func:`rollfric.track.measure`).
+    Exactly what ``rollfric measure REC.zarr --setup SETUP.toml`` does: the recording opened
+    through rollfric's reader (synth's Zarr entry point) with its background, the case's
+    locator and fit method (:func:`rollfric.track.measure`). Blind mode: SETUP.toml is the
+    lab's (:meth:`validation.case.Case.lab_setup_dict`); oracle mode: the setup the recording
+    carries (the renderer's exact geometry and center_px).
     """
     from rollfric import io
     from rollfric import track as track_mod
+    from rollfric.setup import setup_from_dict
 
     src = io.open_recording(path)
-    setup = track_mod.setup_from_recording(src)
+    if case.oracle:
+        setup = track_mod.setup_from_recording(src)
+        setup_dict = setup.to_toml_dict()
+    else:
+        setup_dict = case.lab_setup_dict()
+        setup = setup_from_dict(setup_dict, source="the lab's setup")
     track, fit = track_mod.measure(src, setup, method=case.locator, fit_method=case.fit,
                                    offset=case.offset, progress=progress)
-    return track, fit, setup
+    return track, fit, setup, setup_dict
+
+
+def mode_metrics(case: Case, track, truth) -> dict:
+    """Blind or oracle, the lab's errors and the trough centre rollfric used against the true
+    one (px, in the image rollfric measured in)."""
+    cx = float(np.asarray(truth["cx_px"], float)[0])
+    cy = float(np.asarray(truth["cy_px"], float)[0])
+    used = track.attrs.get("center_px", [math.nan, math.nan])
+    m = {"mode": case.mode,
+         "lab_center_measured": bool(not case.oracle
+                                     and case.lab.center_error_px is not None),
+         "lab_draw": bool(case.lab.draw),
+         "trough_center_x_px": float(used[0]), "trough_center_y_px": float(used[1]),
+         "trough_center_err_x_px": float(used[0]) - cx,
+         "trough_center_err_y_px": float(used[1]) - cy}
+    for key, value in case.lab.asbuilt.items():
+        name = key.replace(".", "_")
+        m[f"asbuilt_{name}"] = float(value)
+        m[f"lab_{name}"] = float(case.lab.nominal[key])
+        m[f"lab_err_{name}"] = 0.0 if case.oracle else float(case.lab.nominal[key] - value)
+    return m
 
 
 # -- metrics ----------------------------------------------------------------------------------

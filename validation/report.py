@@ -47,6 +47,7 @@ def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
     m = result.metrics
     write_text(out / "metrics.json", json.dumps(json_safe(m), indent=2, sort_keys=True) + "\n")
     write_text(out / "case.toml", dumps_case(result.case.data))
+    write_text(out / "setup.toml", dumps_setup_dict(result.setup_dict))
     save_fit(result.fit, out / "fit.json")
     save_fit(result.fit_truth, out / "fit_truth.json")
     pf = per_frame_errors(result)
@@ -145,6 +146,37 @@ def _overlays(result, pf, path: Path, k: int) -> None:
     _savefig(fig, path)
 
 
+def _mode_text(m: dict) -> str:
+    if m["mode"] == "oracle":
+        return "the exact setup and center_px given"
+    where = "measured by the lab" if m.get("lab_center_measured") else "from the contour"
+    return (f"the lab's nominal setup, trough centre {where}, off the truth by "
+            f"({m['trough_center_err_x_px']:+.3f}, {m['trough_center_err_y_px']:+.3f}) px")
+
+
+def dumps_setup_dict(d: dict) -> str:
+    """A setup file's dict (lab-file form) as TOML text."""
+    lines = []
+    for section, table in d.items():
+        lines.append(f"[{section}]")
+        for key, value in table.items():
+            lines.append(f"{key} = {_toml_value(value)}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, int):
+        return str(v)
+    return json.dumps(str(v))
+
+
 def summary_text(result, out: str | Path | None = None) -> str:
     """A short readable summary of one case."""
     m = result.metrics
@@ -161,7 +193,8 @@ def summary_text(result, out: str | Path | None = None) -> str:
         f" {sc.pixel_size * 1e3:g} mm/px, motion blur {c.scene.motion_blur} sub-frame(s),"
         f" sensor {c.data['render'].get('noise')}, lighting {c.data['render'].get('lighting')},"
         f" seed {c.render_seed}",
-        f"  measure    locator {c.locator}, fit {c.fit}{' + offset' if c.offset else ''}",
+        f"  measure    {m['mode']} mode ({_mode_text(m)}), locator {c.locator}, fit {c.fit}"
+        f"{' + offset' if c.offset else ''}",
         "",
         f"  mu true        {m['mu_true']:.6f}",
         f"  mu recovered   {m['mu_recovered']:.6f} +- {m['mu_stderr']:.2g}"

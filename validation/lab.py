@@ -1,0 +1,191 @@
+"""Blind mode: what the lab knows (its setup file) against what was built (the truth).
+
+A case's ``[lab]`` table is the lab's setup file, in the lab-file form of
+:mod:`rollfric.setup` (mm, g, Hz): the *nominal* values the lab would type. Every key is
+optional; a key not given is the as-built value of the ``[scenario]`` (a lab that knows it
+exactly)::
+
+    [lab]
+    draw = false               # true: draw the as-built values from the nominal +- their _u
+    seed = 0                   # seed of those draws (default: render.seed, the case seed)
+    center_error_px = [0.3, -0.2]   # the lab measured the trough centre, with this error (px);
+                                    # absent: no center_px, rollfric finds it from the contour
+    [lab.cylinder]
+    radius_mm = 85.3
+    radius_mm_u = 0.05         # standard uncertainty of radius_mm (same unit)
+    [lab.ball]
+    diameter_mm = 10.0
+    [lab.camera]
+    fps = 1000.0
+    pixel_size_mm = 0.1343
+
+The as-built truth (what sim simulates and synth films) is the ``[scenario]``'s values, so a
+case keys a known error by stating both (``scenario.cylinder.radius_mm = 85.5`` with
+``lab.cylinder.radius_mm = 85.3``). With ``draw = true`` every quantity that has a ``_u`` key is
+instead drawn as nominal + u z, z standard normal, from the seed and the key's name (the same
+seed gives the same draws, each key its own stream). The lab's setup file handed to rollfric is
+the nominal values with their ``_u`` keys (rollfric's setup reads the ``_u`` keys as the
+stated uncertainties when it knows them).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import functools
+import hashlib
+import math
+
+from rollfric.errors import InputError
+
+# the lab-file keys a case may state as nominal values (section -> keys); the same keys name
+# the as-built value in the [scenario] (sim.scenario's TOML form)
+NOMINAL_KEYS = {
+    "cylinder": ("radius_mm",),
+    "ball": ("diameter_mm", "mass_g"),
+    "camera": ("fps", "pixel_size_mm"),
+    "environment": ("gravity_m_s2",),
+}
+TOP_KEYS = ("draw", "seed", "center_error_px")
+
+
+class LabError(InputError):
+    """A [lab] table that cannot describe a lab's setup (the message names the key)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Lab:
+    """The lab's side of a blind case.
+
+    ``nominal``: "section.key" -> the value the lab types (lab units); ``tolerance``: the
+    stated standard uncertainties ("section.key" -> u); ``asbuilt``: the truth of each
+    nominal key (lab units); ``center_error_px``: the error of the lab's trough-centre
+    measurement (None: not measured)."""
+
+    nominal: dict
+    tolerance: dict
+    asbuilt: dict
+    center_error_px: tuple[float, float] | None
+    draw: bool
+    seed: int
+
+    def setup_dict(self, center_px: tuple[float, float] | None = None) -> dict:
+        """The lab's setup file (lab-file form) with the nominal values, their ``_u`` keys and,
+        when the lab measured it, ``center_px`` = the true ``center_px`` + the error."""
+        out: dict = {}
+        for dotted, value in self.nominal.items():
+            sec, key = dotted.split(".")
+            out.setdefault(sec, {})[key] = value
+            if dotted in self.tolerance and setup_reads_tolerances():
+                out[sec][f"{key}_u"] = self.tolerance[dotted]
+        if self.center_error_px is not None and center_px is not None:
+            out.setdefault("cylinder", {})["center_px"] = [
+                float(center_px[0]) + self.center_error_px[0],
+                float(center_px[1]) + self.center_error_px[1]]
+        return out
+
+    def errors(self) -> dict:
+        """"section.key" -> nominal - as-built (lab units), for every nominal key."""
+        return {k: self.nominal[k] - self.asbuilt[k] for k in self.nominal}
+
+
+@functools.cache
+def setup_reads_tolerances() -> bool:
+    """Whether rollfric's setup file takes ``_u`` keys (stated uncertainties); until it does,
+    the lab's tolerances drive only the as-built draws and are left out of its setup file."""
+    from rollfric.setup import setup_from_dict, thesis_setup
+
+    d = thesis_setup().to_toml_dict()
+    d["cylinder"]["radius_mm_u"] = 0.1
+    try:
+        setup_from_dict(d)
+    except InputError:
+        return False
+    return True
+
+
+def _number(v, where: str, positive: bool = True) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise LabError(f"{where} must be a finite number, got {v!r}")
+    if positive and v <= 0:
+        raise LabError(f"{where} must be positive, got {v!r}")
+    if not positive and v < 0:
+        raise LabError(f"{where} must be >= 0, got {v!r}")
+    return float(v)
+
+
+def standard_normal(seed: int, key: str) -> float:
+    """One standard-normal draw for ``key`` from ``seed``: its own stream per key name, so
+    adding a tolerance to one key leaves the others' draws unchanged."""
+    import numpy as np
+
+    k = int.from_bytes(hashlib.sha256(key.encode()).digest()[:8], "little")
+    return float(np.random.default_rng([int(seed), k]).standard_normal())
+
+
+def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
+              source: str = "case") -> tuple[Lab, dict]:
+    """Validate a case's ``[lab]`` table against the scenario it goes with.
+
+    ``scenario_toml``: the scenario's full TOML form (``sim.Scenario.to_toml_dict()``, every
+    key present) before any draw. Returns the :class:`Lab` and the scenario overrides
+    ("section.key" -> as-built value in lab units) that the draws make (empty without
+    ``draw``).
+    """
+    if not isinstance(table, dict):
+        raise LabError(f"{source}: [lab] must be a table")
+    for k in table:
+        if k not in TOP_KEYS and k not in NOMINAL_KEYS:
+            raise LabError(f"{source}: unknown key lab.{k} (known: "
+                           f"{', '.join([*TOP_KEYS, *NOMINAL_KEYS])})")
+    draw = table.get("draw", False)
+    if not isinstance(draw, bool):
+        raise LabError(f"{source}: lab.draw must be true or false, got {draw!r}")
+    seed = table.get("seed", default_seed)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise LabError(f"{source}: lab.seed must be a non-negative integer, got {seed!r}")
+    ce = table.get("center_error_px")
+    if ce is not None:
+        if not isinstance(ce, (list, tuple)) or len(ce) != 2:
+            raise LabError(f"{source}: lab.center_error_px must be [dx, dy] in pixels, "
+                           f"got {ce!r}")
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                   and math.isfinite(v) for v in ce):
+            raise LabError(f"{source}: lab.center_error_px must be two finite numbers (px), "
+                           f"got {ce!r}")
+        ce = (float(ce[0]), float(ce[1]))
+    nominal, tol, asbuilt, overrides = {}, {}, {}, {}
+    for sec, keys in NOMINAL_KEYS.items():
+        t = table.get(sec, {})
+        if not isinstance(t, dict):
+            raise LabError(f"{source}: lab.{sec} must be a table")
+        known = [*keys, *(f"{k}_u" for k in keys)]
+        for k in t:
+            if k not in known:
+                raise LabError(f"{source}: unknown key lab.{sec}.{k} (known: "
+                               f"{', '.join(known)})")
+        for k in keys:
+            dotted = f"{sec}.{k}"
+            truth = float(scenario_toml[sec][k])
+            nom = _number(t[k], f"{source}: lab.{dotted}") if k in t else truth
+            nominal[dotted] = nom
+            if f"{k}_u" in t:
+                tol[dotted] = _number(t[f"{k}_u"], f"{source}: lab.{dotted}_u", positive=False)
+            if draw and dotted in tol:
+                truth = nom + tol[dotted] * standard_normal(seed, dotted)
+                if truth <= 0:
+                    raise LabError(f"{source}: the draw of {dotted} from {nom:g} +- "
+                                   f"{tol[dotted]:g} is not positive")
+                overrides[dotted] = truth
+            asbuilt[dotted] = truth
+    return Lab(nominal=nominal, tolerance=tol, asbuilt=asbuilt, center_error_px=ce,
+               draw=draw, seed=seed), overrides
+
+
+def apply_asbuilt(scenario_dict: dict, overrides: dict) -> dict:
+    """The [scenario] dict with the drawn as-built values set (lab units, same keys)."""
+    out = copy.deepcopy(scenario_dict)
+    for dotted, value in overrides.items():
+        sec, key = dotted.split(".")
+        out.setdefault(sec, {})[key] = value
+    return out
