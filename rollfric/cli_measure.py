@@ -14,14 +14,15 @@ def register(sub) -> None:
             "(background subtraction, then a locator), compute theta about the cylinder centre "
             "(from setup center_px, else from the trough contour in the background), and fit mu "
             "(M = mu r N) with the equation of motion. RECORDING is a multi-page TIFF, a folder "
-            "of images (sorted by name), a video file, or a Zarr store (array 'frames', or read "
-            "by a rollfric.zarr_readers entry point). Writes OUT/track.csv (frame,t_s,x_px,"
+            "of images (sorted by name), a video file, a Phantom .cine file, a Photron .cih/.cihx "
+            "header (with its .mraw beside it), or a Zarr store (array 'frames', or read by a "
+            "rollfric.zarr_readers entry point). Writes OUT/track.csv (frame,t_s,x_px,"
             "y_px,theta_rad,found; empty coordinates where no ball was found) and OUT/fit.json "
             "(as 'rollfric fit', plus n_frames and n_found); with --plot also OUT/fit.png and "
             "OUT/overlays.png. Nothing is written when the input is bad (exit status 2)."),
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("recording", metavar="RECORDING", help="TIFF stack, image folder, video, "
-                   "or Zarr store")
+                   ".cine, .cih/.cihx (+ .mraw), or Zarr store")
     p.add_argument("--setup", metavar="SETUP.toml", default=None,
                    help="lab setup file; may be omitted for a Zarr recording whose attrs hold "
                         "'setup'")
@@ -40,6 +41,10 @@ def register(sub) -> None:
                    help="how mu is fitted (see rollfric fit)")
     p.add_argument("--offset", action="store_true",
                    help="also fit a constant angle offset of the trough bottom")
+    p.add_argument("--times", default="auto", choices=["auto", "fps"],
+                   help="t_s of each frame: auto = the recording's own per-frame timestamps when "
+                        "it has them (a .cine's), else frame / camera.fps; fps = always "
+                        "frame / camera.fps")
     p.add_argument("--plot", action="store_true",
                    help="also write fit.png (angle vs model) and overlays.png")
     p.add_argument("--overlay-frames", default=None, metavar="I,J,...",
@@ -77,7 +82,7 @@ def run(args) -> int:
     track, result = measure(args.recording, args.setup, args.background, method=args.method,
                             angle=args.angle, fit_method=args.fit_method, offset=args.offset,
                             progress=not args.no_progress, median_frames=args.median_frames,
-                            log=_log)
+                            log=_log, times=args.times)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out} exists and is not a folder")
@@ -92,6 +97,7 @@ def run(args) -> int:
                  "center_px": track.attrs["center_px"],
                  "center_source": track.attrs["center_source"],
                  "background": track.attrs["background"],
+                 "times": track.attrs["times"],
                  "ball_radius_px": track.attrs["ball_radius_px"],
                  # the apparent radius calibrated from full-rim frames (None: too few)
                  "ball_radius_px_seen": track.attrs.get("ball_radius_px_seen"),

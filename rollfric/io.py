@@ -5,13 +5,16 @@ A recording is one of
 - a multi-page TIFF (``.tif``/``.tiff``), one grayscale page per frame (tifffile);
 - a folder of image files (PNG, TIFF, BMP, JPEG, ...), frames sorted by file name (OpenCV);
 - a video file (``.avi``, ``.mp4``, ``.mkv``, ``.mov``), read in order (OpenCV VideoCapture);
+- a Phantom ``.cine`` file (:mod:`rollfric.formats.cine`) or a Photron ``.cih``/``.cihx`` header
+  with its ``.mraw`` (:mod:`rollfric.formats.photron`), memory-mapped;
 - a Zarr store (a directory, e.g. ``rec.zarr``) holding an array ``frames`` (T, H, W), or read by
   the first ``rollfric.zarr_readers`` entry point that accepts it (the project's contract).
 
 Every reader returns a *FrameSource*: ``len(src)``, ``src[i]`` -> one (H, W) uint8 or uint16
 frame, and the attributes ``shape`` (T, H, W), ``dtype``, ``fps`` (float or None),
-``background`` ((H, W) array or None) and ``attrs`` (dict). Colour images are converted to
-grayscale.
+``background`` ((H, W) array or None) and ``attrs`` (dict), and optionally ``timestamps``
+((T,) float seconds from frame 0, strictly increasing: the camera's own per-frame times, or
+None). Colour images are converted to grayscale.
 
 Regions of interest (an optional part of the FrameSource contract): a FrameSource MAY have
 ``read(i, roi)``, roi = (y0, y1, x0, x1) integers with ``0 <= y0 < y1 <= H`` and
@@ -19,8 +22,8 @@ Regions of interest (an optional part of the FrameSource contract): a FrameSourc
 ``src[i][y0:y1, x0:x1]``, ideally without making the rest of the frame. The tracking loop
 (:mod:`rollfric.track`) uses it when present. All the readers here have it: a crop of the full
 frame, except that a Zarr ``frames`` array is sliced (only the chunks touched are decoded), an
-uncompressed TIFF is memory-mapped (only the region's bytes are read), and an entry-point reader
-that has ``read`` is asked for the region itself.
+uncompressed TIFF, a cine and an MRAW file are memory-mapped (only the region's bytes are
+read), and an entry-point reader that has ``read`` is asked for the region itself.
 
 Bad input (unreadable, truncated, mixed frame sizes, unsupported depth) raises
 :class:`RecordingError`, naming the file and the frame.
@@ -40,6 +43,8 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg", ".pgm", ".pp
                   ".webp")
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov", ".m4v", ".mpg", ".mpeg", ".wmv")
 TIFF_SUFFIXES = (".tif", ".tiff")
+CINE_SUFFIXES = (".cine",)
+PHOTRON_SUFFIXES = (".cih", ".cihx", ".mraw")
 ZARR_ENTRY_POINT_GROUP = "rollfric.zarr_readers"
 
 
@@ -81,6 +86,7 @@ class _Source:
     """Common part of the readers: shape, dtype, frame-size check."""
 
     fps: float | None = None
+    timestamps: np.ndarray | None = None
     background: np.ndarray | None = None
 
     def __init__(self, name: str, n: int, hw: tuple[int, int], dtype) -> None:
@@ -376,7 +382,24 @@ class _WrappedSource(_Source):
 
 
 def open_recording(path: str | Path):
-    """Open a recording (TIFF stack, image folder, video file or Zarr store) as a FrameSource."""
+    """Open a recording as a FrameSource.
+
+    Parameters
+    ----------
+    path : str or Path
+        A TIFF stack, a folder of images, a video file, a Zarr store, a Phantom ``.cine`` file,
+        or a Photron ``.cih``/``.cihx`` header (or its ``.mraw``).
+
+    Returns
+    -------
+    FrameSource
+        See the module's docstring.
+
+    Raises
+    ------
+    RecordingError
+        The file is missing, of an unknown format, or unreadable (the message names it).
+    """
     path = Path(path)
     if not path.exists():
         raise RecordingError(f"{path}: no such file or folder")
@@ -390,8 +413,17 @@ def open_recording(path: str | Path):
         return TiffSource(path)
     if suffix in VIDEO_SUFFIXES:
         return VideoSource(path)
+    if suffix in CINE_SUFFIXES:
+        from rollfric.formats.cine import CineSource
+
+        return CineSource(path)
+    if suffix in PHOTRON_SUFFIXES:
+        from rollfric.formats.photron import PhotronSource
+
+        return PhotronSource(path)
     raise RecordingError(f"{path}: unknown recording format '{suffix}' (TIFF stack, folder of "
-                         f"images, video {', '.join(VIDEO_SUFFIXES)}, or Zarr store)")
+                         f"images, video {', '.join(VIDEO_SUFFIXES)}, Phantom .cine, Photron "
+                         ".cih/.cihx + .mraw, or Zarr store)")
 
 
 def check_background(background: np.ndarray, source, what: str = "background") -> np.ndarray:

@@ -29,6 +29,10 @@ from rollfric.setup import Setup, SetupError, setup_from_dict
 
 TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found"]
 ANGLES = ("atan2", "arcsin")
+TIMES = ("auto", "fps")
+# the recording's timestamps are checked against the setup's rate and for even spacing
+TIMES_RATE_TOL = 1e-3  # relative: a median interval further from 1 / camera.fps is reported
+TIMES_JITTER_TOL = 0.01  # relative: an interval further from the median one is reported
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -245,9 +249,10 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
 
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
                     angle: str = "atan2", center: tuple[float, float] | None = None,
-                    progress: bool = True, opts=None, log=None) -> pd.DataFrame:
+                    progress: bool = True, opts=None, log=None, times=None) -> pd.DataFrame:
     """Locate the ball in every frame of ``source``; one row a frame (see TRACK_COLUMNS), plus
     r_px, sigma_px (estimated centre error) and inlier_frac where the locator gives them.
+    ``times``: t_s of each frame (default frame / setup.fps; see :func:`frame_times`).
 
     subpixel: the ball's apparent radius is calibrated on the way (:class:`RadiusCalibration`)
     and partial arcs are fitted with it; the frames fitted with the known radius before the
@@ -349,7 +354,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     frame_idx = np.arange(n)
     df = pd.DataFrame({
         "frame": frame_idx,
-        "t_s": frame_idx / setup.fps,
+        "t_s": frame_idx / setup.fps if times is None else np.asarray(times, dtype=float),
         "x_px": rows[:, 0],
         "y_px": rows[:, 1],
         "theta_rad": theta,
@@ -392,10 +397,50 @@ def fps_mismatch(recording_fps, setup_fps: float) -> str | None:
             "use the setup's (camera.fps); a video export's rate is often a playback rate")
 
 
+def frame_times(source, setup_fps: float, times: str = "auto"):
+    """(t, description, notes): the time (s) of each frame of ``source`` from frame 0.
+
+    ``times="auto"``: the recording's own per-frame times when it has them (``timestamps``, e.g.
+    a Phantom cine's TIME64 block: the camera's clock, so a dropped frame or a rate other than
+    the nominal one shows), else frame / ``setup_fps``; ``"fps"``: always frame / ``setup_fps``.
+    ``notes`` say where the timestamps disagree with the setup's rate (by more than
+    TIMES_RATE_TOL) or are unevenly spaced (an interval more than TIMES_JITTER_TOL from the
+    median one)."""
+    if times not in TIMES:
+        raise InputError(f"unknown times {times!r} (known: {', '.join(TIMES)})")
+    n = len(source)
+    stamps = getattr(source, "timestamps", None) if times == "auto" else None
+    if stamps is None:
+        return np.arange(n) / setup_fps, "frame / camera.fps", []
+    t = np.asarray(stamps, dtype=float)
+    if t.shape != (n,) or not np.all(np.isfinite(t)) or (n > 1 and np.any(np.diff(t) <= 0)):
+        return np.arange(n) / setup_fps, "frame / camera.fps", [
+            "the recording's timestamps are not one increasing time a frame: times use the "
+            "setup's camera.fps"]
+    t = t - t[0]
+    notes = []
+    if n > 1:
+        d = np.diff(t)
+        dt = float(np.median(d))
+        if abs(dt * setup_fps - 1.0) > TIMES_RATE_TOL:
+            notes.append(f"the recording's timestamps are {dt * 1e3:.6g} ms apart (median: "
+                         f"{1 / dt:.6g} frames/s), the setup says {setup_fps:g} Hz: times are "
+                         "the recording's timestamps; check camera.fps")
+        off = np.abs(d - dt) > TIMES_JITTER_TOL * dt
+        if off.any():
+            notes.append(f"{int(off.sum())} of the recording's {n - 1} frame intervals differ "
+                         f"from the median {dt * 1e3:.6g} ms by more than "
+                         f"{100 * TIMES_JITTER_TOL:g} % ({float(d.min()) * 1e3:.6g} to "
+                         f"{float(d.max()) * 1e3:.6g} ms: dropped frames?); times are the "
+                         "recording's timestamps")
+    return t, "the recording's timestamps", notes
+
+
 def measure(recording, setup: Setup | str | None = None, background=None, *,
             method: str = "subpixel", angle: str = "atan2", fit_method: str = "lsq",
             offset: bool = False, fit: bool = True, progress: bool = False,
-            median_frames: int = 41, log=None, fit_kwargs: dict | None = None):
+            median_frames: int = 41, log=None, fit_kwargs: dict | None = None,
+            times: str = "auto"):
     """Measure mu from a recording: (track DataFrame, FitResult or None when ``fit=False``).
 
     ``recording``: a path (see :func:`rollfric.io.open_recording`) or a FrameSource.
@@ -403,6 +448,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     ``background``: an image path or array; None: the recording's own, else the per-pixel
     median of ``median_frames`` frames (reported through ``log`` and ``track.attrs``).
     ``method``: "subpixel" (default), "thesis-large" or "thesis-small".
+    ``times``: "auto" (the recording's per-frame timestamps when it has them, else frame /
+    camera.fps) or "fps" (always frame / camera.fps); see :func:`frame_times`.
     The track has the columns TRACK_COLUMNS (+ r_px, sigma_px, inlier_frac); its ``attrs``
     hold center_px, background, n_frames, n_found and the locator.
     """
@@ -420,9 +467,15 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     if method not in locate.METHODS:
         raise InputError(f"unknown locator {method!r} (known: {', '.join(locate.METHODS)})")
     check_setup_fits(setup, source.shape)
-    fps_note = fps_mismatch(getattr(source, "fps", None), setup.fps)
-    if fps_note and log:
-        log(f"warning: {fps_note}")
+    t, times_desc, time_notes = frame_times(source, setup.fps, times)
+    # a recording with its own per-frame times is checked against them (frame_times), one
+    # without against the rate in its header
+    fps_note = fps_mismatch(getattr(source, "fps", None), setup.fps) \
+        if times_desc == "frame / camera.fps" else None
+    time_notes = time_notes + ([fps_note] if fps_note else [])
+    if log:
+        for msg in time_notes:
+            log(f"warning: {msg}")
     bg, bg_desc, bg_notes = resolve_background(source, background, median_frames=median_frames,
                                                log=log, r_px=ball_radius_px(setup))
     if setup.center_px is not None:
@@ -444,14 +497,14 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                 f"{center[1]:.2f}) px")
         check_setup_fits(setup.replace(center_px=center), source.shape)
     df = track_recording(source, setup, bg, method=method, angle=angle, center=center,
-                         progress=progress, log=log)
+                         progress=progress, log=log, times=t)
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
     df.attrs.update({"background": bg_desc, "center_source": center_desc,
                      "n_frames": len(df), "n_found": n_found,
                      "recording": str(getattr(source, "name", recording)),
-                     "warnings": list(df.attrs.get("warnings", [])) + bg_notes
-                     + ([fps_note] if fps_note else [])})
+                     "times": times_desc,
+                     "warnings": list(df.attrs.get("warnings", [])) + bg_notes + time_notes})
     if n_found < len(df) and log:
         log(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of the fit)")
     result = None
