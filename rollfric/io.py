@@ -49,8 +49,27 @@ ZARR_ENTRY_POINT_GROUP = "rollfric.zarr_readers"
 
 
 def check_roi(roi, frame_shape) -> tuple[int, int, int, int]:
-    """``roi`` as (y0, y1, x0, x1) integers of a non-empty region inside frames of
-    ``frame_shape`` (H, W); TypeError or IndexError otherwise."""
+    """Check a region of interest against the frame size.
+
+    Parameters
+    ----------
+    roi : sequence of int
+        (y0, y1, x0, x1).
+    frame_shape : tuple of int
+        (H, W) of the frames.
+
+    Returns
+    -------
+    tuple of int
+        (y0, y1, x0, x1) as integers, a non-empty region inside the frame.
+
+    Raises
+    ------
+    TypeError
+        ``roi`` is not four integers.
+    IndexError
+        The region is empty or reaches outside the frame.
+    """
     try:
         y0, y1, x0, x1 = (int(v) for v in roi)
     except (TypeError, ValueError):
@@ -225,7 +244,24 @@ def _imread(path: Path) -> np.ndarray:
 
 
 def read_image(path: str | Path) -> np.ndarray:
-    """One grayscale image (e.g. a background), 8 or 16 bit; a TIFF stack gives its first page."""
+    """One grayscale image, e.g. a background.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        An image file (8 or 16 bit; colour is converted to grayscale), a TIFF (a stack gives its
+        first page) or a ``.npy`` array.
+
+    Returns
+    -------
+    numpy.ndarray
+        The image (H, W).
+
+    Raises
+    ------
+    RecordingError
+        The file is missing or unreadable.
+    """
     path = Path(path)
     if not path.exists():
         raise RecordingError(f"{path}: no such file")
@@ -319,7 +355,13 @@ class ZarrArraySource(_Source):
 
 
 def zarr_reader_entry_points() -> list:
-    """The installed ``rollfric.zarr_readers`` entry points, sorted by name."""
+    """The installed ``rollfric.zarr_readers`` entry points.
+
+    Returns
+    -------
+    list of importlib.metadata.EntryPoint
+        Sorted by name.
+    """
     eps = importlib.metadata.entry_points(group=ZARR_ENTRY_POINT_GROUP)
     return sorted(eps, key=lambda ep: ep.name)
 
@@ -427,7 +469,27 @@ def open_recording(path: str | Path):
 
 
 def check_background(background: np.ndarray, source, what: str = "background") -> np.ndarray:
-    """The background as a 2-D array of the frames' size, or RecordingError."""
+    """The background as a 2-D array of the frames' size.
+
+    Parameters
+    ----------
+    background : array_like
+        The background image (colour is converted to grayscale).
+    source : FrameSource
+        The recording it belongs to.
+    what : str, optional
+        Its name in the error message.
+
+    Returns
+    -------
+    numpy.ndarray
+        The grayscale background (H, W).
+
+    Raises
+    ------
+    RecordingError
+        Its size differs from the frames'.
+    """
     bg = _to_gray(np.asarray(background), what)
     if bg.shape != tuple(source.shape[1:]):
         raise RecordingError(f"{what} is {bg.shape[1]}x{bg.shape[0]} px but the frames are "
