@@ -93,15 +93,35 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
                     r_known_sigma: float | None = None) -> Location:
     """Sub-pixel centre of the ball of radius about ``r_px`` px.
 
-    ``guess``: where the ball centre is expected (from tracking); ``search``: how far (px) the
-    edge may be from the guessed circle (default 0.3 r + 2). Without a guess, a full-frame
-    search (:func:`coarse_candidates`) comes first; its candidates are fitted in turn, the
-    most disk-like first, and the first the fit accepts is the answer. ``noise``: pixel noise
-    (DN) used to reject low-contrast rays (default: estimated from the rays).
-    ``r_known``: the radius (px) a partial arc is fitted with (default ``r_px``; the tracker
-    passes the ball's apparent radius calibrated from its full-rim frames), ``r_known_sigma``
-    its relative uncertainty (default ``opts.radius_sigma``), which adds the arc's leverage
-    times it to the centre's sigma. ``r_px`` still sets the search and the radius check.
+    Without a guess, a full-frame search (:func:`coarse_candidates`) comes first; its candidates
+    are fitted in turn, the most disk-like first, and the first the fit accepts is the answer.
+
+    Parameters
+    ----------
+    frame, background : numpy.ndarray or LazyFrame
+        The frame and the background image (same size).
+    r_px : float
+        The ball's radius (px); also sets the search and the radius check.
+    guess : tuple of float, optional
+        Where the ball centre is expected (x, y px, from tracking).
+    search : float, optional
+        How far (px) the edge may be from the guessed circle (default 0.3 r + 2).
+    opts : SubpixelOptions, optional
+        Tuning.
+    noise : float, optional
+        Pixel noise (DN) used to reject low-contrast rays (default: estimated from the rays).
+    r_known : float, optional
+        The radius (px) a partial arc is fitted with (default ``r_px``; the tracker passes the
+        ball's apparent radius calibrated from its full-rim frames).
+    r_known_sigma : float, optional
+        Its relative uncertainty (default ``opts.radius_sigma``), which adds the arc's leverage
+        times it to the centre's sigma.
+
+    Returns
+    -------
+    Location
+        The centre, radius, ``sigma`` and ``inlier_frac``; ``found`` False with a ``reason``
+        when no candidate fits.
     """
     rk = (float(r_px) if r_known is None else float(r_known),
           opts.radius_sigma if r_known_sigma is None else float(r_known_sigma))

@@ -26,13 +26,29 @@ from rollfric.locate.search import coarse_find
 def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
                         roi: tuple[int, int, int, int] | None = None, window: int = 15,
                         polarity: str = "abs") -> Location:
-    """Thesis paper 1: sum the relative image over a ``window`` x ``window`` window traversing
-    the sub-image ``roi`` = (x0, y0, x1, y1) (default: the whole frame); the centre is the
-    brightest pixel (largest frame - background) in the window of largest sum.
+    """Thesis paper 1: the brightest pixel of the window of largest summed relative image.
 
-    ``polarity`` of the summed relative image: "abs" (|frame - background|, default: finds a
-    dark ball with a bright spot as well as a bright one), "bright" (frame - background, as
-    for the thesis's bright spot) or "dark" (background - frame).
+    A ``window`` x ``window`` window traverses the sub-image ``roi``; the centre is the
+    brightest pixel (largest frame - background) in the window of largest sum. It finds the
+    specular spot, not the geometric centre.
+
+    Parameters
+    ----------
+    frame, background : numpy.ndarray or LazyFrame
+        The frame and the background image (same size).
+    roi : tuple of int, optional
+        (x0, y0, x1, y1) of the sub-image searched (default: the whole frame).
+    window : int, optional
+        Side of the summing window (px).
+    polarity : {"abs", "bright", "dark"}, optional
+        What is summed: |frame - background| (default: finds a dark ball with a bright spot as
+        well as a bright one), frame - background (as for the thesis's bright spot) or
+        background - frame.
+
+    Returns
+    -------
+    Location
+        Integer-pixel centre; ``found`` False when the region lies outside the frame.
     """
     h, w = frame.shape
     x0, y0, x1, y1 = (0, 0, w, h) if roi is None else roi
@@ -85,11 +101,31 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
                         step: float = 0.025) -> Location:
     """Thesis paper 2, steps 1-7, for a ball of radius ``r_px`` (px).
 
-    ``side`` is the sign of theta (+1 right of the bottom: the upper-left quarter is used,
-    -1: the upper-right). ``guess`` is where to look for the specular spots (default: the whole
-    frame via :func:`coarse_find`). ``threshold`` is the binarisation threshold on
-    |frame - background| (default: Otsu's threshold on the quarter) and also the intensity jump
-    that counts in step 6. Ties in step 6 are averaged.
+    Parameters
+    ----------
+    frame, background : numpy.ndarray or LazyFrame
+        The frame and the background image (same size).
+    r_px : float
+        The ball's radius (px).
+    side : {1, -1}, optional
+        The sign of theta: +1 (right of the bottom) uses the upper-left quarter of the ball,
+        -1 the upper-right.
+    guess : tuple of float, optional
+        Where to look for the specular spots (default: the whole frame via
+        :func:`coarse_find`).
+    threshold : float, optional
+        The binarisation threshold on |frame - background| (default: Otsu's threshold on the
+        quarter), also the intensity jump that counts in step 6.
+    neighbourhood : int, optional
+        Side of the square of candidate centres tried in step 6 (px; 15 in the thesis).
+    step : float, optional
+        Angular step (rad) around the candidate circles of step 6.
+
+    Returns
+    -------
+    Location
+        Integer-pixel centre (ties in step 6 averaged); ``found`` False when no ball-like
+        change is found.
     """
     rel_full_abs = None
     if guess is None:
