@@ -59,6 +59,7 @@ class CameraModel:
 
     @property
     def focal_px(self) -> float:
+        """Focal length in pixels (perspective): working distance / pixel size."""
         return self.working_distance / self.pixel_size
 
     @property
@@ -75,7 +76,24 @@ class CameraModel:
     # -- exact projections -------------------------------------------------------------------
 
     def project(self, points) -> np.ndarray:
-        """(..., 3) world points -> (..., 2) pixel coordinates (u, v)."""
+        """Exact projection of world points to pixel coordinates.
+
+        Parameters
+        ----------
+        points : array_like
+            (..., 3) world points (m; x right, y up, z towards the camera).
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 2) pixel coordinates (u right, v down, origin at the centre of the top-left
+            pixel).
+
+        Raises
+        ------
+        InputError
+            A point lies behind the perspective camera.
+        """
         p = np.asarray(points, dtype=float)
         cx, cy = self.center_px
         if self.projection == "orthographic":
@@ -90,12 +108,30 @@ class CameraModel:
         return np.stack([u, v], axis=-1)
 
     def sphere_silhouette(self, centres, radius: float):
-        """Silhouette of spheres of ``radius`` at world ``centres`` (N, 3).
+        """Silhouette of spheres of ``radius`` at world ``centres``.
 
-        Returns (centre_uv (N, 2), radius_px (N,)): the centre of the silhouette ellipse and
-        its area-equivalent radius sqrt(a b). Orthographic: the projected centre and r / s.
-        Perspective: the tangent cone from the pinhole cut by the image plane is an ellipse
-        whose centre lies outward of the projected sphere centre.
+        Orthographic: the projected centre and r / s. Perspective: the tangent cone from the pinhole
+        cut by the image plane is an ellipse whose centre lies outward of the projected sphere
+        centre.
+
+        Parameters
+        ----------
+        centres : array_like
+            (N, 3) sphere centres (m).
+        radius : float
+            Sphere radius (m).
+
+        Returns
+        -------
+        centre_uv : numpy.ndarray
+            (N, 2) centres of the silhouette ellipses (px).
+        radius_px : numpy.ndarray
+            (N,) area-equivalent radii sqrt(a b) (px).
+
+        Raises
+        ------
+        InputError
+            The perspective camera is inside a ball.
         """
         c = np.atleast_2d(np.asarray(centres, dtype=float))
         if self.projection == "orthographic":
@@ -134,9 +170,21 @@ class CameraModel:
     def tile_projection(self, x0: int, y0: int, w: int, h: int) -> np.ndarray:
         """4x4 OpenGL projection that renders the full-frame pixels [x0, x0+w) x [y0, y0+h).
 
-        Pixel (i, j) of the tile is full-frame pixel (x0 + i, y0 + j), exactly: the tile lines
-        up with the full frame pixel for pixel (supersampling renders more pixels over the same
-        region, which keeps this mapping).
+        Pixel (i, j) of the tile is full-frame pixel (x0 + i, y0 + j), exactly: the tile lines up
+        with the full frame pixel for pixel (supersampling renders more pixels over the same region,
+        which keeps this mapping).
+
+        Parameters
+        ----------
+        x0, y0 : int
+            Full-frame pixel of the tile's top-left corner.
+        w, h : int
+            Tile size (px).
+
+        Returns
+        -------
+        numpy.ndarray
+            The 4x4 projection matrix.
         """
         cx, cy = self.center_px
         a = 2.0 * (cx - x0 + 0.5) / w - 1.0
@@ -164,4 +212,10 @@ class CameraModel:
         return P
 
     def to_dict(self) -> dict:
+        """The camera as plain data, the form stored in a recording's attributes.
+
+        Returns
+        -------
+        dict
+        """
         return dataclasses.asdict(self) | {"center_px": list(self.center_px)}

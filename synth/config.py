@@ -63,6 +63,12 @@ class Lighting:
                              f"{self.backdrop_reflectance!r}")
 
     def to_dict(self) -> dict:
+        """The lighting as plain data (lamps as dicts), the form stored in a recording's attributes.
+
+        Returns
+        -------
+        dict
+        """
         return dataclasses.asdict(self)
 
 
@@ -112,15 +118,44 @@ class SceneConfig:
             raise SynthError("backdrop_distance must exceed half the trough length")
 
     def replace(self, **changes) -> SceneConfig:
+        """A copy with some fields changed.
+
+        Parameters
+        ----------
+        **changes
+            Field names and their new values.
+
+        Returns
+        -------
+        SceneConfig
+        """
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict:
+        """The scene as plain data (camera and lighting as dicts), the form stored in a recording.
+
+        Returns
+        -------
+        dict
+        """
         d = dataclasses.asdict(self)
         d["camera"] = self.camera.to_dict()
         return d
 
     @classmethod
     def from_dict(cls, d: dict) -> SceneConfig:
+        """A scene from the form written by :meth:`to_dict`.
+
+        Parameters
+        ----------
+        d : dict
+            Scene fields; ``camera`` and ``lighting`` as dicts (``lighting.lamps`` a list of lamp
+            dicts; absent keys take the defaults).
+
+        Returns
+        -------
+        SceneConfig
+        """
         d = dict(d)
         cam = d.pop("camera", {})
         light = d.pop("lighting", {})
@@ -168,16 +203,35 @@ class SensorConfig:
 
     @property
     def dtype(self) -> str:
+        """The frames' dtype name: ``"uint8"`` for 8-bit sensors, ``"uint16"`` above."""
         return "uint8" if self.bit_depth == 8 else "uint16"
 
     @property
     def max_dn(self) -> int:
+        """The largest digital number, 2**bit_depth - 1."""
         return 2 ** self.bit_depth - 1
 
     def replace(self, **changes) -> SensorConfig:
+        """A copy with some fields changed.
+
+        Parameters
+        ----------
+        **changes
+            Field names and their new values.
+
+        Returns
+        -------
+        SensorConfig
+        """
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict:
+        """The sensor as plain data, the form stored in a recording's attributes.
+
+        Returns
+        -------
+        dict
+        """
         return dataclasses.asdict(self)
 
 
@@ -227,6 +281,22 @@ NOISE_PRESETS: dict[str, SensorConfig] = {
 
 
 def lighting_preset(name: str) -> Lighting:
+    """A named lighting preset.
+
+    Parameters
+    ----------
+    name : str
+        One of ``LIGHTING_PRESETS``: thesis, dim, harsh, uneven, flat.
+
+    Returns
+    -------
+    Lighting
+
+    Raises
+    ------
+    SynthError
+        For an unknown name (the message lists the known ones).
+    """
     try:
         return LIGHTING_PRESETS[name]
     except KeyError:
@@ -235,6 +305,22 @@ def lighting_preset(name: str) -> Lighting:
 
 
 def noise_preset(name: str) -> SensorConfig:
+    """A named sensor preset.
+
+    Parameters
+    ----------
+    name : str
+        One of ``NOISE_PRESETS``: none, realistic, noisy, 12bit, dark.
+
+    Returns
+    -------
+    SensorConfig
+
+    Raises
+    ------
+    SynthError
+        For an unknown name (the message lists the known ones).
+    """
     try:
         return NOISE_PRESETS[name]
     except KeyError:
