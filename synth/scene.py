@@ -288,6 +288,13 @@ class SceneRenderer:
         return pose
 
     def set_ball(self, pose: np.ndarray | None) -> None:
+        """Place the ball mesh at ``pose``, or take it out of the scene.
+
+        Parameters
+        ----------
+        pose : numpy.ndarray or None
+            4x4 pose (see :meth:`ball_pose`); None removes the ball (the static background).
+        """
         if pose is None:
             if self._ball_node is not None:
                 self.scene.remove_node(self._ball_node)
@@ -318,6 +325,18 @@ class SceneRenderer:
         return self._reduce(color)
 
     def render_full(self, *, stock_shaders: bool = False) -> np.ndarray:
+        """Plain pyrender render of the whole frame.
+
+        Parameters
+        ----------
+        stock_shaders : bool, optional
+            Use pyrender's own shaders (the benchmark's baseline).
+
+        Returns
+        -------
+        numpy.ndarray
+            As :meth:`render_region` for the full frame.
+        """
         return self.render_region(0, 0, self.camera.width, self.camera.height,
                                   stock_shaders=stock_shaders)
 
@@ -518,6 +537,7 @@ class SceneRenderer:
         return cache
 
     def close(self) -> None:
+        """Free the renderer's OpenGL resources (cached shadow maps, offscreen context)."""
         if self._renderer is not None:
             if self._shadow_cache:
                 self._renderer._platform.make_current()

@@ -86,6 +86,13 @@ class SynthFrames:
         return self.clean_counts(i) / self.frame_scale
 
     def clean_background(self) -> np.ndarray:
+        """Clean display values in [0, 1] of the background frame (float64).
+
+        Returns
+        -------
+        numpy.ndarray
+            (H, W).
+        """
         return self._bg / self.background_scale
 
     def __getitem__(self, i: int) -> np.ndarray:
@@ -137,6 +144,21 @@ def open_frames(group) -> SynthFrames | None:
 
 @dataclasses.dataclass(frozen=True)
 class Recording:
+    """A synth recording opened for reading (:func:`open_recording`).
+
+    Attributes
+    ----------
+    frames : SynthFrames
+        The frames with the sensor model applied when read (a FrameSource).
+    background : numpy.ndarray
+        The background frame through the same sensor model.
+    truth : pandas.DataFrame
+        The exact ground truth, one row per frame.
+    attrs : dict
+        The store's attributes (setup, scene, sensor, seed, scenario, versions, ...).
+    path : pathlib.Path
+        The store.
+    """
     frames: SynthFrames
     background: np.ndarray
     truth: object  # pandas.DataFrame, one row per frame
