@@ -67,6 +67,20 @@ def _steps_per_frame(timestep: float, fps: float) -> tuple[int, float]:
 
 
 def build_xml(scenario, opts: dict) -> str:
+    """The MuJoCo model (MJCF text) of a scenario, in millimetres.
+
+    Parameters
+    ----------
+    scenario : sim.Scenario
+        The scenario (its surface: tangent pad, mesh facets or heightfield).
+    opts : dict
+        The engine's options (``DEFAULTS`` updated by the scenario's ``[engine.options]``).
+
+    Returns
+    -------
+    str
+        The model's XML.
+    """
     R = scenario.cylinder_radius * 1e3
     r = scenario.ball_radius * 1e3
     L = R - r
@@ -145,6 +159,22 @@ def build_xml(scenario, opts: dict) -> str:
 
 
 def run(scenario, progress: bool = False):
+    """Simulate ``scenario`` with MuJoCo (condim 6 rolling friction, millimetre units).
+
+    Parameters
+    ----------
+    scenario : sim.Scenario
+        The scenario (engine ``mujoco``; options in ``DEFAULTS``).
+    progress : bool, optional
+        Show a progress bar.
+
+    Returns
+    -------
+    sim.Trajectory
+        The ground truth at the camera rate as MuJoCo computed it (normal force summed over
+        contacts, slip speed at the contact), with the engine's version and settings in
+        ``meta``.
+    """
     import mujoco
     from scipy.spatial.transform import Rotation
     from tqdm import tqdm

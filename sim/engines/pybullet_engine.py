@@ -105,6 +105,22 @@ def _version() -> str:
 
 
 def run(scenario, progress: bool = False):
+    """Simulate ``scenario`` with PyBullet (DIRECT client, ``rollingFriction``).
+
+    Parameters
+    ----------
+    scenario : sim.Scenario
+        The scenario (engine ``pybullet``; options in ``DEFAULTS``).
+    progress : bool, optional
+        Show a progress bar.
+
+    Returns
+    -------
+    sim.Trajectory
+        The ground truth at the camera rate as PyBullet computed it (normal force summed over
+        contacts, NaN where there is none, slip speed at the contact), with the engine's version
+        and settings in ``meta``.
+    """
     import pybullet as p
     from tqdm import tqdm
 

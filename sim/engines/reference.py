@@ -20,6 +20,21 @@ DEFAULTS: dict = {"rtol": 1e-10}
 
 
 def run(scenario, progress: bool = False):
+    """Simulate ``scenario`` with the exact equation of motion (SciPy DOP853, exact turning points).
+
+    Parameters
+    ----------
+    scenario : sim.Scenario
+        The scenario (engine ``reference``; option ``rtol``, default 1e-10).
+    progress : bool, optional
+        Unused (the integration takes milliseconds); kept for the engines' common signature.
+
+    Returns
+    -------
+    sim.Trajectory
+        The ground truth at the camera rate: rolling without slipping, the normal force
+        m g cos(theta) + m L theta'^2, slip 0, and the time the ball came to rest in ``meta``.
+    """
     from sim.trajectory import Trajectory
 
     opts = scenario.options()
