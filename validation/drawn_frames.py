@@ -19,6 +19,29 @@ import numpy as np
 
 @dataclasses.dataclass(frozen=True)
 class Scene:
+    """An analytically drawn scene in the thesis geometry (defaults: 1280 x 1024, 0.1343 mm/px).
+
+    Attributes
+    ----------
+    width, height : int
+        Frame size (px).
+    center : tuple of float
+        The trough's axis (px).
+    R_px, r_px : float
+        Trough bore and ball radius (px).
+    wall_px : float
+        Thickness of the trough's wall (px).
+    backdrop, trough, ball : float
+        Levels in [0, 1] of the backdrop, the trough and the ball.
+    spot : float
+        Amplitude of the two specular spots (0: none).
+    shadow : float
+        Darkening of the soft shadow beside the ball (0: none).
+    bit_depth : int
+        8 or 16.
+    noise : float
+        Gaussian pixel noise (DN).
+    """
     width: int = 1280
     height: int = 1024
     center: tuple[float, float] = (640.0, 380.0)  # trough axis (px)
@@ -35,22 +58,55 @@ class Scene:
 
     @property
     def full_scale(self) -> float:
+        """The largest pixel value: 255 for 8 bit, 65535 for 16."""
         return 255.0 if self.bit_depth == 8 else 65535.0
 
     @property
     def dtype(self):
+        """The frames' NumPy dtype: uint8 for 8 bit, uint16 for 16."""
         return np.uint8 if self.bit_depth == 8 else np.uint16
 
     def ball_center(self, theta: float) -> tuple[float, float]:
-        """Ball centre (px) at angle theta on the track (image y down)."""
+        """Ball centre at angle theta on the track (image y down).
+
+        Parameters
+        ----------
+        theta : float
+            Angle from the trough bottom (rad, > 0 right of it).
+
+        Returns
+        -------
+        tuple of float
+            (x, y) in px.
+        """
         L = self.R_px - self.r_px
         return (self.center[0] + L * math.sin(theta), self.center[1] + L * math.cos(theta))
 
 
 def disk_coverage(h: int, w: int, cx: float, cy: float, r: float, ss: int = 16,
                   x_off: int = 0, y_off: int = 0) -> np.ndarray:
-    """Area fraction of each pixel of an (h, w) tile (top-left pixel at x_off, y_off) covered by
-    the disk; edge pixels supersampled ss x ss (error ~ 1/ss^2 of a pixel)."""
+    """Area fraction of each pixel of an (h, w) tile covered by a disk.
+
+    Edge pixels are supersampled ss x ss (error ~ 1/ss^2 of a pixel).
+
+    Parameters
+    ----------
+    h, w : int
+        Tile size (px).
+    cx, cy : float
+        Disk centre in frame pixels.
+    r : float
+        Disk radius (px).
+    ss : int, optional
+        Supersampling of the edge pixels per axis.
+    x_off, y_off : int, optional
+        Frame position of the tile's top-left pixel.
+
+    Returns
+    -------
+    numpy.ndarray
+        (h, w) coverage in [0, 1].
+    """
     yy, xx = np.mgrid[0:h, 0:w]
     d = np.hypot(xx + x_off - cx, yy + y_off - cy)
     cov = (d < r).astype(np.float64)
@@ -66,7 +122,17 @@ def disk_coverage(h: int, w: int, cx: float, cy: float, r: float, ss: int = 16,
 
 
 def background(scene: Scene) -> np.ndarray:
-    """The background image in [0, 1] (float64): backdrop and trough, no ball."""
+    """The background image: backdrop and trough, no ball.
+
+    Parameters
+    ----------
+    scene : Scene
+
+    Returns
+    -------
+    numpy.ndarray
+        (height, width) float64 in [0, 1].
+    """
     h, w = scene.height, scene.width
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
     img = scene.backdrop + 0.05 * (xx / w - 0.5) - 0.04 * (yy / h - 0.5)
@@ -80,6 +146,27 @@ def background(scene: Scene) -> np.ndarray:
 
 
 def to_dtype(img: np.ndarray, scene: Scene, rng: np.random.Generator | None = None):
+    """An image in [0, 1] as the scene's integer frames, with its pixel noise.
+
+    Parameters
+    ----------
+    img : numpy.ndarray
+        Float image in [0, 1].
+    scene : Scene
+        Gives the bit depth and the noise (DN).
+    rng : numpy.random.Generator, optional
+        Needed when ``scene.noise`` > 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        Rounded and clipped, ``scene.dtype``.
+
+    Raises
+    ------
+    ValueError
+        Noise without an ``rng``.
+    """
     out = img * scene.full_scale
     if scene.noise > 0:
         if rng is None:
@@ -90,8 +177,26 @@ def to_dtype(img: np.ndarray, scene: Scene, rng: np.random.Generator | None = No
 
 def draw_ball(bg: np.ndarray, scene: Scene, cx: float, cy: float, *,
               occluder: tuple[float, float, float, float] | None = None) -> np.ndarray:
-    """bg (float, [0, 1]) with the ball at (cx, cy), its spots, shadow and an occluding bar
-    (x0, y0, x1, y1) drawn in; only a tile around the ball is touched (a copy is returned)."""
+    """The background with the ball drawn in.
+
+    The ball at (cx, cy), its specular spots, its soft shadow and an occluding bar; only a tile
+    around the ball is touched.
+
+    Parameters
+    ----------
+    bg : numpy.ndarray
+        Float background in [0, 1] (not modified).
+    scene : Scene
+    cx, cy : float
+        Ball centre (px).
+    occluder : tuple of float, optional
+        (x0, y0, x1, y1) of a bar drawn over the ball.
+
+    Returns
+    -------
+    numpy.ndarray
+        A copy of ``bg`` with the ball.
+    """
     img = bg.copy()
     r = scene.r_px
     m = int(math.ceil(2.2 * r + 4))
@@ -124,7 +229,25 @@ def draw_ball(bg: np.ndarray, scene: Scene, cx: float, cy: float, *,
 
 
 def make_frames(scene: Scene, centers, *, seed: int = 0, occluder=None):
-    """(background uint, list of frames uint) with the ball at each (x, y) in ``centers``."""
+    """Integer frames with the ball at each of ``centers``.
+
+    Parameters
+    ----------
+    scene : Scene
+    centers : iterable of tuple
+        (x, y) per frame in px; (None, None) for a frame without the ball.
+    seed : int, optional
+        Seed of the pixel noise.
+    occluder : tuple of float, optional
+        As in :func:`draw_ball`.
+
+    Returns
+    -------
+    background : numpy.ndarray
+        The noiseless background frame.
+    frames : list of numpy.ndarray
+        One frame per centre.
+    """
     rng = np.random.default_rng(seed)
     bgf = background(scene)
     bg = to_dtype(bgf, dataclasses.replace(scene, noise=0.0))
