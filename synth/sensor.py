@@ -79,9 +79,23 @@ class Sensor:
         return y0, y1, x0, x1
 
     def normals(self, index: int | None, roi) -> np.ndarray:
-        """The standard-normal draws (float32) of frame ``index`` (None: the background) over
-        ``roi`` = (y0, y1, x0, x1): only the TILE x TILE tiles the roi touches are drawn, each
-        whole, from its own generator, so a crop of the full frame's draws is the same."""
+        """The standard-normal draws of one frame over a region.
+
+        Only the TILE x TILE tiles the region touches are drawn, each whole, from its own generator,
+        so a crop of the full frame's draws is the same.
+
+        Parameters
+        ----------
+        index : int or None
+            Frame number; None for the background frame.
+        roi : tuple of int
+            (y0, y1, x0, x1) of the region.
+
+        Returns
+        -------
+        numpy.ndarray
+            float32 draws, shape (y1 - y0, x1 - x0).
+        """
         y0, y1, x0, x1 = roi
         key = ([self.seed, _STREAM_BACKGROUND, 0] if index is None
                else [self.seed, _STREAM_FRAME, int(index)])
@@ -98,14 +112,28 @@ class Sensor:
 
     def apply(self, counts: np.ndarray, scale: int, index: int | None,
               roi: tuple[int, int, int, int] | None = None) -> np.ndarray:
-        """Sensor frame from a clean render in integer levels ``counts`` (0..scale = black..white
-        display value); ``index``: frame number, None for the background frame; ``roi``:
-        (y0, y1, x0, x1) of the frame that ``counts`` covers (default: the whole frame). The
-        result is the same crop of the full frame's sensor output, to the byte.
+        """Sensor frame from a clean render.
 
-        Shot noise is drawn in its Gaussian form (variance = electrons; the Poisson law differs
-        from it by less than 1 % in rms above 20 electrons), with the read noise, from one
-        standard-normal draw per pixel: e + sqrt(e + read^2) z.
+        The result is the same crop of the full frame's sensor output, to the byte. Shot noise is
+        drawn in its Gaussian form (variance = electrons; the Poisson law differs from it by less
+        than 1 % in rms above 20 electrons), with the read noise, from one standard-normal draw per
+        pixel: e + sqrt(e + read^2) z.
+
+        Parameters
+        ----------
+        counts : numpy.ndarray
+            The clean render in integer levels (0..scale = black..white display value).
+        scale : int
+            The level of white.
+        index : int or None
+            Frame number; None for the background frame.
+        roi : tuple of int, optional
+            (y0, y1, x0, x1) of the frame that ``counts`` covers (default: the whole frame).
+
+        Returns
+        -------
+        numpy.ndarray
+            Digital numbers in the sensor's dtype (uint8 or uint16).
         """
         s = self.config
         y0, y1, x0, x1 = roi = self._roi(counts, roi)
