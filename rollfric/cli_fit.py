@@ -28,7 +28,11 @@ def register(sub) -> None:
     p.add_argument("--model", default="coulomb", choices=["coulomb", "velocity"],
                    help="friction model: constant mu, or mu0 + mu1 |theta'| (lsq only)")
     p.add_argument("--plot", action="store_true",
-                   help="also write the angle-vs-model figure beside FIT.json (.png)")
+                   help="also write the angle-vs-model figure beside FIT.json (.png) and the "
+                        "uncertainty budget's bar chart (_budget.png)")
+    from rollfric.uncertainty import add_arguments
+
+    add_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -61,18 +65,25 @@ def run(args) -> int:
 
     from rollfric.fit import fit_mu, save_fit
     from rollfric.setup import load_setup
+    from rollfric.uncertainty import Measurement, run_budget
 
     setup = load_setup(args.setup)
     t, theta = read_track(args.track)
     kw = {"model": args.model} if args.method == "lsq" else {}
     result = fit_mu(t, theta, setup, method=args.method, offset=args.offset, **kw)
+    keys, budget = run_budget(Measurement(setup=setup, t=t, theta=theta), result, args)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    save_fit(result, out)
+    save_fit(result, out, **keys)
     if args.plot:
-        from rollfric.plots import plot_fit
+        from rollfric.plots import plot_budget, plot_fit
 
         plot_fit(t, theta, result, out.with_suffix(".png"))
-    print(f"mu = {result.mu:.6f} +- {result.mu_stderr:.2g} ({result.method}), "
+        if budget is not None:
+            plot_budget(budget, out.with_name(out.stem + "_budget.png"))
+    unc = f"+- {result.mu_stderr:.2g} (standard error)" if budget is None else \
+        f"+- {budget.u_mu:.2g} (u), U = {budget.U_mu:.2g} (k = 2)"
+    mu = result.mu if budget is None else budget.mu
+    print(f"mu = {mu:.6f} {unc} ({result.method}), "
           f"rms residual {result.rms_residual:.3g} rad, {result.n_samples} samples -> {out}")
     return 0

@@ -50,6 +50,9 @@ def register(sub) -> None:
     p.add_argument("--overlay-frames", default=None, metavar="I,J,...",
                    help="frames drawn in overlays.png (default: 6 spread over the found ones)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from rollfric.uncertainty import add_arguments
+
+    add_arguments(p)
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.set_defaults(func=run)
 
@@ -69,6 +72,7 @@ def run(args) -> int:
     from rollfric.errors import InputError
     from rollfric.fit import save_fit
     from rollfric.track import TRACK_COLUMNS, measure
+    from rollfric.uncertainty import measurement_from_track, run_budget
 
     frames = None
     if args.overlay_frames:
@@ -83,6 +87,7 @@ def run(args) -> int:
                             angle=args.angle, fit_method=args.fit_method, offset=args.offset,
                             progress=not args.no_progress, median_frames=args.median_frames,
                             log=_log, times=args.times)
+    keys, budget = run_budget(measurement_from_track(track, track.attrs["setup"]), result, args)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out} exists and is not a folder")
@@ -106,15 +111,17 @@ def run(args) -> int:
                  "warnings": track.attrs.get("warnings", []),
                  "median_sigma_px": float(track["sigma_px"].median())
                  if track["sigma_px"].notna().any() else None,
-                 "recording": track.attrs["recording"]}
+                 "recording": track.attrs["recording"], **keys}
         save_fit(result, tmp / "fit.json", **extra)
         if args.plot:
             from rollfric.io import open_recording
             from rollfric.overlay import plot_overlays
-            from rollfric.plots import plot_fit
+            from rollfric.plots import plot_budget, plot_fit
 
             plot_fit(track["t_s"].to_numpy(), track["theta_rad"].to_numpy(), result,
                      tmp / "fit.png")
+            if budget is not None:
+                plot_budget(budget, tmp / "budget.png")
             plot_overlays(open_recording(args.recording), track, tmp / "overlays.png",
                           frames=frames)
         out.mkdir(exist_ok=True)
@@ -122,6 +129,9 @@ def run(args) -> int:
             os.replace(f, out / f.name)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    print(f"mu = {result.mu:.6f} +- {result.mu_stderr:.2g} ({result.method}); ball found in "
+    unc = f"+- {result.mu_stderr:.2g} (standard error)" if budget is None else \
+        f"+- {budget.u_mu:.2g} (u), U = {budget.U_mu:.2g} (k = 2)"
+    mu = result.mu if budget is None else budget.mu
+    print(f"mu = {mu:.6f} {unc} ({result.method}); ball found in "
           f"{track.attrs['n_found']} of {track.attrs['n_frames']} frames -> {out}")
     return 0

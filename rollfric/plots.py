@@ -38,3 +38,30 @@ def plot_fit(t, theta, result, path, *, title: str | None = None) -> Path:
         fig.savefig(tmp, dpi=120)
     plt.close(fig)
     return path
+
+
+def plot_budget(budget, path) -> Path:
+    """The uncertainty budget as horizontal bars: each source's u(mu), largest on top, with
+    the combined and the expanded uncertainty (relative to mu, %)."""
+    rows = [r for r in budget.rows if r.u_mu > 0]
+    scale = 100.0 / budget.mu if budget.mu > 0 else 1.0
+    unit = "% of mu" if budget.mu > 0 else "mu"
+    # bottom to top: expanded U, combined u, then the sources smallest to largest
+    names = [f"expanded U (k = {budget.coverage_factor:g})", "combined u"] + \
+        [r.source for r in rows][::-1]
+    values = [budget.U_mu * scale, budget.u_mu * scale] + [r.u_mu * scale for r in rows][::-1]
+    fig, ax = plt.subplots(figsize=(7, 0.45 * len(names) + 1.2))
+    ax.barh(range(len(names)), values, color=["tab:red", "tab:orange"] + ["tab:blue"] * len(rows))
+    ax.set_yticks(range(len(names)), names)
+    for i, v in enumerate(values):
+        ax.text(v, i, f" {v:.3g}", va="center", fontsize=8)
+    ax.set_xlabel(f"standard uncertainty of mu ({unit})")
+    ax.set_title(f"Uncertainty budget: mu = {budget.mu:.6g}, U = {budget.U_mu:.2g} (k = "
+                 f"{budget.coverage_factor:g})")
+    ax.grid(axis="x", alpha=0.3)
+    fig.tight_layout()
+    path = Path(path)
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    return path

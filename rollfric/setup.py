@@ -14,6 +14,12 @@ write down at the bench (mm, g, Hz)::
     pixel_size_mm = 0.1343
 
 Optional keys: ``[cylinder] center_px``, ``[environment] gravity_m_s2`` (default 9.81).
+
+Uncertain inputs: every numeric key ``K`` may have a companion ``K_u``, its standard
+uncertainty in the same units and of the same shape (``radius_mm_u = 0.5``,
+``center_px_u = [2.0, 2.0]``, ``fps_u = 0.05``, ...). A key without ``K_u`` is taken as exact.
+They are kept in :attr:`Setup.uncertainty` in SI units under the field names
+(``cylinder_radius``, ``center_px``, ...) and used by :mod:`rollfric.uncertainty`.
 """
 
 from __future__ import annotations
@@ -47,6 +53,9 @@ class Setup:
     pixel_size: float  # m per pixel in the plane of the ball centre
     center_px: tuple[float, float] | None = None
     gravity: float = STANDARD_GRAVITY
+    # standard uncertainties of the fields above, SI (center_px: px, a pair):
+    # ((field name, u), ...); a field not listed is exact
+    uncertainty: tuple = ()
 
     def __post_init__(self) -> None:
         for name in ("cylinder_radius", "ball_diameter", "ball_mass", "fps", "pixel_size",
@@ -63,6 +72,11 @@ class Setup:
             if len(c) != 2 or not all(math.isfinite(v) for v in c):
                 raise SetupError(f"center_px must be two finite numbers, got {self.center_px!r}")
             object.__setattr__(self, "center_px", c)
+        object.__setattr__(self, "uncertainty", _check_uncertainty(self))
+
+    def u(self, name: str):
+        """Standard uncertainty of field ``name`` (SI; a pair for center_px), None if exact."""
+        return dict(self.uncertainty).get(name)
 
     @property
     def ball_radius(self) -> float:
@@ -88,7 +102,50 @@ class Setup:
         }
         if self.gravity != STANDARD_GRAVITY:
             out["environment"] = {"gravity_m_s2": self.gravity}
+        for name, u in self.uncertainty:
+            section, key, scale = LAB_KEYS[name]
+            table = out.setdefault(section, {})
+            if name == "gravity" and key not in table:
+                table[key] = self.gravity
+            table[key + "_u"] = [float(v) for v in u] if isinstance(u, tuple) else u * scale
         return out
+
+
+# Setup field -> (section, lab key, factor from SI to the lab unit)
+LAB_KEYS = {
+    "cylinder_radius": ("cylinder", "radius_mm", 1e3),
+    "center_px": ("cylinder", "center_px", 1.0),
+    "ball_diameter": ("ball", "diameter_mm", 1e3),
+    "ball_mass": ("ball", "mass_g", 1e3),
+    "fps": ("camera", "fps", 1.0),
+    "pixel_size": ("camera", "pixel_size_mm", 1e3),
+    "gravity": ("environment", "gravity_m_s2", 1.0),
+}
+
+
+def _check_uncertainty(setup: Setup) -> tuple:
+    """The uncertainty pairs validated (known field, finite, >= 0; center_px: a pair, only
+    with a center_px) and sorted by field name."""
+    items = dict(setup.uncertainty)
+    out = []
+    for name, u in sorted(items.items()):
+        if name not in LAB_KEYS:
+            raise SetupError(f"uncertainty of unknown setup field {name!r} "
+                             f"(known: {', '.join(LAB_KEYS)})")
+        if name == "center_px":
+            if setup.center_px is None:
+                raise SetupError("center_px uncertainty given without center_px")
+            vals = tuple(float(v) for v in u)
+            if len(vals) != 2:
+                raise SetupError(f"center_px uncertainty must be a pair, got {u!r}")
+        else:
+            if isinstance(u, bool) or not isinstance(u, (int, float)):
+                raise SetupError(f"{name} uncertainty must be a number, got {u!r}")
+            vals = (float(u),)
+        if not all(math.isfinite(v) and v >= 0 for v in vals):
+            raise SetupError(f"{name} uncertainty must be finite and >= 0, got {u!r}")
+        out.append((name, vals if name == "center_px" else vals[0]))
+    return tuple(out)
 
 
 # What a setup file may hold: section -> {key: required?}
@@ -114,9 +171,16 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
         if not isinstance(table, dict):
             raise SetupError(f"{source}: [{section}] must be a table")
         for key in table:
+            base = key[:-2] if key.endswith("_u") else None
+            if base is not None and base in _SCHEMA[section]:
+                if base not in table:
+                    raise SetupError(f"{source}: {section}.{key} (a standard uncertainty) is "
+                                     f"given without {section}.{base}")
+                continue
             if key not in _SCHEMA[section]:
                 raise SetupError(f"{source}: unknown key {section}.{key} "
-                                 f"(known: {', '.join(_SCHEMA[section])})")
+                                 f"(known: {', '.join(_SCHEMA[section])}, each with an "
+                                 "optional _u: its standard uncertainty)")
         for key, required in _SCHEMA[section].items():
             if required and key not in table:
                 raise SetupError(f"{source}: missing key {section}.{key}")
@@ -144,6 +208,28 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
                          f"{2e3 * radius:g})")
     gravity = (number("environment", "gravity_m_s2")
                if "gravity_m_s2" in data.get("environment", {}) else STANDARD_GRAVITY)
+    uncertainty = []
+    for name, (section, key, scale) in LAB_KEYS.items():
+        value = data.get(section, {}).get(key + "_u")
+        if value is None:
+            continue
+        where = f"{source}: {section}.{key}_u"
+        if name == "center_px":
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                value = [value, value]
+            if (not isinstance(value, list) or len(value) != 2
+                    or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                               for v in value)):
+                raise SetupError(f"{where} must be [ux, uy] in pixels, got {value!r}")
+            vals = [float(v) for v in value]
+        else:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise SetupError(f"{where} must be a number, got {value!r}")
+            vals = [float(value)]
+        if not all(math.isfinite(v) and v >= 0 for v in vals):
+            raise SetupError(f"{where} (a standard uncertainty) must be finite and >= 0, "
+                             f"got {value!r}")
+        uncertainty.append((name, tuple(vals) if name == "center_px" else vals[0] / scale))
     return Setup(
         cylinder_radius=radius,
         ball_diameter=diameter,
@@ -152,6 +238,7 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
         pixel_size=number("camera", "pixel_size_mm") * 1e-3,
         center_px=None if center is None else (float(center[0]), float(center[1])),
         gravity=gravity,
+        uncertainty=tuple(uncertainty),
     )
 
 

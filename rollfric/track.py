@@ -451,7 +451,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     ``times``: "auto" (the recording's per-frame timestamps when it has them, else frame /
     camera.fps) or "fps" (always frame / camera.fps); see :func:`frame_times`.
     The track has the columns TRACK_COLUMNS (+ r_px, sigma_px, inlier_frac); its ``attrs``
-    hold center_px, background, n_frames, n_found and the locator.
+    hold the setup used, center_px, background, n_frames, n_found and the locator.
     """
     from rollfric import fit as fitmod
     from rollfric.setup import load_setup
@@ -500,7 +500,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                          progress=progress, log=log, times=t)
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
-    df.attrs.update({"background": bg_desc, "center_source": center_desc,
+    df.attrs.update({"setup": setup, "background": bg_desc, "center_source": center_desc,
                      "n_frames": len(df), "n_found": n_found,
                      "recording": str(getattr(source, "name", recording)),
                      "times": times_desc,

@@ -1,0 +1,469 @@
+"""The uncertainty budget of one measurement of mu (GUM, JCGM 100; Monte-Carlo check JCGM 101).
+
+A budget has one row per source:
+
+- ``"statistical"``: the least-squares standard error of mu, corrected for correlated
+  residuals with a heteroscedasticity-and-autocorrelation-consistent (HAC, Newey-West)
+  sandwich: cov = (J'J)^-1 S (J'J)^-1 with S = sum over lags |j| <= m of Bartlett-weighted
+  cross products of the per-sample scores J_t r_t. The lag window m is three times the first
+  lag at which the residuals' autocorrelation falls below 2/sqrt(n) (the noise level of an
+  autocorrelation estimate), so white residuals give m of a few samples and the ordinary
+  standard error, residuals correlated over tens of samples (a locator's smoothing, model
+  error) widen it. The corrected value is never taken below the ordinary one (negative
+  residual correlation estimated at short lags is sampling noise, not a gain in precision).
+- one row per uncertain setup input (a key ``K`` with ``K_u`` in setup.toml, see
+  :mod:`rollfric.setup`): its sensitivity coefficient c = d mu / d input by central
+  differences over +-u, each side a re-evaluation of the measurement with that input moved:
+  the located centres are kept; the angles (centre, pixel size for arcsin angles), the times
+  (frame rate) and the fit (trough radius, ball diameter, gravity) are redone. Each re-fit is
+  a local least-squares refinement started from the nominal solution, over the same samples
+  and parameters as the nominal fit. u(mu) of the row is |c| u.
+
+The combined standard uncertainty is the root sum of squares of the rows (first-order law of
+propagation, inputs uncorrelated) and the expanded uncertainty U = k u with k = 2. Inputs
+without ``_u`` are listed as exact. On a track CSV (``rollfric fit``) the angles are given: the
+trough centre and the pixel size cannot act there, the frame rate acts by rescaling t_s.
+
+Self-calibration (``fit_length=True``): L = R - r, the radius of the ball centre's path, is
+fitted with mu; the radius, diameter and gravity then act only through L/g, which the data
+fix, so their rows vanish and their effect is in the statistical row (the L-fit's HAC error).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+from scipy import optimize
+
+from rollfric import eom
+from rollfric.errors import InputError
+from rollfric.setup import LAB_KEYS, Setup
+
+COVERAGE_FACTOR = 2.0
+# parameter -> (lower, upper, typical scale) of the local re-fits (as in rollfric.fit)
+_BOUNDS = {"mu": (0.0, 1.0, 1e-3), "theta0": (-math.pi / 2, math.pi / 2, 1e-3),
+           "omega0": (-np.inf, np.inf, 1e-2), "offset": (-0.5, 0.5, 1e-3),
+           "mu1": (0.0, np.inf, 1e-3)}
+_FIT_PARAMS = ("mu", "theta0", "omega0", "offset", "mu1")
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    """One source of the budget, in the setup file's units (value, u) and per that unit
+    (sensitivity, d mu / d input); ``u_mu`` = |sensitivity| u."""
+
+    source: str
+    value: float | None
+    u: float
+    sensitivity: float | None
+    u_mu: float
+    note: str = ""
+
+    def to_dict(self) -> dict:
+        out = {"source": self.source, "value": self.value, "u": self.u,
+               "sensitivity": self.sensitivity, "u_mu": self.u_mu}
+        if self.note:
+            out["note"] = self.note
+        return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Budget:
+    """The uncertainty of one mu: rows largest first, combined and expanded uncertainty."""
+
+    mu: float
+    u_mu: float
+    U_mu: float
+    coverage_factor: float
+    rows: tuple
+    statistical: dict  # ordinary and corrected standard error, lag window, n
+    exact: tuple  # setup keys taken as exact (no _u)
+    length: dict | None = None  # self-calibrated L when asked
+    monte_carlo: dict | None = None
+    seconds: float = 0.0
+    n_refits: int = 0
+
+    def to_json(self) -> dict:
+        """The fit.json keys: u_mu, U_mu, coverage_factor, uncertainty_budget, and details."""
+        out = {"u_mu": self.u_mu, "U_mu": self.U_mu, "coverage_factor": self.coverage_factor,
+               "uncertainty_budget": [r.to_dict() for r in self.rows],
+               "uncertainty": {"method": "GUM (JCGM 100) first order, inputs uncorrelated",
+                               "mu": self.mu, "statistical": dict(self.statistical),
+                               "exact_inputs": list(self.exact), "seconds": self.seconds,
+                               "n_refits": self.n_refits}}
+        if self.monte_carlo is not None:
+            out["uncertainty"]["monte_carlo"] = dict(self.monte_carlo)
+        if self.length is not None:
+            out["length_fit"] = dict(self.length)
+        return out
+
+
+# -- the statistical part -----------------------------------------------------------------
+
+def autocorrelation(x: np.ndarray) -> np.ndarray:
+    """Sample autocorrelation rho[k], k = 0 .. n-1, of ``x`` about its mean (FFT)."""
+    x = np.asarray(x, dtype=float) - np.mean(x)
+    n = x.size
+    f = np.fft.rfft(x, 2 * n)
+    acf = np.fft.irfft(f * np.conj(f))[:n]
+    return acf / acf[0] if acf[0] > 0 else np.zeros(n)
+
+
+def hac_covariance(jac: np.ndarray, res: np.ndarray, *, lag: int | None = None,
+                   dof: int | None = None):
+    """Parameter covariance of a least-squares fit: (ordinary, HAC) and the lag window used.
+
+    ``res``: the noise part of the residuals (those of the fit, or of a fit with more free
+    nuisance parameters; ``dof`` is then n minus their count, default n - p).
+    Ordinary: s^2 (J'J)^-1. HAC: Newey-West sandwich with Bartlett weights 1 - j/(m+1) over
+    lags j <= m; ``lag`` None picks m as three times the first lag where the residuals'
+    autocorrelation drops below 2/sqrt(n) (at most n/4). Both carry the n/dof correction.
+    """
+    jac = np.asarray(jac, dtype=float)
+    res = np.asarray(res, dtype=float)
+    n, p = jac.shape
+    dof = max(n - p if dof is None else dof, 1)
+    try:
+        a = np.linalg.inv(jac.T @ jac)
+    except np.linalg.LinAlgError:
+        nan = np.full((p, p), np.nan)
+        return nan, nan, 0
+    ordinary = a * float(res @ res) / dof
+    if lag is None:
+        rho = autocorrelation(res)
+        below = np.nonzero(rho[1:] < 2.0 / math.sqrt(n))[0]
+        first = int(below[0]) + 1 if below.size else n
+        lag = min(3 * first, n // 4)
+    g = jac * res[:, None]
+    s = g.T @ g
+    for j in range(1, lag + 1):
+        c = g[j:].T @ g[:-j]
+        s += (1.0 - j / (lag + 1.0)) * (c + c.T)
+    hac = a @ s @ a * (n / dof)
+    return ordinary, hac, int(lag)
+
+
+# -- re-evaluating the measurement ----------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class Measurement:
+    """What a re-evaluation needs: the located centres (``x``, ``y`` px at ``frames``) about
+    ``center`` with ``angle`` ("atan2" or "arcsin"), or the given angles ``theta`` at times
+    ``t`` (a track CSV: no centres). NaN entries are frames without a ball."""
+
+    setup: Setup
+    frames: np.ndarray | None = None
+    x: np.ndarray | None = None
+    y: np.ndarray | None = None
+    center: tuple[float, float] | None = None
+    angle: str = "atan2"
+    t: np.ndarray | None = None
+    theta: np.ndarray | None = None
+
+    @property
+    def from_centres(self) -> bool:
+        return self.x is not None
+
+    def series(self, setup: Setup):
+        """(t, theta) of the measurement with ``setup`` in place of the nominal one."""
+        if self.from_centres:
+            from rollfric.track import angles
+
+            center = setup.center_px if setup.center_px is not None else self.center
+            th = angles(self.x, self.y, center, method=self.angle,
+                        track_radius_px=setup.track_radius / setup.pixel_size)
+            return np.asarray(self.frames, dtype=float) / setup.fps, th
+        return np.asarray(self.t, dtype=float) * (self.setup.fps / setup.fps), \
+            np.asarray(self.theta, dtype=float)
+
+
+def measurement_from_track(track, setup: Setup) -> Measurement:
+    """A :class:`Measurement` from ``rollfric.track.measure``'s track DataFrame."""
+    center = tuple(track.attrs["center_px"])
+    found = track["found"].to_numpy() == 1
+    x = np.where(found, track["x_px"].to_numpy(float), np.nan)
+    y = np.where(found, track["y_px"].to_numpy(float), np.nan)
+    return Measurement(setup=setup, frames=track["frame"].to_numpy(float), x=x, y=y,
+                       center=center, angle=track.attrs.get("angle", "atan2"))
+
+
+def _fitted_mask(t, theta, n_samples):
+    """The samples the nominal fit used: the first ``n_samples`` finite ones (it ends a
+    quarter period before the ball rests for good)."""
+    good = np.isfinite(t) & np.isfinite(theta)
+    return good & (np.cumsum(good) <= n_samples)
+
+
+class _Refitter:
+    """Local least-squares re-fits from the nominal solution, memoised on their inputs."""
+
+    def __init__(self, meas: Measurement, result, *, fit_length: bool):
+        self.meas = meas
+        self.result = result
+        self.names = [n for n in result.stderr if n in _FIT_PARAMS] or ["mu", "theta0",
+                                                                         "omega0"]
+        self.start = {"mu": result.mu, "theta0": result.theta0, "omega0": result.omega0,
+                      "offset": result.offset, "mu1": result.mu1}
+        self.fit_length = fit_length
+        t, th = meas.series(meas.setup)
+        self.mask = _fitted_mask(t, th, result.n_samples)
+        self.count = 0
+        self._cache: dict = {}
+
+    def fit(self, setup: Setup, *, jacobian: bool = False, augmented: bool = False):
+        """(parameter dict, Jacobian or None, residuals) of the fit with ``setup``.
+
+        ``augmented``: also free L and a cubic map of the model's angle onto the measured one,
+        off + (1 + g1) theta + g2 theta^2 + g3 theta^3 (what a wrong centre, radius, frame
+        rate, pixel scale or a lens does to the angles, to third order): a fit whose residuals
+        are the noise, not the misfit a setup error leaves."""
+        t, th = self.meas.series(setup)
+        t, th = t[self.mask], th[self.mask]
+        L0, g = setup.track_radius, setup.gravity
+        key = (t.tobytes(), th.tobytes(), L0, g, jacobian, augmented)
+        if key in self._cache:
+            return self._cache[key]
+        names = list(self.names) + (["length"] if self.fit_length else [])
+        if augmented:
+            names += [n for n in ("offset", "length", "g1", "g2", "g3") if n not in names]
+        start = dict(self.start, length=L0, g1=0.0, g2=0.0, g3=0.0)
+        bounds = dict(_BOUNDS, length=(0.5 * L0, 2.0 * L0, 1e-4), g1=(-0.5, 0.5, 1e-3),
+                      g2=(-np.inf, np.inf, 1e-3), g3=(-np.inf, np.inf, 1e-3))
+        lower = np.array([bounds[n][0] for n in names])
+        upper = np.array([bounds[n][1] for n in names])
+        scale = np.array([bounds[n][2] for n in names])
+        x0 = np.clip([start[n] for n in names], lower, upper)
+
+        def residual(x):
+            p = dict(zip(names, x, strict=True))
+            off = p.get("offset", 0.0)
+            m, _, _ = eom.solve(p["theta0"] - off, p["omega0"], p["mu"], t,
+                                track_radius=p.get("length", L0), gravity=g,
+                                mu1=p.get("mu1", 0.0))
+            if augmented:
+                m = m * (1.0 + p["g1"] + m * (p["g2"] + m * p["g3"]))
+            return m + off - th
+
+        sol = optimize.least_squares(residual, x0, bounds=(lower, upper), x_scale=scale,
+                                     diff_step=1e-7, xtol=1e-12, ftol=1e-12, gtol=1e-12,
+                                     max_nfev=200)
+        self.count += 1
+        out = (dict(zip(names, (float(v) for v in sol.x), strict=True)),
+               sol.jac if jacobian else None, sol.fun)
+        self._cache[key] = out
+        return out
+
+    def mu(self, setup: Setup) -> float:
+        return self.fit(setup)[0]["mu"]
+
+
+# -- the inputs -----------------------------------------------------------------------------
+
+def _inputs(setup: Setup):
+    """(source name, setup field, component or None, value in lab units, u in lab units,
+    factor lab -> SI) for every numeric setup input; u 0 where exact."""
+    out = []
+    for name, (section, key, scale) in LAB_KEYS.items():
+        value = getattr(setup, name)
+        u = setup.u(name)
+        if name == "center_px":
+            if value is None:
+                continue
+            for i, axis in enumerate("xy"):
+                out.append((f"{section}.{key}[{axis}]", name, i, float(value[i]),
+                            0.0 if u is None else float(u[i]), 1.0))
+            continue
+        out.append((f"{section}.{key}", name, None, float(value) * scale,
+                    0.0 if u is None else float(u) * scale, 1.0 / scale))
+    return out
+
+
+def _moved(setup: Setup, field: str, component, delta_lab: float, factor: float) -> Setup:
+    if field == "center_px":
+        c = list(setup.center_px)
+        c[component] += delta_lab
+        return dataclasses.replace(setup, center_px=tuple(c))
+    return dataclasses.replace(setup, **{field: getattr(setup, field) + delta_lab * factor})
+
+
+def _acts(meas: Measurement, field: str) -> str:
+    """'' when ``field`` can change mu in this measurement, else why not."""
+    if field == "ball_mass":
+        return "enters no step of the measurement (mu is defined by M = mu r N)"
+    if field in ("center_px", "pixel_size") and not meas.from_centres:
+        return "cannot act on a track of given angles"
+    if field == "pixel_size" and meas.angle == "atan2":
+        return "atan2 angles do not depend on the pixel scale"
+    return ""
+
+
+# -- the budget -----------------------------------------------------------------------------
+
+def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: int = 0,
+           seed: int = 0, coverage_factor: float = COVERAGE_FACTOR) -> Budget:
+    """The uncertainty budget of ``result`` (a least-squares FitResult of ``meas``).
+
+    ``fit_length``: fit L = R - r as well (self-calibration; mu and the budget then use the
+    fitted L). ``monte_carlo``: that many draws of the uncertain inputs (normal, their u) each
+    re-evaluated, plus a normal draw of the statistical part (JCGM 101), seeded by ``seed``.
+    """
+    if result.method != "lsq":
+        raise InputError(f"the uncertainty budget needs the lsq fit, not {result.method!r}")
+    start = time.perf_counter()
+    setup = meas.setup
+    refit = _Refitter(meas, result, fit_length=fit_length)
+    params, jac, res = refit.fit(setup, jacobian=True)
+    names = list(params)
+    aug, _, noise = refit.fit(setup, augmented=True)
+    ordinary, hac, lag = hac_covariance(jac, noise, dof=noise.size - len(aug))
+    i_mu = names.index("mu")
+    u_plain = float(math.sqrt(max(ordinary[i_mu, i_mu], 0.0)))
+    u_hac = float(math.sqrt(max(hac[i_mu, i_mu], 0.0)))
+    u_stat = max(u_plain, u_hac)
+    mu = params["mu"]
+    statistical = {"stderr_ordinary": u_plain, "stderr_hac": u_hac, "lag_window": lag,
+                   "n_samples": int(res.size), "inflation": u_stat / u_plain
+                   if u_plain > 0 else math.nan,
+                   "rms_residual_rad": float(np.sqrt(np.mean(res**2))),
+                   "rms_noise_rad": float(np.sqrt(np.mean(noise**2))),
+                   "noise_fit_extra_parameters": [n for n in aug if n not in names]}
+    rows = [Row("statistical", None, u_stat, 1.0, u_stat,
+                "least-squares standard error, corrected for correlated residuals (HAC)")]
+    exact = []
+    length = None
+    u_l2 = 0.0  # variance of the fitted L (m^2)
+    if fit_length:
+        i_l = names.index("length")
+        u_l2 = max(hac[i_l, i_l], ordinary[i_l, i_l], 0.0)
+    for source, field, comp, value, u, factor in _inputs(setup):
+        why = _acts(meas, field)
+        if fit_length and field in ("cylinder_radius", "ball_diameter", "gravity") and not why:
+            if not (meas.from_centres and meas.angle == "arcsin"):
+                why = "acts only through L/g, which is fitted (self-calibration)"
+        if u == 0.0:
+            exact.append(source)
+            continue
+        if why:
+            rows.append(Row(source, value, u, 0.0, 0.0, why))
+            continue
+        hi = refit.fit(_moved(setup, field, comp, u, factor))[0]
+        lo = refit.fit(_moved(setup, field, comp, -u, factor))[0]
+        c = (hi["mu"] - lo["mu"]) / (2 * u)
+        rows.append(Row(source, value, u, c, abs(c) * u))
+        if fit_length:
+            u_l2 += (0.5 * (hi["length"] - lo["length"])) ** 2
+    if fit_length:
+        uR, ud = setup.u("cylinder_radius"), setup.u("ball_diameter")
+        u_nom = (math.hypot(uR or 0.0, 0.5 * (ud or 0.0))
+                 if uR is not None or ud is not None else None)
+        length = {"L_fit_mm": params["length"] * 1e3, "u_L_fit_mm": math.sqrt(u_l2) * 1e3,
+                  "u_L_fit_statistical_mm": math.sqrt(max(hac[i_l, i_l], ordinary[i_l, i_l],
+                                                          0.0)) * 1e3,
+                  "L_nominal_mm": setup.track_radius * 1e3,
+                  "u_L_nominal_mm": None if u_nom is None else u_nom * 1e3,
+                  "mu_nominal_L": result.mu, "mu_fitted_L": mu}
+    u_mu = math.sqrt(sum(r.u_mu**2 for r in rows))
+    rows.sort(key=lambda r: -r.u_mu)
+    mc = None
+    if monte_carlo:
+        mc = _monte_carlo(refit, setup, mu, u_mu, u_stat, coverage_factor * u_mu, monte_carlo,
+                          seed, meas)
+    return Budget(mu=mu, u_mu=u_mu, U_mu=coverage_factor * u_mu,
+                  coverage_factor=coverage_factor, rows=tuple(rows), statistical=statistical,
+                  exact=tuple(exact), length=length, monte_carlo=mc,
+                  seconds=time.perf_counter() - start, n_refits=refit.count)
+
+
+def _monte_carlo(refit: _Refitter, setup: Setup, mu, u_mu, u_stat, U, n, seed, meas) -> dict:
+    """JCGM 101: propagate normal draws of every uncertain input through re-evaluations."""
+    rng = np.random.default_rng(seed)
+    active = [(f, c, u, k) for _, f, c, _, u, k in _inputs(setup)
+              if u > 0 and not _acts(meas, f)]
+    draws = np.empty(n)
+    for i in range(n):
+        s = setup
+        for field, comp, u, factor in active:
+            s = _moved(s, field, comp, float(rng.normal(0.0, u)), factor)
+        draws[i] = refit.mu(s) + rng.normal(0.0, u_stat)
+    lo, hi = np.percentile(draws, [2.5, 97.5])
+    sd = float(np.std(draws, ddof=1))
+    # JCGM 101 section 8: the GUM interval is validated when both endpoints agree with the
+    # Monte-Carlo ones within delta, half a unit of the last of two significant digits of u
+    delta = 0.5 * 10.0 ** (math.floor(math.log10(u_mu)) - 1) if u_mu > 0 else 0.0
+    d_low, d_high = abs(mu - U - lo), abs(mu + U - hi)
+    return {"draws": n, "seed": seed, "mean": float(np.mean(draws)), "u_mu": sd,
+            "interval_95": [float(lo), float(hi)], "d_low": d_low, "d_high": d_high,
+            "delta": delta, "gum_validated": bool(d_low <= delta and d_high <= delta)}
+
+
+# -- reporting ------------------------------------------------------------------------------
+
+def format_budget(b: Budget) -> str:
+    """The budget as a small text table, largest first."""
+    rel = (lambda v: f"{100 * v / b.mu:6.3f} %") if b.mu > 0 else (lambda v: "      -")
+    lines = [f"uncertainty budget of mu = {b.mu:.6g} (GUM, first order):",
+             f"  {'source':<26} {'value':>11} {'u':>10} {'sensitivity':>12} {'u(mu)':>10}"
+             f" {'rel.':>8}"]
+    for r in b.rows:
+        value = "" if r.value is None else f"{r.value:.6g}"
+        sens = "" if r.sensitivity is None or r.source == "statistical" else \
+            f"{r.sensitivity:+.3e}"
+        lines.append(f"  {r.source:<26} {value:>11} {r.u:>10.3g} {sens:>12} {r.u_mu:>10.3g}"
+                     f" {rel(r.u_mu):>8}" + (f"  ({r.note})" if r.u_mu == 0 and r.note else ""))
+    lines.append(f"  combined u(mu) = {b.u_mu:.3g} ({rel(b.u_mu).strip()}), expanded U(mu) = "
+                 f"{b.U_mu:.3g} ({rel(b.U_mu).strip()}, k = {b.coverage_factor:g})")
+    st = b.statistical
+    lines.append(f"  statistical: ordinary {st['stderr_ordinary']:.3g}, corrected x"
+                 f"{st['inflation']:.2f} for correlated residuals (lag window "
+                 f"{st['lag_window']})")
+    if b.exact:
+        lines.append(f"  taken as exact (no _u in the setup): {', '.join(b.exact)}")
+    if b.length is not None:
+        ln = b.length
+        nom = "" if ln["u_L_nominal_mm"] is None else f" +- {ln['u_L_nominal_mm']:.3g}"
+        lines.append(f"  L = R - r fitted: {ln['L_fit_mm']:.4f} +- {ln['u_L_fit_mm']:.2g} mm "
+                     f"(nominal {ln['L_nominal_mm']:.4f}{nom} mm); mu with the nominal L "
+                     f"{ln['mu_nominal_L']:.6g}")
+    if b.monte_carlo is not None:
+        m = b.monte_carlo
+        lines.append(f"  Monte Carlo ({m['draws']} draws, seed {m['seed']}): u(mu) "
+                     f"{m['u_mu']:.3g}, 95 % interval [{m['interval_95'][0]:.6g}, "
+                     f"{m['interval_95'][1]:.6g}]; GUM interval "
+                     f"{'validated' if m['gum_validated'] else 'not validated'} "
+                     f"(endpoint differences {m['d_low']:.2g}, {m['d_high']:.2g}, "
+                     f"tolerance {m['delta']:.2g})")
+    lines.append(f"  budget: {b.n_refits} re-fits, {b.seconds:.2f} s")
+    return "\n".join(lines)
+
+
+def add_arguments(parser) -> None:
+    """The budget's options of ``rollfric fit`` and ``rollfric measure``."""
+    parser.add_argument("--fit-length", action="store_true",
+                        help="self-calibration: also fit L = R - r (the radius of the ball "
+                             "centre's path); mu and its budget then use the fitted L")
+    parser.add_argument("--monte-carlo", type=int, default=0, metavar="N",
+                        help="check the budget by N Monte-Carlo draws of the uncertain inputs "
+                             "(JCGM 101), each a re-fit")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the Monte-Carlo draws")
+
+
+def run_budget(meas: Measurement, result, args, *, log=print):
+    """The budget of a command's result as (fit.json keys, Budget or None), its table printed
+    through ``log``; a fit method without a Jacobian gets no budget (said so)."""
+    if args.monte_carlo < 0:
+        raise InputError(f"--monte-carlo must be >= 0, got {args.monte_carlo}")
+    if result.method != "lsq":
+        log(f"uncertainty budget: only for the lsq fit (this is {result.method}); "
+            "mu_stderr is its statistical error alone")
+        return {"u_mu": None, "U_mu": None, "coverage_factor": None,
+                "uncertainty_budget": []}, None
+    b = budget(meas, result, fit_length=args.fit_length, monte_carlo=args.monte_carlo,
+               seed=args.seed)
+    log(format_budget(b))
+    keys = b.to_json()
+    if args.fit_length:
+        keys["mu"] = b.mu
+    return keys, b
