@@ -227,11 +227,14 @@ class _Refitter:
         if key in self._cache:
             return self._cache[key]
         names = list(self.names) + (["length"] if self.fit_length else [])
+        start = dict(self.start, length=L0)
         if augmented:
-            names += [n for n in ("offset", "length", "g1", "g2", "g3") if n not in names]
-        start = dict(self.start, length=L0, g1=0.0, g2=0.0, g3=0.0)
-        bounds = dict(_BOUNDS, length=(0.5 * L0, 2.0 * L0, 1e-4), g1=(-0.5, 0.5, 1e-3),
-                      g2=(-np.inf, np.inf, 1e-3), g3=(-np.inf, np.inf, 1e-3))
+            # variable projection: the map's four coefficients are linear, solved for in
+            # every evaluation; the motion (theta0 in the model's own angle) and L are free
+            names = [n for n in names if n != "offset"] + \
+                ([] if self.fit_length else ["length"])
+            start["theta0"] = self.start["theta0"] - self.start["offset"]
+        bounds = dict(_BOUNDS, length=(0.5 * L0, 2.0 * L0, 1e-4))
         lower = np.array([bounds[n][0] for n in names])
         upper = np.array([bounds[n][1] for n in names])
         scale = np.array([bounds[n][2] for n in names])
@@ -244,11 +247,13 @@ class _Refitter:
                                 track_radius=p.get("length", L0), gravity=g,
                                 mu1=p.get("mu1", 0.0))
             if augmented:
-                m = m * (1.0 + p["g1"] + m * (p["g2"] + m * p["g3"]))
+                basis = np.stack([np.ones_like(m), m, m * m, m * m * m], axis=1)
+                coef, *_ = np.linalg.lstsq(basis, th, rcond=None)
+                return basis @ coef - th
             return m + off - th
 
         sol = optimize.least_squares(residual, x0, bounds=(lower, upper), x_scale=scale,
-                                     diff_step=1e-7, xtol=1e-12, ftol=1e-12, gtol=1e-12,
+                                     diff_step=1e-7, xtol=1e-10, ftol=1e-10, gtol=1e-10,
                                      max_nfev=200)
         self.count += 1
         out = (dict(zip(names, (float(v) for v in sol.x), strict=True)),
@@ -318,7 +323,8 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     params, jac, res = refit.fit(setup, jacobian=True)
     names = list(params)
     aug, _, noise = refit.fit(setup, augmented=True)
-    ordinary, hac, lag = hac_covariance(jac, noise, dof=noise.size - len(aug))
+    # its free parameters: the motion's, L and the map's four coefficients
+    ordinary, hac, lag = hac_covariance(jac, noise, dof=noise.size - len(aug) - 4)
     i_mu = names.index("mu")
     u_plain = float(math.sqrt(max(ordinary[i_mu, i_mu], 0.0)))
     u_hac = float(math.sqrt(max(hac[i_mu, i_mu], 0.0)))
@@ -329,7 +335,8 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
                    if u_plain > 0 else math.nan,
                    "rms_residual_rad": float(np.sqrt(np.mean(res**2))),
                    "rms_noise_rad": float(np.sqrt(np.mean(noise**2))),
-                   "noise_fit_extra_parameters": [n for n in aug if n not in names]}
+                   "noise_fit": "L and a cubic map of the model angle (offset, gain, "
+                                "2nd, 3rd order) freed"}
     rows = [Row("statistical", None, u_stat, 1.0, u_stat,
                 "least-squares standard error, corrected for correlated residuals (HAC)")]
     exact = []

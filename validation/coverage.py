@@ -1,0 +1,208 @@
+"""Is the uncertainty budget honest? Coverage of the truth by u_mu and U_mu, without rendering.
+
+Each case draws a motion (mu, theta0, ball, record length), a locator noise (white or AR(1)
+correlated, 0.01-0.1 px) and the as-built setup from the lab's tolerances around its nominal
+values (trough radius, ball diameter, trough centre, frame rate, pixel size; the setup's
+``K_u``). The ball's path is the reference ODE on the as-built trough, sampled at the as-built
+frame rate, projected to pixels with the as-built scale and centre; the measurement sees only
+the nominal setup (with its ``_u`` keys) and runs the real fit and budget
+(:func:`rollfric.uncertainty.budget`) on those centres. z = (mu - mu_true) / u_mu; an honest
+budget has |z| <= 1 in about 68 % and |z| <= 2 (truth within U_mu, k = 2) in about 95 % of
+the cases. The oracle mode (the exact as-built setup given, only the statistical part) is
+checked the same way, with the corrected and the ordinary standard error.
+
+``python -m validation.coverage --cases 200 --out DIR`` writes DIR/coverage.csv (one row a
+case), DIR/coverage.json (the fractions) and DIR/coverage.png (z histograms).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rollfric import eom
+from rollfric.fit import fit_mu
+from rollfric.setup import THESIS_BALLS, Setup
+from rollfric.uncertainty import Measurement, budget
+
+# the lab's nominal setup and its standard uncertainties (lab units), issue 14's lab
+NOMINAL = {"radius_mm": 85.3, "center_px": (640.0, 380.0), "fps": 1000.0,
+           "pixel_size_mm": 0.1343}
+TOLERANCE = {"radius_mm": 0.5, "diameter_mm": 0.005, "center_px": 2.0, "fps": 0.05,
+             "pixel_size_mm": 0.0003}
+
+
+def draw_case(seed: int) -> dict:
+    """One case's motion, noise and as-built setup, drawn with ``seed``."""
+    rng = np.random.default_rng(seed)
+    ball = str(rng.choice(list(THESIS_BALLS)))
+    d_mm, mass = THESIS_BALLS[ball][0] * 1e3, THESIS_BALLS[ball][1]
+    tol = TOLERANCE
+    return {
+        "seed": seed, "ball": ball, "mass_kg": mass,
+        "mu": float(math.exp(rng.uniform(math.log(0.004), math.log(0.02)))),
+        "theta0_deg": float(rng.uniform(6.0, 30.0)),
+        "seconds": float(rng.choice([1.0, 2.0, 4.0])),
+        "noise_px": float(math.exp(rng.uniform(math.log(0.01), math.log(0.1)))),
+        "ar": float(rng.choice([0.0, 0.5, 0.9])),
+        "diameter_mm": d_mm,
+        "true_radius_mm": NOMINAL["radius_mm"] + rng.normal(0.0, tol["radius_mm"]),
+        "true_diameter_mm": d_mm + rng.normal(0.0, tol["diameter_mm"]),
+        "true_center_px": tuple(float(c + rng.normal(0.0, tol["center_px"]))
+                                for c in NOMINAL["center_px"]),
+        "true_fps": NOMINAL["fps"] + rng.normal(0.0, tol["fps"]),
+        "true_pixel_size_mm": NOMINAL["pixel_size_mm"] + rng.normal(0.0, tol["pixel_size_mm"]),
+    }
+
+
+def _centres(case: dict, true: Setup):
+    """Frames and located centres (px) of the case: the reference ODE on the as-built trough,
+    sampled at the as-built rate, plus AR(1) locator noise of rms ``noise_px``."""
+    n = int(case["seconds"] * NOMINAL["fps"])
+    frames = np.arange(n, dtype=float)
+    th, _, _ = eom.solve_reference(math.radians(case["theta0_deg"]), 0.0, case["mu"],
+                                   frames / true.fps, track_radius=true.track_radius)
+    L_px = true.track_radius / true.pixel_size
+    rng = np.random.default_rng(10_000 + case["seed"])
+    w = rng.normal(0.0, case["noise_px"] * math.sqrt(1 - case["ar"] ** 2), (2, n))
+    e = np.empty_like(w)
+    e[:, 0] = rng.normal(0.0, case["noise_px"], 2)
+    for i in range(1, n):
+        e[:, i] = case["ar"] * e[:, i - 1] + w[:, i]
+    xc, yc = true.center_px
+    return frames, xc + L_px * np.sin(th) + e[0], yc + L_px * np.cos(th) + e[1]
+
+
+def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True) -> dict:
+    """Measure one case blind (nominal setup with its _u) and, with ``oracle``, with the
+    exact as-built setup."""
+    true = Setup(cylinder_radius=case["true_radius_mm"] * 1e-3,
+                 ball_diameter=case["true_diameter_mm"] * 1e-3, ball_mass=case["mass_kg"],
+                 fps=case["true_fps"], pixel_size=case["true_pixel_size_mm"] * 1e-3,
+                 center_px=case["true_center_px"])
+    tol = TOLERANCE
+    lab = Setup(cylinder_radius=NOMINAL["radius_mm"] * 1e-3,
+                ball_diameter=case["diameter_mm"] * 1e-3, ball_mass=case["mass_kg"],
+                fps=NOMINAL["fps"], pixel_size=NOMINAL["pixel_size_mm"] * 1e-3,
+                center_px=NOMINAL["center_px"],
+                uncertainty=(("cylinder_radius", tol["radius_mm"] * 1e-3),
+                             ("ball_diameter", tol["diameter_mm"] * 1e-3),
+                             ("center_px", (tol["center_px"], tol["center_px"])),
+                             ("fps", tol["fps"]), ("pixel_size", tol["pixel_size_mm"] * 1e-3)))
+    frames, x, y = _centres(case, true)
+    out = {k: v for k, v in case.items() if not isinstance(v, tuple)}
+    start = time.perf_counter()
+    meas = Measurement(setup=lab, frames=frames, x=x, y=y, center=lab.center_px)
+    res = fit_mu(*meas.series(lab), lab)
+    t_fit = time.perf_counter() - start
+    b = budget(meas, res, fit_length=fit_length)
+    mu_true = case["mu"]
+    out.update(mu=b.mu, u_mu=b.u_mu, U_mu=b.U_mu, z=(b.mu - mu_true) / b.u_mu,
+               u_stat=b.statistical["stderr_hac"], top_source=b.rows[0].source,
+               fit_seconds=t_fit, budget_seconds=b.seconds, n_refits=b.n_refits)
+    if fit_length:
+        ln = b.length
+        L_true = (case["true_radius_mm"] - 0.5 * case["true_diameter_mm"])
+        out.update(L_fit_mm=ln["L_fit_mm"], u_L_fit_mm=ln["u_L_fit_mm"],
+                   z_L=(ln["L_fit_mm"] - L_true) / ln["u_L_fit_mm"])
+    if not oracle:
+        return out
+    m_o = Measurement(setup=dataclasses.replace(true, uncertainty=()), frames=frames, x=x, y=y,
+                      center=true.center_px)
+    ro = fit_mu(*m_o.series(m_o.setup), m_o.setup)
+    bo = budget(m_o, ro)
+    out.update(mu_oracle=bo.mu, u_oracle=bo.u_mu, z_oracle=(bo.mu - mu_true) / bo.u_mu,
+               z_oracle_ordinary=(ro.mu - mu_true) / ro.mu_stderr,
+               inflation_oracle=bo.statistical["inflation"])
+    return out
+
+
+def summarize(df: pd.DataFrame) -> dict:
+    """Coverage fractions of the blind budget and of the oracle's statistical error."""
+    def frac(z, k):
+        z = np.asarray(z, dtype=float)
+        return float(np.mean(np.abs(z) <= k))
+
+    s = {"cases": len(df),
+         "blind_within_U": frac(df["z"], 2.0), "blind_within_u": frac(df["z"], 1.0),
+         "blind_z_rms": float(np.sqrt(np.mean(df["z"] ** 2))),
+         "oracle_within_2u_stat": frac(df["z_oracle"], 2.0),
+         "oracle_within_u_stat": frac(df["z_oracle"], 1.0),
+         "oracle_ordinary_within_2se": frac(df["z_oracle_ordinary"], 2.0),
+         "oracle_ordinary_within_se": frac(df["z_oracle_ordinary"], 1.0),
+         "median_U_rel": float(np.median(df["U_mu"] / df["mu"])),
+         "median_budget_seconds": float(np.median(df["budget_seconds"])),
+         "median_fit_seconds": float(np.median(df["fit_seconds"]))}
+    for ar, g in df.groupby("ar"):
+        s[f"oracle_within_2u_stat_ar{ar:g}"] = frac(g["z_oracle"], 2.0)
+        s[f"oracle_ordinary_within_2se_ar{ar:g}"] = frac(g["z_oracle_ordinary"], 2.0)
+    if "z_L" in df:
+        s["L_within_2u"] = frac(df["z_L"], 2.0)
+        s["L_within_u"] = frac(df["z_L"], 1.0)
+    return s
+
+
+def plot(df: pd.DataFrame, path: Path) -> None:
+    """Histograms of z (blind, full budget) and of the oracle's z (statistical part)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rollfric.atomic import replacing
+
+    cols = [("z", "blind: (mu - truth) / u_mu"),
+            ("z_oracle", "oracle: / statistical u (corrected)"),
+            ("z_oracle_ordinary", "oracle: / ordinary standard error")]
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    grid = np.linspace(-4, 4, 200)
+    for ax, (col, title) in zip(axes, cols, strict=True):
+        z = np.clip(df[col].to_numpy(float), -6, 6)
+        ax.hist(z, bins=np.linspace(-6, 6, 49), density=True, color="tab:blue", alpha=0.7)
+        ax.plot(grid, np.exp(-0.5 * grid**2) / math.sqrt(2 * math.pi), "k-", lw=1,
+                label="N(0, 1)")
+        inside = np.mean(np.abs(df[col]) <= 2) * 100
+        ax.set_title(f"{title}\n|z| <= 2: {inside:.1f} %", fontsize=9)
+        ax.set_xlabel("z (clipped to +-6)")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m validation.coverage", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--cases", type=int, default=200)
+    p.add_argument("--seed", type=int, default=0, help="first case seed")
+    p.add_argument("--fit-length", action="store_true", help="blind fits also fit L")
+    p.add_argument("--out", required=True)
+    args = p.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for i in range(args.cases):
+        rows.append(run_case(draw_case(args.seed + i), fit_length=args.fit_length))
+        if (i + 1) % 10 == 0:
+            df = pd.DataFrame(rows)
+            df.to_csv(out / "coverage.csv", index=False)
+            print(f"{i + 1} cases: {json.dumps(summarize(df))}", flush=True)
+    df = pd.DataFrame(rows)
+    df.to_csv(out / "coverage.csv", index=False)
+    s = summarize(df)
+    (out / "coverage.json").write_text(json.dumps(s, indent=2) + "\n")
+    plot(df, out / "coverage.png")
+    print(json.dumps(s, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
