@@ -152,7 +152,9 @@ def hac_covariance(jac: np.ndarray, res: np.ndarray, *, lag: int | None = None,
 class Measurement:
     """What a re-evaluation needs: the located centres (``x``, ``y`` px at ``frames``) about
     ``center`` with ``angle`` ("atan2" or "arcsin"), or the given angles ``theta`` at times
-    ``t`` (a track CSV: no centres). NaN entries are frames without a ball."""
+    ``t`` (a track CSV: no centres; its t_s taken as frame / camera.fps). Centres with ``t``:
+    the recording's own timestamps (the frame rate then does not act). NaN entries are frames
+    without a ball."""
 
     setup: Setup
     frames: np.ndarray | None = None
@@ -175,6 +177,8 @@ class Measurement:
             center = setup.center_px if setup.center_px is not None else self.center
             th = angles(self.x, self.y, center, method=self.angle,
                         track_radius_px=setup.track_radius / setup.pixel_size)
+            if self.t is not None:
+                return np.asarray(self.t, dtype=float), th
             return np.asarray(self.frames, dtype=float) / setup.fps, th
         return np.asarray(self.t, dtype=float) * (self.setup.fps / setup.fps), \
             np.asarray(self.theta, dtype=float)
@@ -186,8 +190,10 @@ def measurement_from_track(track, setup: Setup) -> Measurement:
     found = track["found"].to_numpy() == 1
     x = np.where(found, track["x_px"].to_numpy(float), np.nan)
     y = np.where(found, track["y_px"].to_numpy(float), np.nan)
+    stamped = track.attrs.get("times", "frame / camera.fps") != "frame / camera.fps"
     return Measurement(setup=setup, frames=track["frame"].to_numpy(float), x=x, y=y,
-                       center=center, angle=track.attrs.get("angle", "atan2"))
+                       center=center, angle=track.attrs.get("angle", "atan2"),
+                       t=track["t_s"].to_numpy(float) if stamped else None)
 
 
 def _fitted_mask(t, theta, n_samples):
@@ -300,6 +306,8 @@ def _acts(meas: Measurement, field: str) -> str:
         return "enters no step of the measurement (mu is defined by M = mu r N)"
     if field in ("center_px", "pixel_size") and not meas.from_centres:
         return "cannot act on a track of given angles"
+    if field == "fps" and meas.from_centres and meas.t is not None:
+        return "times are the recording's own timestamps"
     if field == "pixel_size" and meas.angle == "atan2":
         return "atan2 angles do not depend on the pixel scale"
     return ""
