@@ -37,6 +37,7 @@ case of ``rollfric validate``)::
     fit = "lsq"                # lsq, paper1_eps, paper2_grid
     offset = false             # also fit an angle offset of the trough bottom
     oracle = false             # true: rollfric gets the exact geometry and center_px
+    budget = false             # true: also the uncertainty budget (u_mu, U_mu, z_budget, ...)
 
 Blind mode (the default): rollfric gets only what a lab has: the [lab] setup file (nominal
 values; no center_px unless the lab measured it), the recording and its background. The
@@ -70,7 +71,7 @@ RENDER_KEYS = {
     "supersample": int, "shadows": bool, "seed": int, "sensor": dict, "camera": dict,
     "scene": dict, "lamps": list,
 }
-MEASURE_KEYS = {"locator": str, "fit": str, "offset": bool, "oracle": bool}
+MEASURE_KEYS = {"locator": str, "fit": str, "offset": bool, "oracle": bool, "budget": bool}
 LOCATORS = ("subpixel", "thesis-large", "thesis-small")
 FITS = ("lsq", "paper1_eps", "paper2_grid")
 TOP_KEYS = ("name", "scenario", "render", "lab", "measure")

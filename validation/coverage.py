@@ -13,6 +13,12 @@ checked the same way, with the corrected and the ordinary standard error.
 
 ``python -m validation.coverage --cases 200 --out DIR`` writes DIR/coverage.csv (one row a
 case), DIR/coverage.json (the fractions) and DIR/coverage.png (z histograms).
+
+The rendered study is the shipped sweep ``coverage`` (validation/sweeps/coverage.toml: blind
+cases with ``lab.draw`` and ``measure.budget``); ``python -m validation.coverage --from-sweep
+OUT`` reads its OUT/results.parquet and writes OUT/coverage.json and OUT/coverage.png the same
+way (its oracle columns come from an oracle run of the sweep, ``measure.oracle = true``, if
+given with ``--oracle-sweep``).
 """
 
 from __future__ import annotations
@@ -105,7 +111,8 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True) -> di
     b = budget(meas, res, fit_length=fit_length)
     mu_true = case["mu"]
     out.update(mu=b.mu, u_mu=b.u_mu, U_mu=b.U_mu, z=(b.mu - mu_true) / b.u_mu,
-               u_stat=b.statistical["stderr_hac"], top_source=b.rows[0].source,
+               u_stat=next(r.u_mu for r in b.rows if r.source == "statistical"),
+               top_source=b.rows[0].source,
                fit_seconds=t_fit, budget_seconds=b.seconds, n_refits=b.n_refits)
     if fit_length:
         ln = b.length
@@ -128,7 +135,8 @@ def summarize(df: pd.DataFrame) -> dict:
     """Coverage fractions of the blind budget and of the oracle's statistical error."""
     def frac(z, k):
         z = np.asarray(z, dtype=float)
-        return float(np.mean(np.abs(z) <= k))
+        z = z[np.isfinite(z)]
+        return float(np.mean(np.abs(z) <= k)) if z.size else float("nan")
 
     s = {"cases": len(df),
          "blind_within_U": frac(df["z"], 2.0), "blind_within_u": frac(df["z"], 1.0),
@@ -140,13 +148,36 @@ def summarize(df: pd.DataFrame) -> dict:
          "median_U_rel": float(np.median(df["U_mu"] / df["mu"])),
          "median_budget_seconds": float(np.median(df["budget_seconds"])),
          "median_fit_seconds": float(np.median(df["fit_seconds"]))}
-    for ar, g in df.groupby("ar"):
+    for ar, g in df.groupby("ar") if df["ar"].nunique() > 1 else ():
         s[f"oracle_within_2u_stat_ar{ar:g}"] = frac(g["z_oracle"], 2.0)
         s[f"oracle_ordinary_within_2se_ar{ar:g}"] = frac(g["z_oracle_ordinary"], 2.0)
     if "z_L" in df:
         s["L_within_2u"] = frac(df["z_L"], 2.0)
         s["L_within_u"] = frac(df["z_L"], 1.0)
     return s
+
+
+def from_sweep(results: pd.DataFrame, oracle: pd.DataFrame | None = None) -> pd.DataFrame:
+    """The coverage table (z, z_oracle, z_oracle_ordinary, mu, U_mu, ...) of a ``coverage``
+    sweep's results (its ok cases). ``oracle``: the same sweep run with ``measure.oracle =
+    true``, matched case by case on the swept parameters (its z_stat: the statistical part
+    alone; its mu_stderr: the ordinary standard error); without it the blind run's own
+    statistical part stands in (z_stat)."""
+    ok = results[results["status"] == "ok"].reset_index(drop=True)
+    df = pd.DataFrame({"case_id": ok["case_id"], "z": ok["z_budget"], "mu": ok["mu_recovered"],
+                       "U_mu": ok["U_mu"], "ar": 0.0, "budget_seconds": ok["t_budget_s"],
+                       "fit_seconds": ok["t_measure_s"] if "t_measure_s" in ok else np.nan})
+    src = ok
+    if oracle is not None:
+        keys = [c for c in ("mu_true", "theta0_deg", "scenario.motion.mu",
+                            "scenario.motion.theta0_deg", "scenario.ball", "render.lighting",
+                            "render.noise", "render.seed") if c in ok and c in oracle]
+        o = oracle[oracle["status"] == "ok"].astype({k: str for k in keys})
+        src = ok[keys].astype(str).merge(o, on=keys, how="left")
+    df["z_oracle"] = src["z_stat"].to_numpy(float)
+    df["z_oracle_ordinary"] = ((src["mu_recovered"] - src["mu_true"])
+                               / src["mu_stderr"]).to_numpy(float)
+    return df
 
 
 def plot(df: pd.DataFrame, path: Path) -> None:
@@ -164,11 +195,12 @@ def plot(df: pd.DataFrame, path: Path) -> None:
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     grid = np.linspace(-4, 4, 200)
     for ax, (col, title) in zip(axes, cols, strict=True):
-        z = np.clip(df[col].to_numpy(float), -6, 6)
+        z = df[col].to_numpy(float)
+        z = np.clip(z[np.isfinite(z)], -6, 6)
         ax.hist(z, bins=np.linspace(-6, 6, 49), density=True, color="tab:blue", alpha=0.7)
         ax.plot(grid, np.exp(-0.5 * grid**2) / math.sqrt(2 * math.pi), "k-", lw=1,
                 label="N(0, 1)")
-        inside = np.mean(np.abs(df[col]) <= 2) * 100
+        inside = np.mean(np.abs(z) <= 2) * 100 if z.size else float("nan")
         ax.set_title(f"{title}\n|z| <= 2: {inside:.1f} %", fontsize=9)
         ax.set_xlabel("z (clipped to +-6)")
         ax.legend(fontsize=8)
@@ -184,8 +216,22 @@ def main(argv=None) -> int:
     p.add_argument("--cases", type=int, default=200)
     p.add_argument("--seed", type=int, default=0, help="first case seed")
     p.add_argument("--fit-length", action="store_true", help="blind fits also fit L")
-    p.add_argument("--out", required=True)
+    p.add_argument("--out", help="output folder (track-level cases)")
+    p.add_argument("--from-sweep", metavar="OUT", help="report a coverage sweep's results")
+    p.add_argument("--oracle-sweep", metavar="OUT", help="the same sweep run in oracle mode")
     args = p.parse_args(argv)
+    if args.from_sweep:
+        out = Path(args.from_sweep)
+        oracle = (pd.read_parquet(Path(args.oracle_sweep) / "results.parquet")
+                  if args.oracle_sweep else None)
+        df = from_sweep(pd.read_parquet(out / "results.parquet"), oracle)
+        s = summarize(df)
+        (out / "coverage.json").write_text(json.dumps(s, indent=2) + "\n")
+        plot(df, out / "coverage.png")
+        print(json.dumps(s, indent=2))
+        return 0
+    if not args.out:
+        p.error("--out or --from-sweep is needed")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []

@@ -110,6 +110,8 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
         with _timer(timings, "metrics"):
             metrics = compute_metrics(case, traj, truth, track, fit, fit_truth, setup)
             metrics.update(mode_metrics(case, track, truth))
+            if case.data.get("measure", {}).get("budget", False):
+                metrics.update(budget_metrics(case, track, fit, setup))
         timings["total"] = time.perf_counter() - t_start
         metrics.update({f"t_{k}_s": float(v) for k, v in timings.items()})
         metrics["n_frames"] = int(len(truth))
@@ -178,6 +180,26 @@ def mode_metrics(case: Case, track, truth) -> dict:
         m[f"lab_{name}"] = float(case.lab.nominal[key])
         m[f"lab_err_{name}"] = 0.0 if case.oracle else float(case.lab.nominal[key] - value)
     return m
+
+
+def budget_metrics(case: Case, track, fit, setup) -> dict:
+    """rollfric's uncertainty budget of the measured mu (:mod:`rollfric.uncertainty`) against
+    the truth: u_mu, U_mu (k = 2), z_budget = (mu - truth) / u_mu, within_u / within_U (1 or
+    0), the statistical part alone (u_stat, z_stat), the largest source and the budget's time.
+    Oracle mode: the setup is exact, the budget is its statistical part."""
+    from rollfric.uncertainty import budget, measurement_from_track
+
+    if fit.method != "lsq":
+        return {}
+    b = budget(measurement_from_track(track, setup), fit)
+    mu_true = float(case.scenario.mu)
+    u_stat = next(r.u_mu for r in b.rows if r.source == "statistical")
+    return {"u_mu": b.u_mu, "U_mu": b.U_mu, "z_budget": (b.mu - mu_true) / b.u_mu,
+            "within_u": float(abs(b.mu - mu_true) <= b.u_mu),
+            "within_U": float(abs(b.mu - mu_true) <= b.U_mu),
+            "u_stat": u_stat, "z_stat": (b.mu - mu_true) / u_stat if u_stat > 0 else math.nan,
+            "budget_top_source": b.rows[0].source, "budget_n_sources":
+            sum(r.u_mu > 0 for r in b.rows), "t_budget_s": b.seconds}
 
 
 # -- metrics ----------------------------------------------------------------------------------

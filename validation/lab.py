@@ -10,6 +10,8 @@ exactly)::
     seed = 0                   # seed of those draws (default: render.seed, the case seed)
     center_error_px = [0.3, -0.2]   # the lab measured the trough centre, with this error (px);
                                     # absent: no center_px, rollfric finds it from the contour
+    center_px_u = [2.0, 2.0]   # the stated uncertainty of that measurement (px); with draw,
+                               # the error is drawn from it (added to center_error_px, if any)
     [lab.cylinder]
     radius_mm = 85.3
     radius_mm_u = 0.05         # standard uncertainty of radius_mm (same unit)
@@ -46,7 +48,7 @@ NOMINAL_KEYS = {
     "camera": ("fps", "pixel_size_mm"),
     "environment": ("gravity_m_s2",),
 }
-TOP_KEYS = ("draw", "seed", "center_error_px")
+TOP_KEYS = ("draw", "seed", "center_error_px", "center_px_u")
 
 
 class LabError(InputError):
@@ -68,6 +70,7 @@ class Lab:
     center_error_px: tuple[float, float] | None
     draw: bool
     seed: int
+    center_u: tuple[float, float] | None = None  # the lab's stated u of its centre (px)
 
     def setup_dict(self, center_px: tuple[float, float] | None = None) -> dict:
         """The lab's setup file (lab-file form) with the nominal values, their ``_u`` keys and,
@@ -82,6 +85,8 @@ class Lab:
             out.setdefault("cylinder", {})["center_px"] = [
                 float(center_px[0]) + self.center_error_px[0],
                 float(center_px[1]) + self.center_error_px[1]]
+            if self.center_u is not None and setup_reads_tolerances():
+                out["cylinder"]["center_px_u"] = list(self.center_u)
         return out
 
     def errors(self) -> dict:
@@ -154,6 +159,20 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
             raise LabError(f"{source}: lab.center_error_px must be two finite numbers (px), "
                            f"got {ce!r}")
         ce = (float(ce[0]), float(ce[1]))
+    cu = table.get("center_px_u")
+    if cu is not None:
+        if isinstance(cu, (int, float)) and not isinstance(cu, bool):
+            cu = [cu, cu]
+        if not isinstance(cu, (list, tuple)) or len(cu) != 2:
+            raise LabError(f"{source}: lab.center_px_u must be [ux, uy] in pixels, got {cu!r}")
+        cu = tuple(_number(v, f"{source}: lab.center_px_u", positive=False) for v in cu)
+        if draw:  # the lab's centre measurement: its error drawn from its stated u
+            base = ce or (0.0, 0.0)
+            ce = tuple(base[i] + cu[i] * standard_normal(seed, f"cylinder.center_px.{axis}")
+                       for i, axis in enumerate("xy"))
+        elif ce is None:
+            raise LabError(f"{source}: lab.center_px_u needs lab.center_error_px (the lab "
+                           "measured the centre) or lab.draw = true (its error drawn)")
     nominal, tol, asbuilt, overrides = {}, {}, {}, {}
     for sec, keys in NOMINAL_KEYS.items():
         t = table.get(sec, {})
@@ -179,7 +198,7 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
                 overrides[dotted] = truth
             asbuilt[dotted] = truth
     return Lab(nominal=nominal, tolerance=tol, asbuilt=asbuilt, center_error_px=ce,
-               draw=draw, seed=seed), overrides
+               draw=draw, seed=seed, center_u=cu), overrides
 
 
 def apply_asbuilt(scenario_dict: dict, overrides: dict) -> dict:
