@@ -42,8 +42,32 @@ class SetupError(InputError):
 class Setup:
     """Geometry and camera of one measurement, in SI units.
 
-    ``center_px`` is the cylinder axis in image pixels (x right, y down, origin at the
-    centre of the top-left pixel), or None when it is to be found from the background.
+    Attributes
+    ----------
+    cylinder_radius : float
+        Bore radius R of the trough (m).
+    ball_diameter : float
+        Ball diameter 2r (m).
+    ball_mass : float
+        Ball mass (kg).
+    fps : float
+        Frame rate (1/s).
+    pixel_size : float
+        Size of one pixel in the plane of the ball's centre (m).
+    center_px : tuple of float or None
+        The cylinder axis in image pixels (x right, y down, origin at the centre of the
+        top-left pixel), or None when it is to be found from the background.
+    gravity : float
+        Gravitational acceleration (m/s^2).
+    uncertainty : tuple
+        Standard uncertainties of the fields above, SI (center_px: px, a pair), as
+        ((field name, u), ...); a field not listed is exact.
+
+    Raises
+    ------
+    SetupError
+        A non-positive or non-finite value, a ball not smaller than the cylinder, a bad
+        ``center_px`` or uncertainty.
     """
 
     cylinder_radius: float  # m
@@ -75,11 +99,23 @@ class Setup:
         object.__setattr__(self, "uncertainty", _check_uncertainty(self))
 
     def u(self, name: str):
-        """Standard uncertainty of field ``name`` (SI; a pair for center_px), None if exact."""
+        """Standard uncertainty of one field.
+
+        Parameters
+        ----------
+        name : str
+            A field name, e.g. ``"cylinder_radius"``.
+
+        Returns
+        -------
+        float, tuple of float or None
+            SI (a pair for ``center_px``); None if the field is exact.
+        """
         return dict(self.uncertainty).get(name)
 
     @property
     def ball_radius(self) -> float:
+        """Ball radius r (m)."""
         return 0.5 * self.ball_diameter
 
     @property
@@ -88,6 +124,17 @@ class Setup:
         return self.cylinder_radius - self.ball_radius
 
     def replace(self, **changes) -> Setup:
+        """A copy with some fields changed (checked again).
+
+        Parameters
+        ----------
+        **changes
+            Field names and their new values.
+
+        Returns
+        -------
+        Setup
+        """
         return dataclasses.replace(self, **changes)
 
     def to_toml_dict(self) -> dict:
@@ -159,7 +206,26 @@ _REQUIRED_SECTIONS = ("cylinder", "ball", "camera")
 
 
 def setup_from_dict(data: dict, source: str = "setup") -> Setup:
-    """Build a Setup from the lab-file form, refusing unknown, missing or bad keys."""
+    """Build a Setup from the lab-file form (mm, g, Hz; ``K_u`` the standard uncertainty of ``K``).
+
+    Parameters
+    ----------
+    data : dict
+        The parsed TOML tables ``[cylinder]``, ``[ball]``, ``[camera]`` and optionally
+        ``[environment]``.
+    source : str, optional
+        Where it came from, for the error messages.
+
+    Returns
+    -------
+    Setup
+        In SI units.
+
+    Raises
+    ------
+    SetupError
+        An unknown, missing or bad key, named in the message.
+    """
     for section in data:
         if section not in _SCHEMA:
             raise SetupError(f"{source}: unknown section [{section}] "
@@ -243,12 +309,38 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
 
 
 def load_setup(path: str | Path) -> Setup:
-    """Read a lab's setup TOML file (mm, g, Hz)."""
+    """Read a lab's setup TOML file (mm, g, Hz).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+
+    Returns
+    -------
+    Setup
+        In SI units.
+
+    Raises
+    ------
+    SetupError
+        The file is missing, not TOML, or has an unknown, missing or bad key.
+    """
     return setup_from_dict(read_toml(path, "setup", SetupError), source=str(path))
 
 
 def dumps_setup(setup: Setup) -> str:
-    """The setup as a lab's TOML file text."""
+    """The setup as a lab's TOML file text.
+
+    Parameters
+    ----------
+    setup : Setup
+
+    Returns
+    -------
+    str
+        The lab-file form (mm, g, Hz), which :func:`load_setup` reads back.
+    """
     lines = []
     for section, table in setup.to_toml_dict().items():
         lines.append(f"[{section}]")
@@ -263,6 +355,14 @@ def dumps_setup(setup: Setup) -> str:
 
 
 def save_setup(setup: Setup, path: str | Path) -> None:
+    """Write the setup as a lab's TOML file.
+
+    Parameters
+    ----------
+    setup : Setup
+    path : str or pathlib.Path
+        Where to write (replaced if it exists).
+    """
     Path(path).write_text(dumps_setup(setup))
 
 
@@ -276,7 +376,24 @@ THESIS_BALLS = {  # diameter (m) -> mass (kg)
 
 
 def thesis_setup(ball: str = "10mm", **changes) -> Setup:
-    """The thesis's setup (85.3 mm trough, 1000 Hz, 0.1343 mm/px) with one of its balls."""
+    """The thesis's setup (85.3 mm trough, 1000 Hz, 0.1343 mm/px) with one of its balls.
+
+    Parameters
+    ----------
+    ball : {"1.58mm", "10mm", "12.69mm"}, optional
+        The thesis ball (sets diameter and mass).
+    **changes
+        Other fields to change.
+
+    Returns
+    -------
+    Setup
+
+    Raises
+    ------
+    SetupError
+        An unknown ball.
+    """
     try:
         diameter, mass = THESIS_BALLS[ball]
     except KeyError:
