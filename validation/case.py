@@ -81,9 +81,17 @@ DEFAULT_SECONDS = 2.0
 
 
 def default_case_dict() -> dict:
-    """The built-in case of ``rollfric validate``: thesis 10 mm ball, mu 0.0079, thesis lighting,
-    realistic noise, the full 1280 x 1024 thesis camera, 2 s of 1000 Hz frames, no motion-blur
-    sub-frames (the blur study covers blur; 4 sub-frames would triple the render time)."""
+    """The built-in case of ``rollfric validate``.
+
+    The thesis's 10 mm ball, mu 0.0079, thesis lighting, realistic noise, the full 1280 x 1024
+    thesis camera, 2 s of 1000 Hz frames, no motion-blur sub-frames (the blur study covers blur;
+    4 sub-frames would triple the render time).
+
+    Returns
+    -------
+    dict
+        The case in its TOML form (a new dict on every call).
+    """
     return {
         "name": "default",
         "scenario": {
@@ -98,9 +106,22 @@ def default_case_dict() -> dict:
 
 
 def small_case_dict(seconds: float = 0.4) -> dict:
-    """A cheap case for tests and quick checks: the 10 mm ball swinging 8 deg, seen by a
-    cropped 320 x 112 px camera that just holds its path, no motion blur. The crop shows too
-    little of the trough's contour to find its centre: the lab measured it (error 0)."""
+    """A cheap case for tests and quick checks.
+
+    The 10 mm ball swinging 8 deg, seen by a cropped 320 x 112 px camera that just holds its
+    path, no motion blur. The crop shows too little of the trough's contour to find its centre:
+    the lab measured it (error 0).
+
+    Parameters
+    ----------
+    seconds : float, optional
+        Length of the recording (s).
+
+    Returns
+    -------
+    dict
+        The case in its TOML form.
+    """
     d = default_case_dict()
     d["name"] = "small"
     d["scenario"]["motion"].update(theta0_deg=8.0, seconds=seconds)
@@ -123,7 +144,22 @@ def _merge(base: dict, over: dict) -> dict:
 
 
 def set_dotted(d: dict, key: str, value) -> None:
-    """``d["a"]["b"]["c"] = value`` for key ``"a.b.c"`` (creating tables on the way)."""
+    """``d["a"]["b"]["c"] = value`` for key ``"a.b.c"``, creating tables on the way.
+
+    Parameters
+    ----------
+    d : dict
+        Nested tables, changed in place.
+    key : str
+        Dotted key.
+    value
+        The value to set.
+
+    Raises
+    ------
+    CaseError
+        An empty part of the key, or a part that is a value, not a table.
+    """
     parts = key.split(".")
     if not all(parts):
         raise CaseError(f"bad parameter key {key!r}")
@@ -137,6 +173,22 @@ def set_dotted(d: dict, key: str, value) -> None:
 
 
 def get_dotted(d: dict, key: str, default=None):
+    """``d["a"]["b"]["c"]`` for key ``"a.b.c"``.
+
+    Parameters
+    ----------
+    d : dict
+        Nested tables.
+    key : str
+        Dotted key.
+    default : optional
+        Returned when the key is absent.
+
+    Returns
+    -------
+    object
+        The value, or ``default``.
+    """
     cur = d
     for p in key.split("."):
         if not isinstance(cur, dict) or p not in cur:
@@ -146,6 +198,19 @@ def get_dotted(d: dict, key: str, default=None):
 
 
 def apply_overrides(base: dict, overrides: dict) -> dict:
+    """A copy of a case with dotted-key overrides set.
+
+    Parameters
+    ----------
+    base : dict
+        The case (not modified).
+    overrides : dict
+        Dotted keys and their values, e.g. ``{"render.motion_blur": 4}``.
+
+    Returns
+    -------
+    dict
+    """
     out = copy.deepcopy(base)
     for k, v in overrides.items():
         set_dotted(out, k, v)
@@ -153,8 +218,26 @@ def apply_overrides(base: dict, overrides: dict) -> dict:
 
 
 def load_case_dict(path: str | Path) -> dict:
-    """A case TOML file merged over the defaults. A plain sim scenario file (top-level
-    [ball], [motion], ...) is taken as the [scenario] of a default case."""
+    """A case TOML file merged over the defaults.
+
+    A plain sim scenario file (top-level [ball], [motion], ...) is taken as the [scenario] of a
+    default case.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+
+    Returns
+    -------
+    dict
+        The case in its TOML form.
+
+    Raises
+    ------
+    CaseError
+        A missing or invalid file, or an unknown top-level key.
+    """
     data = read_toml(path, "case", CaseError)
     if data and set(data) <= set(SCENARIO_SECTIONS):
         data = {"scenario": data}
@@ -162,6 +245,26 @@ def load_case_dict(path: str | Path) -> dict:
 
 
 def merge_case(base: dict, data: dict, source: str = "case") -> dict:
+    """A case merged over a base, table by table.
+
+    Parameters
+    ----------
+    base : dict
+        The base case.
+    data : dict
+        The case read from a file.
+    source : str, optional
+        Where it came from, for the error message.
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    CaseError
+        An unknown top-level key.
+    """
     unknown = sorted(set(data) - set(TOP_KEYS))
     if unknown:
         raise CaseError(f"{source}: unknown top-level key(s) {unknown} "
@@ -170,11 +273,31 @@ def merge_case(base: dict, data: dict, source: str = "case") -> dict:
 
 
 def canonical_json(d: dict) -> str:
+    """Canonical JSON of a dict: sorted keys, no spaces (the input of :func:`case_id`).
+
+    Parameters
+    ----------
+    d : dict
+
+    Returns
+    -------
+    str
+    """
     return json.dumps(d, sort_keys=True, separators=(",", ":"), default=str)
 
 
 def case_id(d: dict) -> str:
-    """12 hex digits of SHA-256 over the case's canonical JSON (its name left out)."""
+    """12 hex digits of SHA-256 over the case's canonical JSON (its name left out).
+
+    Parameters
+    ----------
+    d : dict
+        The case in its TOML form.
+
+    Returns
+    -------
+    str
+    """
     body = {k: v for k, v in d.items() if k != "name"}
     return hashlib.sha256(canonical_json(body).encode()).hexdigest()[:12]
 
@@ -199,6 +322,7 @@ class Case:
 
     @property
     def mode(self) -> str:
+        """``"blind"`` (rollfric gets the lab's setup file) or ``"oracle"`` (the exact geometry)."""
         return "oracle" if self.oracle else "blind"
 
     def lab_setup_dict(self) -> dict:
@@ -207,9 +331,16 @@ class Case:
 
     @property
     def case_id(self) -> str:
+        """The case's id (:func:`case_id` of its data)."""
         return case_id(self.data)
 
     def to_toml(self) -> str:
+        """The case as TOML text; running that file runs the same case.
+
+        Returns
+        -------
+        str
+        """
         return dumps_case(self.data)
 
 
@@ -231,7 +362,24 @@ def _check_types(table: dict, schema: dict, where: str) -> dict:
 
 
 def case_from_dict(d: dict, source: str = "case") -> Case:
-    """Validate a case dict (as from TOML, merged over the defaults) into a :class:`Case`."""
+    """Validate a case dict (as from TOML, merged over the defaults) into a :class:`Case`.
+
+    Parameters
+    ----------
+    d : dict
+        The case in its TOML form.
+    source : str, optional
+        Where it came from, for the error messages.
+
+    Returns
+    -------
+    Case
+
+    Raises
+    ------
+    CaseError
+        An unknown or bad key, named in the message.
+    """
     import sim
     from synth import config as sc
     from synth.camera import CameraModel
@@ -348,11 +496,35 @@ def _lamp_si(lp: dict, source: str) -> dict:
 
 
 def load_case(path: str | Path) -> Case:
+    """Read and validate a case TOML file (merged over the defaults).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+
+    Returns
+    -------
+    Case
+
+    Raises
+    ------
+    CaseError
+        A missing or invalid file, an unknown or bad key.
+    """
     return case_from_dict(load_case_dict(path), source=str(path))
 
 
 def dumps_case(d: dict) -> str:
-    """The case dict as TOML text (tables nested; loads back to the same dict)."""
+    """The case dict as TOML text (tables nested; loads back to the same dict).
+
+    Parameters
+    ----------
+    d : dict
+
+    Returns
+    -------
+    str
+    """
     def fmt(v):
         if isinstance(v, bool):
             return "true" if v else "false"
