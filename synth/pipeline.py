@@ -13,6 +13,7 @@ import numpy as np
 from rollfric.atomic import replacing
 from synth.camera import CameraModel
 from synth.config import SceneConfig, SensorConfig, SynthError
+from synth.sensor import NOISE
 from synth.store import FORMAT, TRUTH_COLUMNS
 
 BATCH = 16  # frames per task (progress granularity)
@@ -247,6 +248,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             "setup": setup.to_toml_dict(),
             "scene": scene.to_dict(),
             "sensor": sensor.to_dict(),
+            "sensor_noise": NOISE,
             "seed": int(seed),
             "scenario": _scenario_dict(traj),
             "engine_meta": _jsonable(getattr(traj, "meta", {})),

@@ -1,25 +1,135 @@
 """The camera sensor model, applied deterministically to a clean render.
 
-Same inputs and seed -> the same bytes. The model is block-local, so any crop of a frame can be
-made without the rest of it: the per-pixel noise is drawn per fixed TILE x TILE tile of the
-frame, each tile from its own generator seeded by (seed, stream, frame index, tile row, tile
-column) (``numpy.random.default_rng``); the fixed pattern (prnu, dsnu, vignetting) is drawn once
-per Sensor for the whole frame from (seed, 0) and sliced. A crop is therefore exactly the same
-crop of the full frame.
+Same inputs and seed -> the same bytes. Any crop of a frame can be made without the rest of it,
+to the byte the same crop of the full frame: the fixed pattern (prnu, dsnu, vignetting) is drawn
+once per Sensor for the whole frame from (seed, 0) and sliced, and the per-pixel noise is a
+function of (seed, stream, frame index, pixel) alone. Two noise generators (``noise``):
+
+- ``"hash/1"`` (NOISE, what synth renders now): counter-based. Pixels x = 2k and 2k + 1 of row
+  y take the two normals of one Marsaglia polar draw from the 64-bit hash (splitmix64's
+  finaliser) of a per-frame key and the counter (y, k) (a rejected draw hashes the counter
+  again with the next try number). The whole model - gamma table, fixed pattern, noise,
+  quantisation - runs in one numba loop over the pixels asked for: 3.7x less CPU than the
+  tiles for a tracker's 112 x 112 px region (0.24 vs 0.89 ms), 1.55x less for a 1280 x 1024
+  frame (23 vs 36 ms; CPU times measured side by side on a loaded machine).
+- ``"tiles/1"`` (recordings rendered before it, read with the bytes they were made with): the
+  noise drawn per fixed TILE x TILE tile, each from its own ``numpy.random.default_rng`` seeded
+  by (seed, stream, frame index, tile row, tile column); a region draws every tile it touches
+  whole.
+
+The noise is drawn in float64 and rounded to float32 before use, so a last-bit difference in
+``log`` between code paths cannot reach a pixel; the rest is float32 arithmetic in the order of
+the tiles' NumPy code (no fused multiply-adds).
 """
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
-from synth.config import SensorConfig
+from synth.config import SensorConfig, SynthError
 
 GAMMA = 2.2  # pyrender's output encoding (linear colour ** (1 / 2.2))
 
 _STREAM_FIXED = 0
 _STREAM_FRAME = 1
 _STREAM_BACKGROUND = 2
-TILE = 64  # px: the noise tile (fixed: changing it changes every recording's bytes)
+TILE = 64  # px: the noise tile of "tiles/1" (fixed: changing it changes its recordings' bytes)
+NOISE = "hash/1"  # the noise generator of new recordings
+NOISES = ("hash/1", "tiles/1")
+_M64 = (1 << 64) - 1
+_GOLDEN = 0x9E3779B97F4A7C15
+
+
+def _mix64(z: int) -> int:
+    """splitmix64's finaliser on a Python int (mod 2**64): the kernel's ``_hash`` in Python."""
+    z &= _M64
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _M64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _M64
+    return z ^ (z >> 31)
+
+
+def noise_key(seed: int, index: int | None) -> int:
+    """The 64-bit key of frame ``index``'s noise (None: the background frame's) for "hash/1"."""
+    stream, i = (_STREAM_BACKGROUND, 0) if index is None else (_STREAM_FRAME, int(index))
+    k = _mix64(int(seed) + _GOLDEN)
+    k = _mix64(k + stream * _GOLDEN)
+    return _mix64(k + (i & _M64) * _GOLDEN)
+
+
+@numba.njit(cache=True)
+def _hash(z):
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+@numba.njit(cache=True)
+def _pair_normals(key, y, k):
+    """The two standard normals (float32) of pixels 2k, 2k + 1 of row y."""
+    gold = np.uint64(0x9E3779B97F4A7C15)
+    gold2 = np.uint64(0xD1B54A32D192ED03)
+    base = key + ((np.uint64(y) << np.uint64(32)) | np.uint64(k)) * gold
+    t = np.uint64(0)
+    inv = 1.0 / 2147483648.0
+    while True:
+        h = _hash(base + t * gold2)
+        a = float(h >> np.uint64(32)) * inv - 1.0
+        b = float(h & np.uint64(0xFFFFFFFF)) * inv - 1.0
+        s = a * a + b * b
+        if 0.0 < s < 1.0:
+            f = math.sqrt(-2.0 * math.log(s) / s)
+            return np.float32(a * f), np.float32(b * f)
+        t += np.uint64(1)
+
+
+@numba.njit(cache=True)
+def _normals_kernel(key, y0, x0, out):
+    h, w = out.shape
+    for r in range(h):
+        zb = np.float32(0.0)
+        for c in range(w):
+            x = x0 + c
+            if c == 0 or (x & 1) == 0:
+                za, zb = _pair_normals(key, y0 + r, x >> 1)
+                out[r, c] = za if (x & 1) == 0 else zb
+            else:
+                out[r, c] = zb
+    return out
+
+
+@numba.njit(cache=True)
+def _apply_kernel(counts, lut, gain, offset, has_pattern, noisy, shot, read_var, k, black,
+                  max_dn, key, y0, x0, out):
+    """The sensor model of :meth:`Sensor.apply` over one region, "hash/1" noise."""
+    h, w = counts.shape
+    top = lut.shape[0] - 1
+    zero = np.float32(0.0)
+    for r in range(h):
+        zb = zero
+        z = zero
+        for c in range(w):
+            x = x0 + c
+            if noisy:
+                if c == 0 or (x & 1) == 0:
+                    za, zb = _pair_normals(key, y0 + r, x >> 1)
+                    z = za if (x & 1) == 0 else zb
+                else:
+                    z = zb
+            v = counts[r, c]
+            e = lut[0 if v < 0 else (top if v > top else v)]
+            if has_pattern:
+                e = e * gain[r, c] + offset[r, c]
+            if noisy:
+                var = read_var
+                if shot:
+                    var = (e if e > zero else zero) + read_var
+                e = e + np.sqrt(var) * z
+            d = np.rint(e * k + black)
+            out[r, c] = 0 if d < 0 else (max_dn if d > max_dn else d)
+    return out
 
 
 def _fixed_pattern(sensor: SensorConfig, shape, seed: int):
@@ -43,12 +153,17 @@ def _fixed_pattern(sensor: SensorConfig, shape, seed: int):
 
 
 class Sensor:
-    """A sensor with its fixed pattern drawn for one frame shape and seed."""
+    """A sensor with its fixed pattern drawn for one frame shape and seed; ``noise`` is the
+    per-pixel noise generator (NOISES; NOISE for new recordings)."""
 
-    def __init__(self, sensor: SensorConfig, shape, seed: int):
+    def __init__(self, sensor: SensorConfig, shape, seed: int, noise: str = NOISE):
+        if noise not in NOISES:
+            raise SynthError(f"unknown sensor noise generator {noise!r} (known: "
+                             f"{', '.join(NOISES)}): a recording from a newer synth?")
         self.config = sensor
         self.shape = tuple(shape)
         self.seed = int(seed)
+        self.noise = noise
         self.gain_map, self.offset_map = _fixed_pattern(sensor, self.shape, self.seed)
         if self.gain_map is not None:
             self.gain_map = self.gain_map.astype(np.float32)
@@ -81,8 +196,9 @@ class Sensor:
     def normals(self, index: int | None, roi) -> np.ndarray:
         """The standard-normal draws of one frame over a region.
 
-        Only the TILE x TILE tiles the region touches are drawn, each whole, from its own generator,
-        so a crop of the full frame's draws is the same.
+        The same as the crop of the full frame's draws. "hash/1": each pixel's own draw;
+        "tiles/1": only the TILE x TILE tiles the region touches are drawn, each whole, from its
+        own generator.
 
         Parameters
         ----------
@@ -97,6 +213,9 @@ class Sensor:
             float32 draws, shape (y1 - y0, x1 - x0).
         """
         y0, y1, x0, x1 = roi
+        if self.noise == "hash/1":
+            out = np.empty((y1 - y0, x1 - x0), dtype=np.float32)
+            return _normals_kernel(np.uint64(noise_key(self.seed, index)), y0, x0, out)
         key = ([self.seed, _STREAM_BACKGROUND, 0] if index is None
                else [self.seed, _STREAM_FRAME, int(index)])
         out = np.empty((y1 - y0, x1 - x0), dtype=np.float32)
@@ -138,6 +257,8 @@ class Sensor:
         s = self.config
         y0, y1, x0, x1 = roi = self._roi(counts, roi)
         lut = self._lut(int(scale))
+        if self.noise == "hash/1":
+            return self._apply_hash(counts, lut, index, y0, y1, x0, x1)
         electrons = lut[np.clip(counts, 0, scale)]
         if self.gain_map is not None:
             electrons = (electrons * self.gain_map[y0:y1, x0:x1]
@@ -153,3 +274,18 @@ class Sensor:
             electrons = electrons + np.sqrt(var) * self.normals(index, roi)
         dn = electrons * np.float32(s.gain * s.max_dn / s.full_well) + np.float32(s.black_level)
         return np.clip(np.rint(dn), 0, s.max_dn).astype(s.dtype)
+
+    def _apply_hash(self, counts, lut, index, y0, y1, x0, x1) -> np.ndarray:
+        s = self.config
+        out = np.empty((y1 - y0, x1 - x0), dtype=s.dtype)
+        if self.gain_map is not None:
+            gain, offset = self.gain_map[y0:y1, x0:x1], self.offset_map[y0:y1, x0:x1]
+        else:
+            gain = offset = np.zeros((1, 1), dtype=np.float32)
+        read_var = np.float32(s.read_noise ** 2) if s.read_noise > 0 else np.float32(0.0)
+        noisy = bool(s.shot_noise or s.read_noise > 0)
+        return _apply_kernel(np.asarray(counts), lut, gain, offset, self.gain_map is not None,
+                             noisy, bool(s.shot_noise), read_var,
+                             np.float32(s.gain * s.max_dn / s.full_well),
+                             np.float32(s.black_level), int(s.max_dn),
+                             np.uint64(noise_key(self.seed, index)), y0, x0, out)

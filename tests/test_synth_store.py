@@ -11,7 +11,7 @@ import sim
 import synth
 from synth.camera import CameraModel
 from synth.pipeline import truth_table
-from synth.sensor import Sensor
+from synth.sensor import NOISES, Sensor
 
 CAM = CameraModel(width=160, height=128, center_px=(80.0, -500.0))
 
@@ -85,10 +85,11 @@ def _rois(h, w, k, seed):
     return out
 
 
+@pytest.mark.parametrize("noise", NOISES)
 @pytest.mark.parametrize("bit_depth", [8, 12])
-def test_sensor_is_block_local(bit_depth):
+def test_sensor_is_block_local(bit_depth, noise):
     # every part of the model on: a crop is the same crop of the full frame, to the byte, for a
-    # frame size that is not a multiple of the noise tile
+    # frame size that is not a multiple of the noise tile, and odd region starts and ends
     from synth.sensor import TILE
 
     cfg = synth.SensorConfig(bit_depth=bit_depth, read_noise=8.0, black_level=3.0,
@@ -96,11 +97,11 @@ def test_sensor_is_block_local(bit_depth):
     h, w = 150, 203
     scale = 1000
     counts = np.random.default_rng(3).integers(0, scale + 1, (h, w)).astype(np.int32)
-    s = Sensor(cfg, (h, w), seed=11)
+    s = Sensor(cfg, (h, w), seed=11, noise=noise)
     for index in (None, 0, 7):
         full = s.apply(counts, scale, index)
-        assert full.tobytes() == Sensor(cfg, (h, w), seed=11).apply(counts, scale,
-                                                                      index).tobytes()
+        assert full.tobytes() == Sensor(cfg, (h, w), seed=11, noise=noise).apply(
+            counts, scale, index).tobytes()
         for y0, y1, x0, x1 in _rois(h, w, 20, seed=0 if index is None else index):
             crop = s.apply(counts[y0:y1, x0:x1], scale, index, (y0, y1, x0, x1))
             assert crop.dtype == full.dtype
@@ -112,6 +113,56 @@ def test_sensor_is_block_local(bit_depth):
     assert abs(float(z.mean())) < 0.02 and float(z.std()) == pytest.approx(1.0, abs=0.02)
     with pytest.raises(ValueError, match="roi"):
         s.apply(counts[:10, :10], scale, 0, (0, 10, 0, 11))
+
+
+def test_hash_noise_is_a_function_of_seed_frame_and_pixel():
+    # "hash/1": a pixel's draw depends on (seed, frame, pixel) only - not on the frame's size or
+    # the region asked for - and the draws are independent standard normals
+    cfg = synth.noise_preset("realistic")
+    a = Sensor(cfg, (300, 401), seed=3).normals(2, (0, 300, 0, 401))
+    b = Sensor(cfg, (64, 64), seed=3).normals(2, (0, 64, 0, 64))
+    np.testing.assert_array_equal(a[:64, :64], b)
+    assert not np.array_equal(a, Sensor(cfg, (300, 401), seed=4).normals(2, (0, 300, 0, 401)))
+    c = Sensor(cfg, (300, 401), seed=3).normals(3, (0, 300, 0, 401))
+    bg = Sensor(cfg, (300, 401), seed=3).normals(None, (0, 300, 0, 401))
+    z = a.astype(np.float64).ravel()
+    n = z.size  # 120300 draws: a moment is off by more than 5 of its standard errors by chance
+    assert abs(z.mean()) < 5 / np.sqrt(n) and abs(z.std() - 1) < 5 * np.sqrt(0.5 / n)
+    assert abs(np.mean(z ** 4) - 3) < 5 * np.sqrt(96 / n)  # Gaussian kurtosis
+    assert abs(np.mean(np.abs(z) > 3) - 0.0027) < 5 * np.sqrt(0.0027 / n)  # tails
+    for u, v in [(a[:, 0::2], a[:, 1::2][:, :200]), (a[:-1], a[1:]), (a, c), (a, bg)]:
+        # the two draws of a pair, vertical neighbours, other frames, the background
+        u, v = u[:, :200].ravel(), v[:, :200].ravel()
+        assert abs(np.corrcoef(u, v)[0, 1]) < 5 / np.sqrt(u.size)
+
+
+def test_store_chunks_read_directly_and_old_stores_keep_their_noise(rec_path, tmp_path):
+    import shutil
+
+    import zarr
+
+    from synth.store import SynthFrames
+
+    frames = synth.open_recording(rec_path).frames
+    assert frames.noise == "hash/1" and frames._chunk_file is not None
+    via_zarr = SynthFrames(zarr.open_group(str(rec_path), mode="r"))
+    via_zarr._chunk_file = None  # what any other store gets
+    for i in range(len(frames)):
+        np.testing.assert_array_equal(frames.clean_counts(i), via_zarr.clean_counts(i))
+        assert frames[i].tobytes() == via_zarr[i].tobytes()
+    # a store rendered before "hash/1" (no sensor_noise attribute) is read with its tiles
+    old = tmp_path / "old.zarr"
+    shutil.copytree(rec_path, old)
+    g = zarr.open_group(str(old), mode="r+")
+    del g.attrs["sensor_noise"]
+    f = synth.open_recording(old).frames
+    assert f.noise == "tiles/1"
+    tiles = Sensor(f.sensor_config, f.shape[1:], f.seed, noise="tiles/1")
+    assert f[2].tobytes() == tiles.apply(f.clean_counts(2), int(f.frame_scale), 2).tobytes()
+    assert f[2].tobytes() != frames[2].tobytes()
+    g.attrs["sensor_noise"] = "hash/9"
+    with pytest.raises(synth.SynthError, match="hash/9"):
+        synth.open_recording(old)
 
 
 def test_read_a_region_is_the_crop_of_the_frame(rec_path):
