@@ -153,8 +153,20 @@ def _fixed_pattern(sensor: SensorConfig, shape, seed: int):
 
 
 class Sensor:
-    """A sensor with its fixed pattern drawn for one frame shape and seed; ``noise`` is the
-    per-pixel noise generator (NOISES; NOISE for new recordings)."""
+    """A sensor with its fixed pattern drawn for one frame shape and seed.
+
+    Parameters
+    ----------
+    sensor : SensorConfig
+        The sensor model's parameters.
+    shape : tuple of int
+        (H, W) of the frames.
+    seed : int
+        Seed of the fixed pattern and the noise.
+    noise : str
+        The per-pixel noise generator, one of NOISES: NOISE ("hash/1") for new recordings,
+        "tiles/1" for those rendered before it.
+    """
 
     def __init__(self, sensor: SensorConfig, shape, seed: int, noise: str = NOISE):
         if noise not in NOISES:
