@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from rollfric.registry import FIT_METHODS
+
 HELP = "fit mu to a track (t_s, theta_rad) with the equation of motion"
 
 
@@ -19,7 +21,7 @@ def register(sub) -> None:
     p.add_argument("--setup", required=True, metavar="SETUP.toml",
                    help="lab setup file (cylinder radius, ball diameter and mass, camera)")
     p.add_argument("--out", required=True, metavar="FIT.json", help="where to write the result")
-    p.add_argument("--method", default="lsq", choices=["lsq", "paper1_eps", "paper2_grid"],
+    p.add_argument("--method", default="lsq", choices=list(FIT_METHODS),
                    help="lsq: least squares of the equation of motion (default); paper1_eps: "
                         "the first paper's analytic eps iteration (small ball, small angles); "
                         "paper2_grid: the second paper's grid search (slow)")

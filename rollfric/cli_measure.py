@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from rollfric.registry import FIT_METHODS, LOCATORS
+
 HELP = "locate the ball in a recording, write its track and fit mu"
 
 
@@ -31,13 +33,12 @@ def register(sub) -> None:
                         "the per-pixel median of --median-frames frames)")
     p.add_argument("--median-frames", type=int, default=41,
                    help="frames in the median background when none is given")
-    p.add_argument("--method", default="subpixel",
-                   choices=["subpixel", "thesis-large", "thesis-small"],
+    p.add_argument("--method", default="subpixel", choices=list(LOCATORS),
                    help="ball locator: subpixel (robust silhouette circle fit, default), "
                         "thesis-large (paper 2 steps 1-7), thesis-small (paper 1, 15x15 window)")
     p.add_argument("--angle", default="atan2", choices=["atan2", "arcsin"],
                    help="theta = atan2(x - xc, y - yc), or the thesis's arcsin((x - xc) / L)")
-    p.add_argument("--fit-method", default="lsq", choices=["lsq", "paper1_eps", "paper2_grid"],
+    p.add_argument("--fit-method", default="lsq", choices=list(FIT_METHODS),
                    help="how mu is fitted (see rollfric fit)")
     p.add_argument("--offset", action="store_true",
                    help="also fit a constant angle offset of the trough bottom")

@@ -17,15 +17,17 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from scipy import optimize, signal
 
 from rollfric import eom, filtering
 from rollfric.errors import InputError
+from rollfric.registry import FIT_METHODS
 from rollfric.setup import Setup
 
-METHODS = ("lsq", "paper1_eps", "paper2_grid")
+METHODS = FIT_METHODS.names()
 MIN_SAMPLES = 50
 
 
@@ -274,21 +276,43 @@ def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulo
     )
 
 
+@runtime_checkable
+class FitMethod(Protocol):
+    """A way to fit mu to theta(t), as :func:`fit_mu` calls it.
+
+    Registered by name in :data:`rollfric.registry.FIT_METHODS` (the CLI's ``--method`` and
+    ``--fit-method``).
+
+    Parameters
+    ----------
+    t, theta : array_like
+        Times (s) and angles (rad); NaN angles are frames without a ball.
+    setup : Setup
+        The lab's setup (trough and ball).
+    offset : bool
+        Also fit a constant angle offset of the trough bottom (a method that cannot ignores it).
+    model : str
+        The friction model, "coulomb" or "velocity" (a method that has one model ignores it).
+    **options
+        The method's own options.
+
+    Returns
+    -------
+    FitResult
+    """
+
+    def __call__(self, t, theta, setup: Setup, *, offset: bool = False,
+                 model: str = "coulomb", **options) -> FitResult: ...
+
+
 def fit_mu(t, theta, setup: Setup, *, method: str = "lsq", offset: bool = False,
            model: str = "coulomb", **kwargs) -> FitResult:
-    """Fit mu (M = mu r N) to theta(t); ``method`` is one of :data:`METHODS`.
+    """Fit mu (M = mu r N) to theta(t); ``method`` is one of :data:`METHODS` (registered in
+    :data:`rollfric.registry.FIT_METHODS`).
 
     NaN samples (frames without a ball) are left out. Raises InputError for too few samples.
     """
-    if method == "lsq":
-        return fit_lsq(t, theta, setup, offset=offset, model=model, **kwargs)
-    from rollfric import thesis
-
-    if method == "paper1_eps":
-        return thesis.fit_paper1_eps(t, theta, setup, **kwargs)
-    if method == "paper2_grid":
-        return thesis.fit_paper2_grid(t, theta, setup, offset=offset, **kwargs)
-    raise InputError(f"unknown fit method {method!r} (known: {', '.join(METHODS)})")
+    return FIT_METHODS.load(method)(t, theta, setup, offset=offset, model=model, **kwargs)
 
 
 def json_safe(value):

@@ -34,6 +34,7 @@ from __future__ import annotations
 import importlib.metadata
 import math
 from pathlib import Path
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -46,6 +47,49 @@ TIFF_SUFFIXES = (".tif", ".tiff")
 CINE_SUFFIXES = (".cine",)
 PHOTRON_SUFFIXES = (".cih", ".cihx", ".mraw")
 ZARR_ENTRY_POINT_GROUP = "rollfric.zarr_readers"
+
+
+@runtime_checkable
+class FrameSource(Protocol):
+    """A recording as the measurement reads it (what every reader here returns).
+
+    Attributes
+    ----------
+    shape : tuple of int
+        (T, H, W): frames, rows, columns.
+    dtype : numpy.dtype
+        uint8 or uint16.
+    fps : float or None
+        The frame rate the file states, if any.
+    background : ndarray or None
+        An (H, W) background image the recording holds, if any.
+    attrs : dict
+        Whatever else the file holds (a synthetic recording's setup, ...).
+    """
+
+    shape: tuple[int, int, int]
+    dtype: np.dtype
+    fps: float | None
+    background: np.ndarray | None
+    attrs: dict
+
+    def __len__(self) -> int:
+        """The number of frames T."""
+        ...
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        """Frame i as an (H, W) array."""
+        ...
+
+
+@runtime_checkable
+class RegionSource(FrameSource, Protocol):
+    """A :class:`FrameSource` that reads regions of interest (the optional part of the
+    contract, see the module docstring): the tracking loop reads only where it looks."""
+
+    def read(self, i: int, roi: tuple[int, int, int, int]) -> np.ndarray:
+        """Region roi = (y0, y1, x0, x1) of frame i: the bytes of ``self[i][y0:y1, x0:x1]``."""
+        ...
 
 
 def check_roi(roi, frame_shape) -> tuple[int, int, int, int]:

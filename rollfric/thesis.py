@@ -188,3 +188,21 @@ def fit_paper2_grid(t, theta, setup: Setup, *, first: dict | None = None, grid: 
                "grid_step_mu": spec["mu"][1]},
         seconds=time.perf_counter() - start,
     )
+
+
+# --------------------------------------------------------------------------------------------
+# as rollfric.fit.fit_mu calls them (rollfric.fit.FitMethod)
+
+
+def paper1_eps_method(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulomb",
+                      **options) -> FitResult:
+    """The :class:`rollfric.fit.FitMethod` ``"paper1_eps"``: :func:`fit_paper1_eps` with
+    ``options``; it has neither an angle offset nor a friction model (both ignored)."""
+    return fit_paper1_eps(t, theta, setup, **options)
+
+
+def paper2_grid_method(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulomb",
+                       **options) -> FitResult:
+    """The :class:`rollfric.fit.FitMethod` ``"paper2_grid"``: :func:`fit_paper2_grid` with
+    ``offset`` and ``options``; it fits constant mu (``model`` ignored)."""
+    return fit_paper2_grid(t, theta, setup, offset=offset, **options)

@@ -25,6 +25,7 @@ from rollfric import io, locate
 from rollfric.background import median_background
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
+from rollfric.registry import LOCATORS
 from rollfric.setup import Setup, SetupError, setup_from_dict
 
 TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found"]
@@ -193,34 +194,10 @@ def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=No
                  r_known=None, r_known_sigma=None):
     """One frame with the chosen locator: ROI search at ``guess`` (edge within ``search`` px of
     the guessed circle), full frame when lost. ``r_known``, ``r_known_sigma``: the radius that
-    partial arcs are fitted with and its relative uncertainty (subpixel; default the setup's)."""
-    if method == "subpixel":
-        kw = {"opts": opts} if opts is not None else {}
-        kw.update(r_known=r_known, r_known_sigma=r_known_sigma)
-        loc = None
-        if guess is not None:
-            loc = locate.locate_subpixel(frame, bg, r_px, guess=guess, search=search, **kw)
-        if loc is None or not loc.found:
-            loc = locate.locate_subpixel(frame, bg, r_px, guess=None, **kw)
-        return loc
-    if method == "thesis-large":
-        if guess is None:
-            guess = locate.coarse_find(frame, bg, r_px)
-            if guess is None:
-                return locate.Location.missing("no ball-like change in the frame")
-        side = 1 if guess[0] >= center[0] else -1
-        return locate.locate_large_thesis(frame, bg, r_px, side=side, guess=guess)
-    if method == "thesis-small":
-        roi = None
-        if guess is not None:
-            m = int(math.ceil(2 * r_px + 20))
-            roi = (int(guess[0]) - m, int(guess[1]) - m, int(guess[0]) + m + 1,
-                   int(guess[1]) + m + 1)
-        loc = locate.locate_small_thesis(frame, bg, roi=roi)
-        if roi is not None and not loc.found:
-            loc = locate.locate_small_thesis(frame, bg)
-        return loc
-    raise InputError(f"unknown locator {method!r} (known: {', '.join(locate.METHODS)})")
+    partial arcs are fitted with and its relative uncertainty (subpixel; default the setup's).
+    The locators are registered in :data:`rollfric.registry.LOCATORS`."""
+    return LOCATORS.load(method)(frame, bg, r_px, guess, center, opts=opts, search=search,
+                                 r_known=r_known, r_known_sigma=r_known_sigma)
 
 
 def resolve_background(source, background, *, r_px: float, median_frames: int = 41,
@@ -261,8 +238,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     calibration (ball_radius_px_seen, ...) and ``warnings``; ``log`` gets the warnings."""
     from tqdm import tqdm
 
-    if method not in locate.METHODS:
-        raise InputError(f"unknown locator {method!r} (known: {', '.join(locate.METHODS)})")
+    LOCATORS.check(method)
     n, h, w = source.shape
     r_px = ball_radius_px(setup)
     L_px = setup.track_radius / setup.pixel_size
@@ -464,8 +440,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         setup = load_setup(setup)
     if angle not in ANGLES:
         raise InputError(f"unknown angle method {angle!r} (known: {', '.join(ANGLES)})")
-    if method not in locate.METHODS:
-        raise InputError(f"unknown locator {method!r} (known: {', '.join(locate.METHODS)})")
+    LOCATORS.check(method)
     check_setup_fits(setup, source.shape)
     t, times_desc, time_notes = frame_times(source, setup.fps, times)
     # a recording with its own per-frame times is checked against them (frame_times), one

@@ -32,10 +32,4 @@ def simulate(scenario: Scenario, progress: bool = False) -> Trajectory:
     """Run one scenario on its engine and return the ground truth at the camera rate."""
     if not isinstance(scenario, Scenario):
         raise ScenarioError(f"simulate() needs a sim.Scenario, got {type(scenario).__name__}")
-    if scenario.engine == "reference":
-        from sim.engines import reference as engine
-    elif scenario.engine == "mujoco":
-        from sim.engines import mujoco_engine as engine
-    else:
-        from sim.engines import pybullet_engine as engine
-    return engine.run(scenario, progress=progress)
+    return ENGINES.load(scenario.engine).run(scenario, progress=progress)

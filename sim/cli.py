@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from sim.engines import ENGINES
+
 _HELP = """\
 Simulate a ball rolling in a cylindrical trough and write its ground-truth trajectory at the
 camera rate: CSV (t_s, theta_rad, theta_dot_rad_s, ball centre x/y/z in m, quaternion wxyz,
@@ -23,7 +25,7 @@ def register(subparsers) -> None:
                               description=_HELP,
                               formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scenario", nargs="?", help="scenario TOML file (optional)")
-    p.add_argument("--engine", choices=["reference", "mujoco", "pybullet"])
+    p.add_argument("--engine", choices=list(ENGINES))
     p.add_argument("--surface", choices=["tangent", "mesh", "heightfield"])
     p.add_argument("--ball", choices=["1.58mm", "10mm", "12.69mm"],
                    help="a thesis ball (sets diameter and mass)")

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.engines import ENGINES
+
 BALLS = ("1.58mm", "10mm", "12.69mm")
 MUS = (0.0065, 0.0079, 0.0164)
 THETA0_DEG = (10.0, 20.0, 35.0)
@@ -35,7 +37,7 @@ def _cases(balls, mus, theta0s):
                 yield ball, mu, th
 
 
-def fidelity_table(engines=("reference", "mujoco", "pybullet"), *, balls=BALLS, mus=MUS,
+def fidelity_table(engines=tuple(ENGINES), *, balls=BALLS, mus=MUS,
                    theta0_deg=THETA0_DEG, naive: str = "subset", duration: float = 4.0,
                    fps: float = 1000.0, engine_options: dict | None = None,
                    progress: bool = False):
@@ -144,8 +146,7 @@ def main(argv=None) -> int:
                     "compare with the configured mu: three thesis balls x mu {0.0065, 0.0079, "
                     "0.0164} x theta0 {10, 20, 35} deg. Writes sim_fidelity.csv and .md.")
     parser.add_argument("--out", required=True, help="output directory")
-    parser.add_argument("--engines", nargs="+", default=["reference", "mujoco", "pybullet"],
-                        choices=["reference", "mujoco", "pybullet"])
+    parser.add_argument("--engines", nargs="+", default=list(ENGINES), choices=list(ENGINES))
     parser.add_argument("--naive", choices=["subset", "all", "none"], default="subset",
                         help="naive surfaces (mesh, heightfield): mu = 0.0079 cases (subset), "
                              "the whole grid (all) or none")

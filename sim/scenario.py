@@ -33,11 +33,11 @@ import math
 from pathlib import Path
 from typing import Any
 
-from rollfric.errors import InputError
 from rollfric.setup import THESIS_BALLS, THESIS_TROUGH_RADIUS, Setup
 from rollfric.tomlfile import read_toml
+from sim.engines import ENGINES
+from sim.errors import ScenarioError
 
-ENGINES = ("reference", "mujoco", "pybullet")
 SURFACES = {
     "reference": ("tangent",),
     "mujoco": ("tangent", "mesh", "heightfield"),
@@ -46,18 +46,8 @@ SURFACES = {
 MAX_THETA0_DEG = 80.0
 
 
-class ScenarioError(InputError):
-    """A scenario that cannot be simulated (the message names the bad input)."""
-
-
 def _option_defaults(engine: str) -> dict:
-    if engine == "mujoco":
-        from sim.engines.mujoco_engine import DEFAULTS
-    elif engine == "pybullet":
-        from sim.engines.pybullet_engine import DEFAULTS
-    else:
-        from sim.engines.reference import DEFAULTS
-    return DEFAULTS
+    return ENGINES.load(engine).DEFAULTS
 
 
 @dataclasses.dataclass(frozen=True)

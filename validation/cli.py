@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from sim.engines import ENGINES
+
 _VALIDATE_HELP = """\
 The main job: run one case end to end -- scenario -> sim (ground-truth trajectory) -> synth
 (rendered 1000 Hz camera frames with a sensor model) -> rollfric (locate the ball, angles, fit
@@ -63,7 +65,7 @@ def register(subparsers) -> None:
         description=_VALIDATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("case", nargs="?", metavar="CASE.toml",
                    help="case (or plain scenario) TOML file; default: the built-in case")
-    p.add_argument("--engine", choices=["reference", "mujoco", "pybullet"],
+    p.add_argument("--engine", choices=list(ENGINES),
                    help="physics engine for the ground truth (default: the case's, reference)")
     p.add_argument("--seconds", type=float, help="duration of the recording (s)")
     p.add_argument("--mu", type=float, help="configured rolling friction coefficient")

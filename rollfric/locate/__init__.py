@@ -6,7 +6,9 @@ a :class:`LazyFrame`, which reads only the regions a locator crops (the tracking
 
 One module per job:
 
-- :mod:`rollfric.locate.location`: :class:`Location`, the answer for one frame;
+- :mod:`rollfric.locate.location`: :class:`Location`, the answer for one frame, and
+  :class:`Locator`, the interface the tracking loop calls a locator through (the locators
+  are registered by name in :data:`rollfric.registry.LOCATORS`);
 - :mod:`rollfric.locate.regions`: frames read by regions (:class:`LazyFrame`), crops;
 - :mod:`rollfric.locate.search`: the full-frame search (:func:`coarse_candidates`);
 - :mod:`rollfric.locate.thesis`: the thesis's locators (:func:`locate_small_thesis`,
@@ -15,18 +17,21 @@ One module per job:
 - :mod:`rollfric.locate.kernels`: its numba kernels.
 """
 
-from rollfric.locate.location import Location
+from rollfric.locate.location import Location, Locator
 from rollfric.locate.regions import LazyFrame, _crop, as_array, relative_image
 from rollfric.locate.search import coarse_candidates, coarse_find
 from rollfric.locate.subpixel import SubpixelOptions, locate_subpixel
 from rollfric.locate.thesis import locate_large_thesis, locate_small_thesis
+from rollfric.registry import LOCATORS
 
-METHODS = ("subpixel", "thesis-large", "thesis-small")
+METHODS = LOCATORS.names()
 
 __all__ = [
     "METHODS",
     "LazyFrame",
+    "LOCATORS",
     "Location",
+    "Locator",
     "SubpixelOptions",
     "_crop",
     "as_array",

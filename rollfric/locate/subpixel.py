@@ -144,6 +144,23 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
     return _locate_guess(frame, background, r_px, guess, search, opts, noise, True, rk)
 
 
+def subpixel_locator(frame, background, r_px: float, guess: tuple[float, float] | None,
+                     center: tuple[float, float], *, opts: SubpixelOptions | None = None,
+                     search: float | None = None, r_known: float | None = None,
+                     r_known_sigma: float | None = None) -> Location:
+    """The :class:`rollfric.locate.Locator` ``"subpixel"``: :func:`locate_subpixel` in the
+    region around ``guess`` (the edge within ``search`` px of the predicted circle), then over
+    the whole frame when the ball is not found there. ``center`` is not used."""
+    kw = {"opts": opts} if opts is not None else {}
+    kw.update(r_known=r_known, r_known_sigma=r_known_sigma)
+    loc = None
+    if guess is not None:
+        loc = locate_subpixel(frame, background, r_px, guess=guess, search=search, **kw)
+    if loc is None or not loc.found:
+        loc = locate_subpixel(frame, background, r_px, guess=None, **kw)
+    return loc
+
+
 def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
                   rk) -> Location:
     """:func:`locate_subpixel` from a guess; ``partial``: accept a known-radius fit of a

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import cv2
 import numpy as np
@@ -209,3 +210,38 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
     # step 7: back to frame coordinates
     return Location(x=float(cand_x[win].mean() + x0), y=float(cand_y[win].mean() + y0),
                     r=float(r_px), found=True, inlier_frac=float(best) / len(rho))
+
+
+# --------------------------------------------------------------------------------------------
+# as the tracking loop calls them (rollfric.locate.Locator)
+
+
+def thesis_large_locator(frame, background, r_px: float, guess: tuple[float, float] | None,
+                         center: tuple[float, float], **unused: Any) -> Location:
+    """The :class:`rollfric.locate.Locator` ``"thesis-large"``: :func:`locate_large_thesis`
+    around ``guess`` (the full-frame search of :func:`coarse_find` without one), on the
+    quarter of the ball on the side of the trough's axis ``center`` where the ball is. The
+    sub-pixel locator's options (``unused``) do not apply."""
+    if guess is None:
+        guess = coarse_find(frame, background, r_px)
+        if guess is None:
+            return Location.missing("no ball-like change in the frame")
+    side = 1 if guess[0] >= center[0] else -1
+    return locate_large_thesis(frame, background, r_px, side=side, guess=guess)
+
+
+def thesis_small_locator(frame, background, r_px: float, guess: tuple[float, float] | None,
+                         center: tuple[float, float], **unused: Any) -> Location:
+    """The :class:`rollfric.locate.Locator` ``"thesis-small"``: :func:`locate_small_thesis`
+    in a window of 2 r + 20 px a side around ``guess``, then over the whole frame when the
+    spot is not found there. ``center`` and the sub-pixel locator's options (``unused``) do
+    not apply."""
+    roi = None
+    if guess is not None:
+        m = int(math.ceil(2 * r_px + 20))
+        roi = (int(guess[0]) - m, int(guess[1]) - m, int(guess[0]) + m + 1,
+               int(guess[1]) + m + 1)
+    loc = locate_small_thesis(frame, background, roi=roi)
+    if roi is not None and not loc.found:
+        loc = locate_small_thesis(frame, background)
+    return loc

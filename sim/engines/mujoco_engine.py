@@ -183,7 +183,7 @@ def run(scenario, progress: bool = False):
 
     opts = scenario.options()
     if opts["cone"] not in ("elliptic", "pyramidal"):
-        from sim.scenario import ScenarioError
+        from sim.errors import ScenarioError
 
         raise ScenarioError(f"mujoco option cone must be elliptic or pyramidal, "
                             f"got {opts['cone']!r}")
