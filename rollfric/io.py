@@ -34,11 +34,19 @@ from __future__ import annotations
 import importlib.metadata
 import math
 from pathlib import Path
-from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from rollfric.errors import InputError
+from rollfric.source import (  # noqa: F401  (FrameSource, RegionSource: the readers' protocol)
+    BaseSource,
+    FrameSource,
+    RecordingError,
+    RegionSource,
+    _to_gray,
+    check_roi,
+)
+
+_Source = BaseSource  # the name the readers below (and older code) use
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg", ".pgm", ".ppm", ".jp2",
                   ".webp")
@@ -47,156 +55,6 @@ TIFF_SUFFIXES = (".tif", ".tiff")
 CINE_SUFFIXES = (".cine",)
 PHOTRON_SUFFIXES = (".cih", ".cihx", ".mraw")
 ZARR_ENTRY_POINT_GROUP = "rollfric.zarr_readers"
-
-
-@runtime_checkable
-class FrameSource(Protocol):
-    """A recording as the measurement reads it (what every reader here returns).
-
-    Attributes
-    ----------
-    shape : tuple of int
-        (T, H, W): frames, rows, columns.
-    dtype : numpy.dtype
-        uint8 or uint16.
-    fps : float or None
-        The frame rate the file states, if any.
-    background : ndarray or None
-        An (H, W) background image the recording holds, if any.
-    attrs : dict
-        Whatever else the file holds (a synthetic recording's setup, ...).
-    """
-
-    shape: tuple[int, int, int]
-    dtype: np.dtype
-    fps: float | None
-    background: np.ndarray | None
-    attrs: dict
-
-    def __len__(self) -> int:
-        """The number of frames T."""
-        ...
-
-    def __getitem__(self, i: int) -> np.ndarray:
-        """Frame i as an (H, W) array."""
-        ...
-
-
-@runtime_checkable
-class RegionSource(FrameSource, Protocol):
-    """A :class:`FrameSource` that reads regions of interest (the optional part of the
-    contract, see the module docstring): the tracking loop reads only where it looks."""
-
-    def read(self, i: int, roi: tuple[int, int, int, int]) -> np.ndarray:
-        """Region roi = (y0, y1, x0, x1) of frame i: the bytes of ``self[i][y0:y1, x0:x1]``."""
-        ...
-
-
-def check_roi(roi, frame_shape) -> tuple[int, int, int, int]:
-    """Check a region of interest against the frame size.
-
-    Parameters
-    ----------
-    roi : sequence of int
-        (y0, y1, x0, x1).
-    frame_shape : tuple of int
-        (H, W) of the frames.
-
-    Returns
-    -------
-    tuple of int
-        (y0, y1, x0, x1) as integers, a non-empty region inside the frame.
-
-    Raises
-    ------
-    TypeError
-        ``roi`` is not four integers.
-    IndexError
-        The region is empty or reaches outside the frame.
-    """
-    try:
-        y0, y1, x0, x1 = (int(v) for v in roi)
-    except (TypeError, ValueError):
-        raise TypeError(f"roi must be (y0, y1, x0, x1) integers, got {roi!r}") from None
-    h, w = frame_shape
-    if not (0 <= y0 < y1 <= h and 0 <= x0 < x1 <= w):
-        raise IndexError(f"roi {(y0, y1, x0, x1)} (y0, y1, x0, x1) is not a non-empty "
-                         f"region of the {w}x{h} px frames")
-    return y0, y1, x0, x1
-
-
-class RecordingError(InputError):
-    """A recording (or background image) that cannot be read as a sequence of frames."""
-
-
-def _to_gray(img: np.ndarray, what: str) -> np.ndarray:
-    """One (H, W) uint8/uint16 frame from whatever an image reader returned."""
-    import cv2
-
-    if img.ndim == 3 and img.shape[2] in (3, 4):
-        code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
-        img = cv2.cvtColor(img, code)
-    elif img.ndim == 3 and img.shape[2] == 1:
-        img = img[:, :, 0]
-    if img.ndim != 2:
-        raise RecordingError(f"{what}: expected a 2-D grayscale image, got shape {img.shape}")
-    if img.dtype not in (np.uint8, np.uint16):
-        raise RecordingError(f"{what}: unsupported pixel type {img.dtype} (8 or 16 bit wanted)")
-    return img
-
-
-class _Source:
-    """Common part of the readers: shape, dtype, frame-size check."""
-
-    fps: float | None = None
-    timestamps: np.ndarray | None = None
-    background: np.ndarray | None = None
-
-    def __init__(self, name: str, n: int, hw: tuple[int, int], dtype) -> None:
-        self.name = name
-        self.shape = (int(n), int(hw[0]), int(hw[1]))
-        self.dtype = np.dtype(dtype)
-        self.attrs: dict = {}
-        if n == 0:
-            raise RecordingError(f"{name}: the recording holds no frames")
-
-    def __len__(self) -> int:
-        return self.shape[0]
-
-    def _index(self, i: int) -> int:
-        i = int(i)
-        if i < 0:
-            i += len(self)
-        if not 0 <= i < len(self):
-            raise IndexError(f"frame {i} out of range (0..{len(self) - 1})")
-        return i
-
-    def _check(self, img: np.ndarray, i: int) -> np.ndarray:
-        img = _to_gray(img, f"{self.name} frame {i}")
-        if img.shape != self.shape[1:]:
-            raise RecordingError(
-                f"{self.name}: frames of mixed sizes: frame {i} is {img.shape[1]}x{img.shape[0]}"
-                f" px, frame 0 is {self.shape[2]}x{self.shape[1]} px")
-        if img.dtype != self.dtype:
-            raise RecordingError(f"{self.name}: frames of mixed bit depth: frame {i} is "
-                                 f"{img.dtype}, frame 0 is {self.dtype}")
-        return img
-
-    def __iter__(self):
-        for i in range(len(self)):
-            yield self[i]
-
-    def _roi(self, roi) -> tuple[int, int, int, int]:
-        return check_roi(roi, self.shape[1:])
-
-    def read(self, i: int, roi: tuple[int, int, int, int]) -> np.ndarray:
-        """Region ``roi`` = (y0, y1, x0, x1) of frame i: the same bytes as
-        ``self[i][y0:y1, x0:x1]``."""
-        i = self._index(i)
-        return self._read_roi(i, *self._roi(roi))
-
-    def _read_roi(self, i: int, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
-        return self[i][y0:y1, x0:x1]
 
 
 class TiffSource(_Source):

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rollfric.io import check_roi
+from rollfric.source import check_roi
 from synth.config import SensorConfig, SynthError
 from synth.sensor import Sensor
 

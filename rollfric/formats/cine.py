@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rollfric.io import RecordingError, _Source
+from rollfric.source import BaseSource, RecordingError
 
 
-class CineSource(_Source):
+class CineSource(BaseSource):
     """A Phantom ``.cine`` recording as a FrameSource (monochrome, uncompressed or packed)."""
 
     def __init__(self, path: str | Path) -> None:
@@ -61,7 +61,7 @@ class CineSource(_Source):
         if len(self._locs) != n:
             raise RecordingError(f"{path}: the cine header says {n} images, its offset table "
                                  f"holds {len(self._locs)}")
-        self.name = name  # for the messages of _frame_span before _Source.__init__
+        self.name = name  # for the messages of _frame_span before BaseSource.__init__
         self._npx = h * w
         # bits a pixel from frame 0's image size, as pims does: 8, 16, or 10/12 packed
         self._bits = 8 * self._frame_span(0)[1] // self._npx

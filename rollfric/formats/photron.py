@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rollfric.io import RecordingError, _Source
+from rollfric.source import BaseSource, RecordingError
 
 
 def _header_and_data(path: Path) -> tuple[Path, Path]:
@@ -66,7 +66,7 @@ def unpack12(packed: np.ndarray) -> np.ndarray:
     return out.reshape(packed.shape[:-1] + (-1,))
 
 
-class PhotronSource(_Source):
+class PhotronSource(BaseSource):
     """A Photron recording (``.cih``/``.cihx`` header + ``.mraw`` frames) as a FrameSource."""
 
     def __init__(self, path: str | Path) -> None:
