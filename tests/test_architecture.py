@@ -53,3 +53,89 @@ def test_readers_are_frame_sources(tmp_path):
     src = io.open_recording(tmp_path / "rec.tif")
     assert isinstance(src, io.FrameSource) and isinstance(src, io.RegionSource)
     assert not isinstance(object(), io.FrameSource)
+
+
+# -- the import graph: every import statement of the project's modules, also those inside
+#    functions (a lazy import is still a dependency)
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+PACKAGES = ("rollfric", "sim", "synth", "validation")
+
+
+def _import_graph() -> dict[str, set[str]]:
+    import ast
+
+    paths = {}
+    for pkg in PACKAGES:
+        for p in (ROOT / pkg).rglob("*.py"):
+            parts = list(p.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            paths[".".join(parts)] = p
+
+    def resolve(name):
+        while name and name not in paths:
+            name = name.rpartition(".")[0]
+        return name
+
+    graph = {}
+    for mod, p in paths.items():
+        here = mod.split(".") if p.name == "__init__.py" else mod.split(".")[:-1]
+        deps = set()
+        for node in ast.walk(ast.parse(p.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    base = ".".join(here[:len(here) - node.level + 1] + ([base] if base else []))
+                names = [f"{base}.{a.name}" if f"{base}.{a.name}" in paths else base
+                         for a in node.names]
+            else:
+                continue
+            deps.update(r for r in map(resolve, names) if r and r != mod)
+        graph[mod] = deps
+    return graph
+
+
+def _a_cycle(graph):
+    """One import cycle as a list of modules, or None."""
+    state, stack = {}, []
+
+    def visit(m):
+        state[m] = 1
+        stack.append(m)
+        for d in sorted(graph[m]):
+            if state.get(d) == 1:
+                return stack[stack.index(d):] + [d]
+            if d not in state:
+                found = visit(d)
+                if found:
+                    return found
+        stack.pop()
+        state[m] = 2
+        return None
+
+    for m in sorted(graph):
+        if m not in state:
+            found = visit(m)
+            if found:
+                return found
+    return None
+
+
+def test_no_import_cycles():
+    graph = _import_graph()
+    assert {"rollfric.fit", "rollfric.thesis", "sim.scenario", "sim.engines.mujoco_engine",
+            "validation.e2e", "validation.report"} <= set(graph)
+    assert "rollfric.thesis" in graph["rollfric.fit"] or "rollfric.fit" in graph["rollfric.thesis"]
+    cycle = _a_cycle(graph)
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)
+    assert _a_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+
+
+def test_rollfric_imports_nothing_from_the_validation_suite():
+    graph = _import_graph()
+    bad = {m: sorted(d for d in deps if d.split(".")[0] != "rollfric")
+           for m, deps in graph.items() if m.split(".")[0] == "rollfric"}
+    assert not {m: d for m, d in bad.items() if d}

@@ -25,20 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-
-@dataclasses.dataclass
-class Row:
-    """One line of the table: a measured value beside its baseline."""
-
-    section: str
-    item: str
-    value: float
-    unit: str
-    baseline: str = ""
-    baseline_value: float = math.nan
-    gain: float = math.nan  # speed-up or error ratio over the baseline (> 1: better)
-    gain_kind: str = ""  # "speed-up", "accuracy", "smaller"; "x the bound": value / bound
-    note: str = ""
+from validation.bench_table import Row
 
 
 def median_time(fn, repeats: int, warmup: bool = True) -> tuple[float, object]:

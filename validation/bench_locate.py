@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from rollfric import locate
+from validation.bench_table import Row
 from validation.drawn_frames import Scene, make_frames
 
 BALLS = {"10mm": 5.0 / 0.1343, "12.69mm": 6.345 / 0.1343, "1.58mm": 0.79 / 0.1343}
@@ -274,8 +275,6 @@ def bench_recognition(quick: bool = False) -> list:
     """The recognition section of ``rollfric bench`` as validation.bench.Row lines: per case,
     the default locator (ROI mode) beside each baseline (accuracy gain = baseline rms /
     default rms), the Cramer-Rao bound, and the streaming loop's frames/s."""
-    from validation.bench import Row
-
     rows = []
     results = bench_locators(quick)
     by_case: dict = {}

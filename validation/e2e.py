@@ -22,7 +22,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
-import os
 import shutil
 import tempfile
 import time
@@ -329,32 +328,6 @@ def _lag1_autocorr(r: np.ndarray) -> float:
     return float(a @ b) / den if den > 0 else math.nan
 
 
-def per_frame_errors(result: CaseResult):
-    """DataFrame per frame: truth, located centre, errors (px, rad), found flag."""
-    import pandas as pd
-
-    tt = result.truth
-    tr = result.track.set_index("frame") if "frame" in result.track.columns else result.track
-    tr = tr.reindex(range(len(tt)))
-    out = pd.DataFrame({
-        "frame": np.arange(len(tt)),
-        "t_s": np.asarray(tt["t_s"], float),
-        "truth_x_px": np.asarray(tt["sil_x_px"], float),
-        "truth_y_px": np.asarray(tt["sil_y_px"], float),
-        "truth_theta_rad": np.asarray(tt["theta_rad"], float),
-        "x_px": np.asarray(tr["x_px"], float),
-        "y_px": np.asarray(tr["y_px"], float),
-        "theta_rad": np.asarray(tr["theta_rad"], float),
-        "found": np.asarray(tr["found"].fillna(False), dtype=bool) if "found" in tr.columns
-        else np.isfinite(np.asarray(tr["x_px"], float)),
-    })
-    out["err_x_px"] = out["x_px"] - out["truth_x_px"]
-    out["err_y_px"] = out["y_px"] - out["truth_y_px"]
-    out["err_px"] = np.hypot(out["err_x_px"], out["err_y_px"])
-    out["err_theta_rad"] = out["theta_rad"] - out["truth_theta_rad"]
-    return out
-
-
 def sim_only_case(case: Case | dict) -> dict:
     """A cheap case: simulate and fit the engine's theta(t) only (no render, no locator).
 
@@ -384,15 +357,3 @@ def sim_only_case(case: Case | dict) -> dict:
          "n_frames": int(len(traj))}
     m.update({f"t_{k}_s": float(v) for k, v in timings.items()})
     return m
-
-
-def metrics_of(case_dict: dict, stages: str = "full", **kw) -> dict:
-    """The metric dict of one case dict (what a sweep worker runs)."""
-    if stages == "sim":
-        return sim_only_case(case_dict)
-    return run_case(case_dict, **kw).metrics
-
-
-def environment_threads() -> int | None:
-    v = os.environ.get("LP_NUM_THREADS")
-    return int(v) if v and v.isdigit() else None

@@ -40,7 +40,6 @@ def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
     from rollfric.fit import save_fit
     from rollfric.plots import plot_fit
     from validation.case import dumps_case
-    from validation.e2e import per_frame_errors
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -219,3 +218,30 @@ def summary_text(result, out: str | Path | None = None) -> str:
         lines += ["", f"  report: {Path(out).resolve()}/"
                       " (metrics.json, angle_vs_model.png, center_error_*.png, overlays.png)"]
     return "\n".join(lines)
+
+
+def per_frame_errors(result):
+    """DataFrame per frame of a :class:`validation.e2e.CaseResult`: truth, located centre,
+    errors (px, rad), found flag."""
+    import pandas as pd
+
+    tt = result.truth
+    tr = result.track.set_index("frame") if "frame" in result.track.columns else result.track
+    tr = tr.reindex(range(len(tt)))
+    out = pd.DataFrame({
+        "frame": np.arange(len(tt)),
+        "t_s": np.asarray(tt["t_s"], float),
+        "truth_x_px": np.asarray(tt["sil_x_px"], float),
+        "truth_y_px": np.asarray(tt["sil_y_px"], float),
+        "truth_theta_rad": np.asarray(tt["theta_rad"], float),
+        "x_px": np.asarray(tr["x_px"], float),
+        "y_px": np.asarray(tr["y_px"], float),
+        "theta_rad": np.asarray(tr["theta_rad"], float),
+        "found": np.asarray(tr["found"].fillna(False), dtype=bool) if "found" in tr.columns
+        else np.isfinite(np.asarray(tr["x_px"], float)),
+    })
+    out["err_x_px"] = out["x_px"] - out["truth_x_px"]
+    out["err_y_px"] = out["y_px"] - out["truth_y_px"]
+    out["err_px"] = np.hypot(out["err_x_px"], out["err_y_px"])
+    out["err_theta_rad"] = out["theta_rad"] - out["truth_theta_rad"]
+    return out
