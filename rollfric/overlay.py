@@ -6,13 +6,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from rollfric.atomic import replacing  # noqa: E402
+from rollfric.atomic import replacing
 
 
 def choose_frames(track, k: int = 6) -> list[int]:
@@ -40,7 +37,8 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
     r_default = r_px or track.attrs.get("ball_radius_px", 10.0)
     ncol = min(3, len(frames))
     nrow = math.ceil(len(frames) / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4 * ncol, 4 * nrow), squeeze=False)
+    fig = Figure(figsize=(4 * ncol, 4 * nrow))  # no pyplot: no backend, no global state
+    axes = fig.subplots(nrow, ncol, squeeze=False)
     for ax in axes.ravel():
         ax.axis("off")
     for ax, f in zip(axes.ravel(), frames, strict=False):
@@ -73,5 +71,4 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
     path = Path(path)
     with replacing(path) as tmp:
         fig.savefig(tmp, dpi=110)
-    plt.close(fig)
     return path

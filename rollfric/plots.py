@@ -4,21 +4,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from rollfric.atomic import replacing  # noqa: E402
+from rollfric.atomic import replacing
 
 
 def plot_fit(t, theta, result, path, *, title: str | None = None) -> Path:
     """Measured theta(t) (dots) against the fitted model (line), and the residual below."""
     t = np.asarray(t, dtype=float)
     theta = np.asarray(theta, dtype=float)
-    fig, (ax, axr) = plt.subplots(2, 1, figsize=(9, 6), sharex=True,
-                                  gridspec_kw={"height_ratios": [3, 1]})
+    fig = Figure(figsize=(9, 6))  # no pyplot: no backend, no global figure state
+    ax, axr = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     ax.plot(t, np.degrees(theta), ".", ms=2, color="tab:red", label="measured")
     ax.plot(result.t, np.degrees(result.curve), "-", lw=1.2, color="tab:blue",
             label=f"model ({result.method}), mu = {result.mu:.5f}")
@@ -36,7 +33,6 @@ def plot_fit(t, theta, result, path, *, title: str | None = None) -> Path:
     path = Path(path)
     with replacing(path) as tmp:
         fig.savefig(tmp, dpi=120)
-    plt.close(fig)
     return path
 
 
@@ -50,7 +46,8 @@ def plot_budget(budget, path) -> Path:
     names = [f"expanded U (k = {budget.coverage_factor:g})", "combined u"] + \
         [r.source for r in rows][::-1]
     values = [budget.U_mu * scale, budget.u_mu * scale] + [r.u_mu * scale for r in rows][::-1]
-    fig, ax = plt.subplots(figsize=(7, 0.45 * len(names) + 1.2))
+    fig = Figure(figsize=(7, 0.45 * len(names) + 1.2))  # no pyplot, as plot_fit
+    ax = fig.subplots()
     ax.barh(range(len(names)), values, color=["tab:red", "tab:orange"] + ["tab:blue"] * len(rows))
     ax.set_yticks(range(len(names)), names)
     for i, v in enumerate(values):
@@ -63,5 +60,4 @@ def plot_budget(budget, path) -> Path:
     path = Path(path)
     with replacing(path) as tmp:
         fig.savefig(tmp, dpi=120)
-    plt.close(fig)
     return path

@@ -19,20 +19,17 @@ import json
 import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from rollfric.atomic import replacing, write_text  # noqa: E402
-from rollfric.fit import json_safe  # noqa: E402, F401  (validation.cli prints with it)
+from rollfric.atomic import replacing, write_text
+from rollfric.fit import json_safe  # noqa: F401  (validation.cli prints with it)
 
 
 def _savefig(fig, path: Path) -> None:
     with replacing(path) as tmp:
         fig.savefig(tmp, dpi=110)
-    plt.close(fig)
 
 
 def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
@@ -62,7 +59,8 @@ def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
 
     good = pf["found"].to_numpy(bool) & np.isfinite(pf["err_px"].to_numpy(float))
     # centre-error histogram
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
+    fig = Figure(figsize=(12, 3.6))  # no pyplot: no backend, no global figure state
+    axes = fig.subplots(1, 3)
     for ax, col, label in zip(axes, ("err_x_px", "err_y_px", "err_px"),
                               ("x error (px)", "y error (px)", "|error| (px)"), strict=True):
         v = pf.loc[good, col].to_numpy(float)
@@ -78,7 +76,8 @@ def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
     _savefig(fig, out / "center_error_hist.png")
 
     # error vs time
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
+    fig = Figure(figsize=(10, 5.5))
+    a1, a2 = fig.subplots(2, 1, sharex=True)
     t = pf["t_s"].to_numpy(float)
     a1.plot(t, pf["err_x_px"], ".", ms=1.5, label="x")
     a1.plot(t, pf["err_y_px"], ".", ms=1.5, label="y")
@@ -116,7 +115,8 @@ def _overlays(result, pf, path: Path, k: int) -> None:
     r = float(result.metrics.get("ball_radius_px", 10.0))
     ncol = min(3, len(picks))
     nrow = math.ceil(len(picks) / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4 * ncol, 4 * nrow), squeeze=False)
+    fig = Figure(figsize=(4 * ncol, 4 * nrow))
+    axes = fig.subplots(nrow, ncol, squeeze=False)
     half = int(math.ceil(1.5 * r)) + 4
     for ax, i in zip(axes.flat, picks, strict=False):
         frame = np.asarray(src[int(i)])
@@ -128,8 +128,8 @@ def _overlays(result, pf, path: Path, k: int) -> None:
         ext = (x0c - 0.5, x0c + crop.shape[1] - 0.5, y0c + crop.shape[0] - 0.5, y0c - 0.5)
         ax.imshow(crop, cmap="gray", extent=ext, interpolation="nearest")
         if row["found"] and np.isfinite(row["x_px"]):
-            ax.add_patch(plt.Circle((row["x_px"], row["y_px"]), r, fill=False,
-                                    color="tab:blue", lw=1))
+            ax.add_patch(Circle((row["x_px"], row["y_px"]), r, fill=False, color="tab:blue",
+                                lw=1))
             ax.plot(row["x_px"], row["y_px"], "+", color="tab:blue", ms=10, mew=1.5)
             title = f"frame {i}: error {row['err_px']:.3f} px"
         else:

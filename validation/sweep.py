@@ -464,11 +464,8 @@ def write_summary(df, spec: SweepSpec, out: Path, plots: list) -> Path:
 def plot_sweep(df, spec: SweepSpec, plot_dir: Path) -> list[Path]:
     """For every swept key x and metric y: y vs x (mean +- std over the other repeats), one
     line per combination of the other swept keys. Categorical x are spread evenly."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
+    from matplotlib.figure import Figure  # no pyplot: no backend, no global figure state
 
     ok = df[df["status"] == "ok"]
     if ok.empty:
@@ -490,8 +487,8 @@ def plot_sweep(df, spec: SweepSpec, plot_dir: Path) -> list[Path]:
         metrics = [m for m in spec.metrics if m in ok.columns]
         if not metrics:
             continue
-        fig, axes = plt.subplots(len(metrics), 1, figsize=(8, 2.8 * len(metrics) + 0.6),
-                                 squeeze=False, sharex=True)
+        fig = Figure(figsize=(8, 2.8 * len(metrics) + 0.6))
+        axes = fig.subplots(len(metrics), 1, squeeze=False, sharex=True)
         xs_all = list(dict.fromkeys(ok[x].tolist()))
         numeric = all(isinstance(v, (int, float, np.number)) and not isinstance(v, bool)
                       for v in xs_all)
@@ -522,6 +519,5 @@ def plot_sweep(df, spec: SweepSpec, plot_dir: Path) -> list[Path]:
         path = plot_dir / f"{x.replace('.', '_')}.png"
         with replacing(path) as tmp:
             fig.savefig(tmp, dpi=100)
-        plt.close(fig)
         written.append(path)
     return written
