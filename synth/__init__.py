@@ -10,12 +10,8 @@ with exact ground truth.
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-
-from synth.camera import CameraModel  # noqa: E402
-from synth.config import (  # noqa: E402
+from synth.camera import CameraModel
+from synth.config import (
     LIGHTING_PRESETS,
     NOISE_PRESETS,
     Lamp,
@@ -26,8 +22,8 @@ from synth.config import (  # noqa: E402
     lighting_preset,
     noise_preset,
 )
-from synth.pipeline import load_trajectory, render  # noqa: E402
-from synth.store import Recording, SynthFrames, open_frames, open_recording  # noqa: E402
+from synth.pipeline import load_trajectory, render
+from synth.store import Recording, SynthFrames, open_frames, open_recording
 
 __all__ = ["LIGHTING_PRESETS", "NOISE_PRESETS", "CameraModel", "Lamp", "Lighting", "Recording",
            "SceneConfig", "SensorConfig", "SynthError", "SynthFrames", "lighting_preset",

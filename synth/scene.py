@@ -19,14 +19,12 @@ pyrender's own, for the benchmark's baseline.
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 
+from synth import pyrender_adapter
 from synth.camera import CameraModel
 from synth.config import SceneConfig
-
-os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 SHADOW_TEX_SZ = 2048  # pyrender.constants.SHADOW_TEX_SZ
 # two tiles are drawn as one when that shades at most this many extra pixels (a forward pass
@@ -172,8 +170,9 @@ class SceneRenderer:
     survive fork)."""
 
     def __init__(self, config: SceneConfig, ball_radius: float, cylinder_radius: float):
-        import pyrender
         import trimesh
+
+        pyrender = pyrender_adapter.load()  # headless EGL unless PYOPENGL_PLATFORM says else
 
         self.config = config
         self.camera: CameraModel = config.camera
@@ -239,7 +238,7 @@ class SceneRenderer:
         self.flags = pyrender.RenderFlags.NONE
         if config.shadows:
             self.flags |= pyrender.RenderFlags.SHADOWS_SPOT
-        self._renderer = None
+        self._offscreen = None
         self._programs: dict = {}  # "stock" or light counts -> pyrender program cache
         self._shadow_cache = None
         self._shadow_prev: dict = {}  # lamp -> texel box the ball covered last
@@ -265,18 +264,19 @@ class SceneRenderer:
         from synth.shaders import light_counts, program_cache
 
         vw, vh = w * self.ss, h * self.ss
-        if self._renderer is None:
-            self._renderer = self._pyrender.OffscreenRenderer(vw, vh)
-            self._programs = {"stock": self._renderer._renderer._program_cache}
-            _cache_light_matrices(self._renderer._renderer)
+        if self._offscreen is None:
+            self._offscreen = self._pyrender.OffscreenRenderer(vw, vh)
+            pyrender_adapter.check_internals(self._offscreen)
+            self._programs = {"stock": pyrender_adapter.program_cache(self._offscreen)}
+            _cache_light_matrices(pyrender_adapter.inner(self._offscreen))
         else:
-            self._renderer.viewport_width = vw
-            self._renderer.viewport_height = vh
+            self._offscreen.viewport_width = vw
+            self._offscreen.viewport_height = vh
         key = "stock" if stock_shaders else light_counts(self.scene)
         if key not in self._programs:
             self._programs[key] = program_cache(key)
-        self._renderer._renderer._program_cache = self._programs[key]
-        return self._renderer
+        pyrender_adapter.set_program_cache(self._offscreen, self._programs[key])
+        return self._offscreen
 
     def ball_pose(self, centre) -> np.ndarray:
         """Pose of the ball mesh at ``centre`` (m): its +z axis towards the camera."""
@@ -355,8 +355,8 @@ class SceneRenderer:
         W, H, s = self.camera.width, self.camera.height, self.ss
         r = self._ensure_renderer(W, H)
         self._cam.P = self.camera.tile_projection(0, 0, W, H)
-        r._platform.make_current()
-        inner = r._renderer
+        pyrender_adapter.make_current(r)
+        inner = pyrender_adapter.inner(r)
         inner.viewport_width, inner.viewport_height = W * s, H * s
         flags = self.flags | pr.RenderFlags.OFFSCREEN
         out = [None] * len(tiles)
@@ -364,14 +364,14 @@ class SceneRenderer:
         try:
             for pose in poses:
                 self.set_ball(pose)
-                inner._update_context(self.scene, flags)
+                pyrender_adapter.update_context(inner, self.scene, flags)
                 if self.config.shadows:
                     self._ball_shadow_pass(inner, flags)
                 for k in range(len(tiles)):
                     c = self._reduce(self._forward_tile(inner, flags, gl_box[k]))
                     out[k] = c if out[k] is None else out[k] + c
         finally:
-            r._platform.make_uncurrent()
+            pyrender_adapter.make_uncurrent(r)
         return out
 
     def _forward_tile(self, inner, flags, box) -> np.ndarray:
@@ -395,14 +395,15 @@ class SceneRenderer:
         pr = self._pyrender
         RF = pr.RenderFlags
         scene = self.scene
-        inner._configure_forward_pass_viewport(flags)
+        pa = pyrender_adapter
+        pa.configure_forward_pass_viewport(inner, flags)
         glEnable(GL_SCISSOR_TEST)
         try:
             glScissor(*box)
             glClearColor(*scene.bg_color)
             glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT)
             glEnable(GL_MULTISAMPLE)
-            V, P = inner._get_camera_matrices(scene)
+            V, P = pa.camera_matrices(inner, scene)
             cam_pos = scene.get_pose(scene.main_camera_node)[:3, 3]
             lit = not (flags & RF.DEPTH_ONLY or flags & RF.FLAT or flags & RF.SEG)
             # material textures would take texture units after the shadow maps: then the
@@ -411,14 +412,14 @@ class SceneRenderer:
                            for p in n.mesh.primitives)
             ready = set()
             program = None
-            for node in inner._sorted_mesh_nodes(scene):
+            for node in pa.sorted_mesh_nodes(inner, scene):
                 if not node.mesh.is_visible:
                     continue
                 pose = scene.get_pose(node)
                 for primitive in node.mesh.primitives:
-                    program = inner._get_primitive_program(primitive, flags,
-                                                           pr.constants.ProgramFlags.USE_MATERIAL)
-                    program._bind()
+                    program = pa.primitive_program(inner, primitive, flags,
+                                                   pr.constants.ProgramFlags.USE_MATERIAL)
+                    pa.bind_program(program)
                     if id(program) not in ready or textured:
                         program.set_uniform("V", V)
                         program.set_uniform("P", P)
@@ -426,13 +427,12 @@ class SceneRenderer:
                         if lit:
                             # shadow maps on texture units 0..: the bindings stay for the
                             # later primitives
-                            inner._bind_lighting(scene, program, node, flags)
+                            pa.bind_lighting(inner, scene, program, node, flags)
                         ready.add(id(program))
-                    inner._bind_and_draw_primitive(primitive=primitive, pose=pose,
-                                                   program=program, flags=flags)
-                    inner._reset_active_textures()
+                    pa.bind_and_draw_primitive(inner, primitive, pose, program, flags)
+                    pa.reset_active_textures(inner)
             if program is not None:
-                program._unbind()
+                pa.unbind_program(program)
             glFlush()
             glDisable(GL_SCISSOR_TEST)
             return _read_region(inner, *box)
@@ -460,7 +460,8 @@ class SceneRenderer:
         static = [n.mesh for n in self.scene.mesh_nodes if n.mesh is not self._ball_mesh]
         if self._shadow_cache is None:
             self._shadow_cache = self._make_shadow_cache(inner, flags, static)
-        original = inner._configure_shadow_mapping_viewport
+        pa = pyrender_adapter
+        original = pa.shadow_mapping_viewport(inner)
         visible = [m.is_visible for m in static]
         try:
             for ln in self.scene.light_nodes:
@@ -479,25 +480,25 @@ class SceneRenderer:
                     glEnable(GL_SCISSOR_TEST)
                     glScissor(*box)
                     original(light, fl)  # binds the light's map, clears the box
-                    glCopyImageSubData(cache._texid, GL_TEXTURE_2D, 0, box[0], box[1], 0,
-                                       light.shadow_texture._texid, GL_TEXTURE_2D, 0,
+                    glCopyImageSubData(pa.texture_id(cache), GL_TEXTURE_2D, 0, box[0], box[1], 0,
+                                       pa.texture_id(light.shadow_texture), GL_TEXTURE_2D, 0,
                                        box[0], box[1], 0, box[2], box[3], 1)
 
-                inner._configure_shadow_mapping_viewport = configure
+                pa.set_shadow_mapping_viewport(inner, configure)
                 for m in static:
                     m.is_visible = False
-                inner._shadow_mapping_pass(self.scene, ln, flags)
+                pa.shadow_mapping_pass(inner, self.scene, ln, flags)
                 glDisable(GL_SCISSOR_TEST)
                 self._shadow_prev[ln.name] = now
         finally:
             glDisable(GL_SCISSOR_TEST)
-            inner._configure_shadow_mapping_viewport = original
+            pa.set_shadow_mapping_viewport(inner, original)
             for m, v in zip(static, visible, strict=True):
                 m.is_visible = v
 
     def _shadow_box(self, inner, light_node, flags):
         """Texel box (x, y, w, h) of the lamp's shadow map that the ball covers, with margin."""
-        V, P = inner._get_light_cam_matrices(self.scene, light_node, flags)
+        V, P = pyrender_adapter.light_cam_matrices(inner)(self.scene, light_node, flags)
         c = self.scene.get_pose(self._ball_node)[:3, 3]
         cv = V @ np.append(c, 1.0)
         r = 1.5 * self.ball_radius
@@ -516,19 +517,19 @@ class SceneRenderer:
         """Render each lamp's shadow map of the trough alone, once, and keep a copy."""
         from OpenGL.GL import GL_FLOAT, GL_TEXTURE_2D, glCopyImageSubData
 
-        pr = self._pyrender
+        pr, pa = self._pyrender, pyrender_adapter
         ball_visible = self._ball_mesh.is_visible
         self._ball_mesh.is_visible = False
         self._backdrop_mesh.is_visible = False
         cache = {}
         try:
             for ln in self.scene.light_nodes:
-                inner._shadow_mapping_pass(self.scene, ln, flags)
+                pa.shadow_mapping_pass(inner, self.scene, ln, flags)
                 tex = pr.texture.Texture(width=SHADOW_TEX_SZ, height=SHADOW_TEX_SZ,
                                          source_channels="D", data_format=GL_FLOAT)
-                tex._add_to_context()
-                glCopyImageSubData(ln.light.shadow_texture._texid, GL_TEXTURE_2D, 0, 0, 0, 0,
-                                   tex._texid, GL_TEXTURE_2D, 0, 0, 0, 0,
+                pa.add_to_context(tex)
+                glCopyImageSubData(pa.texture_id(ln.light.shadow_texture), GL_TEXTURE_2D, 0,
+                                   0, 0, 0, pa.texture_id(tex), GL_TEXTURE_2D, 0, 0, 0, 0,
                                    SHADOW_TEX_SZ, SHADOW_TEX_SZ, 1)
                 cache[ln.name] = tex
         finally:
@@ -538,14 +539,14 @@ class SceneRenderer:
 
     def close(self) -> None:
         """Free the renderer's OpenGL resources (cached shadow maps, offscreen context)."""
-        if self._renderer is not None:
+        if self._offscreen is not None:
             if self._shadow_cache:
-                self._renderer._platform.make_current()
+                pyrender_adapter.make_current(self._offscreen)
                 for tex in self._shadow_cache.values():
-                    tex._remove_from_context()
+                    pyrender_adapter.remove_from_context(tex)
                 self._shadow_cache = None
-            self._renderer.delete()
-            self._renderer = None
+            self._offscreen.delete()
+            self._offscreen = None
 
     # -- footprint -------------------------------------------------------------------------
 
@@ -682,7 +683,7 @@ def _cache_light_matrices(inner) -> None:
     scene's bounds (scale, centroid): the cache is emptied when those change. pyrender renews
     its bounds object whenever a node moves, so they are compared only then.
     """
-    original = inner._get_light_cam_matrices
+    original = pyrender_adapter.light_cam_matrices(inner)
     state: dict = {"bounds": None, "key": None, "cache": {}}
 
     def cached(scene, light_node, flags):
@@ -702,7 +703,7 @@ def _cache_light_matrices(inner) -> None:
             cache[light_node] = (V, P)
         return cache[light_node]
 
-    inner._get_light_cam_matrices = cached
+    pyrender_adapter.set_light_cam_matrices(inner, cached)
 
 
 def _read_region(inner, x: int, y: int, w: int, h: int) -> np.ndarray:
@@ -720,10 +721,11 @@ def _read_region(inner, x: int, y: int, w: int, h: int) -> np.ndarray:
         glReadPixels,
     )
 
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, inner._main_fb_ms)
-    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, inner._main_fb)
+    fb_ms, fb = pyrender_adapter.main_framebuffers(inner)
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, fb_ms)
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb)
     glBlitFramebuffer(x, y, x + w, y + h, x, y, x + w, y + h, GL_COLOR_BUFFER_BIT, GL_NEAREST)
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, inner._main_fb)
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, fb)
     buf = glReadPixels(x, y, w, h, GL_RGBA, GL_UNSIGNED_BYTE)
     return np.frombuffer(buf, dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]
 
@@ -738,7 +740,7 @@ def _area(b) -> int:
 
 
 def _camera_class():
-    import pyrender
+    pyrender = pyrender_adapter.load()
 
     class FixedProjectionCamera(pyrender.camera.Camera):
         """A pyrender camera whose projection matrix is set directly (tile projections)."""

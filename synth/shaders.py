@@ -108,9 +108,9 @@ def gather_mesh_shader(text: str) -> str:
 def shader_dir(n_directional: int, n_spot: int, n_point: int) -> str:
     """A directory holding pyrender's shaders with ``mesh.frag`` patched for a scene with these
     numbers of lights (one per process and light counts, removed at exit)."""
-    import pyrender
+    from synth.pyrender_adapter import load
 
-    src = os.path.join(os.path.dirname(pyrender.__file__), "shaders")
+    src = os.path.join(os.path.dirname(load().__file__), "shaders")
     with open(os.path.join(src, "mesh.frag")) as f:
         text = fixed_light_loops(gather_mesh_shader(f.read()), n_directional, n_spot, n_point)
     out = tempfile.mkdtemp(prefix="synth-shaders-")
@@ -131,6 +131,6 @@ def light_counts(scene) -> tuple[int, int, int]:
 def program_cache(counts: tuple[int, int, int]):
     """A pyrender ShaderProgramCache compiling the patched shaders for a scene with ``counts``
     (directional, spot, point) lights."""
-    from pyrender.shader_program import ShaderProgramCache
+    from synth.pyrender_adapter import load
 
-    return ShaderProgramCache(shader_dir=shader_dir(*counts))
+    return load().shader_program.ShaderProgramCache(shader_dir=shader_dir(*counts))

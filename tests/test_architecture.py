@@ -49,7 +49,7 @@ def test_readers_are_frame_sources(tmp_path):
     import tifffile
 
     frames = np.arange(3 * 4 * 5, dtype=np.uint16).reshape(3, 4, 5)
-    tifffile.imwrite(tmp_path / "rec.tif", frames)
+    tifffile.imwrite(tmp_path / "rec.tif", frames, photometric="minisblack")
     src = io.open_recording(tmp_path / "rec.tif")
     assert isinstance(src, io.FrameSource) and isinstance(src, io.RegionSource)
     assert not isinstance(object(), io.FrameSource)
@@ -139,3 +139,28 @@ def test_rollfric_imports_nothing_from_the_validation_suite():
     bad = {m: sorted(d for d in deps if d.split(".")[0] != "rollfric")
            for m, deps in graph.items() if m.split(".")[0] == "rollfric"}
     assert not {m: d for m, d in bad.items() if d}
+
+
+def test_pyrender_versions_outside_the_supported_range_say_what_to_do():
+    from synth.pyrender_adapter import SUPPORTED, version_problem
+
+    assert SUPPORTED == ((1, 0, 1), (1, 1))
+    assert version_problem("1.0.1") is None and version_problem("1.0.7.post1") is None
+    for bad in ("1.1.0", "1.0.0", "0.1.45", "2.0", None):
+        msg = version_problem(bad)
+        assert 'pip install "pyrender-maintained>=1.0.1,<1.1"' in msg
+        assert "synth/pyrender_adapter.py" in msg
+
+
+def test_only_the_adapter_touches_pyrenders_private_attributes():
+    import ast
+
+    from synth import pyrender_adapter
+
+    private = {name for names in pyrender_adapter.INTERNALS.values() for name in names}
+    for p in (ROOT / "synth").rglob("*.py"):
+        if p.name == "pyrender_adapter.py":
+            continue
+        used = {n.attr for n in ast.walk(ast.parse(p.read_text(encoding="utf-8")))
+                if isinstance(n, ast.Attribute) and n.attr in private}
+        assert not used, f"{p.name} uses pyrender's {sorted(used)}: go through the adapter"

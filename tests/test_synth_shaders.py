@@ -9,6 +9,7 @@ import pytest
 
 from synth.camera import CameraModel
 from synth.config import SceneConfig, lighting_preset
+from synth.pyrender_adapter import compiled_programs
 from synth.scene import SceneRenderer
 from synth.shaders import fixed_light_loops, gather_mesh_shader
 
@@ -76,7 +77,7 @@ def test_frames_equal_pyrender_own_shaders(lighting):
         stock = sr.render_full(stock_shaders=True)
         ours = sr.render_full()
         # both sets of programs were really compiled and used
-        assert all(cache._program_cache for cache in sr._programs.values())
+        assert all(compiled_programs(cache) for cache in sr._programs.values())
     finally:
         sr.close()
     dn = np.abs(ours.astype(int) - stock.astype(int)) / (sr.scale / 255)
