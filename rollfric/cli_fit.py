@@ -63,6 +63,13 @@ def read_track(path):
 
 
 def run(args) -> int:
+    from rollfric.messages import to_stderr
+
+    with to_stderr("fit"):  # the library's info and warnings on stderr
+        return _run(args)
+
+
+def _run(args) -> int:
     from pathlib import Path
 
     from rollfric.fit import fit_mu, save_fit

@@ -58,13 +58,14 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _log(msg: str) -> None:
-    import sys
-
-    print(f"rollfric measure: {msg}", file=sys.stderr)
-
-
 def run(args) -> int:
+    from rollfric.messages import to_stderr
+
+    with to_stderr("measure"):  # the library's info and warnings, as before
+        return _run(args)
+
+
+def _run(args) -> int:
     import os
     import shutil
     import tempfile
@@ -87,7 +88,7 @@ def run(args) -> int:
     track, result = measure(args.recording, args.setup, args.background, method=args.method,
                             angle=args.angle, fit_method=args.fit_method, offset=args.offset,
                             progress=not args.no_progress, median_frames=args.median_frames,
-                            log=_log, times=args.times)
+                            times=args.times)
     keys, budget = run_budget(measurement_from_track(track, track.attrs["setup"]), result, args)
     out = Path(args.out)
     if out.exists() and not out.is_dir():

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import logging
 import math
 import sys
 
@@ -27,6 +28,8 @@ from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
 from rollfric.registry import LOCATORS
 from rollfric.setup import Setup, SetupError, setup_from_dict
+
+logger = logging.getLogger(__name__)  # messages: info (what was done), warning (check this)
 
 TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found"]
 ANGLES = ("atan2", "arcsin")
@@ -200,11 +203,11 @@ def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=No
                                  r_known=r_known, r_known_sigma=r_known_sigma)
 
 
-def resolve_background(source, background, *, r_px: float, median_frames: int = 41,
-                       log=None):
+def resolve_background(source, background, *, r_px: float, median_frames: int = 41):
     """(background array, description, notes): the given image, the recording's own, or the
     median of frames (:func:`rollfric.background.median_background`, repaired where the ball
-    of radius ``r_px`` rested in most of them; notes say so)."""
+    of radius ``r_px`` rested in most of them; notes say so, also as warnings of the
+    ``rollfric.track`` logger)."""
     if background is not None:
         if isinstance(background, np.ndarray):
             return io.check_background(background, source), "given array", []
@@ -214,19 +217,17 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
         return io.check_background(source.background, source, "the recording's background"), \
             "stored in the recording", []
     k = min(len(source), median_frames)
-    if log:
-        log(f"no background given: using the per-pixel median of {k} frames spread over the "
-            "recording")
+    logger.info(f"no background given: using the per-pixel median of {k} frames spread over "
+                "the recording")
     bg, notes = median_background(source, r_px, median_frames)
-    if log:
-        for msg in notes:
-            log(f"warning: {msg}")
+    for msg in notes:
+        logger.warning(msg)
     return bg, f"per-pixel median of {k} frames" + (", repaired" if notes else ""), notes
 
 
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
                     angle: str = "atan2", center: tuple[float, float] | None = None,
-                    progress: bool = True, opts=None, log=None, times=None) -> pd.DataFrame:
+                    progress: bool = True, opts=None, times=None) -> pd.DataFrame:
     """Locate the ball in every frame of ``source``; one row a frame (see TRACK_COLUMNS), plus
     r_px, sigma_px (estimated centre error) and inlier_frac where the locator gives them.
     ``times``: t_s of each frame (default frame / setup.fps; see :func:`frame_times`).
@@ -235,7 +236,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     and partial arcs are fitted with it; the frames fitted with the known radius before the
     calibration settled (or with a value that moved since) are read once more at the end and
     fitted again with the final one (a second pass over just those frames). ``attrs`` get the
-    calibration (ball_radius_px_seen, ...) and ``warnings``; ``log`` gets the warnings."""
+    calibration (ball_radius_px_seen, ...) and ``warnings``, which also go to the logger."""
     from tqdm import tqdm
 
     LOCATORS.check(method)
@@ -320,9 +321,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
             if accept(loc):
                 rows[i, :5] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac)
     warnings = [cal.warning()] if cal.warning() else []
-    if log:
-        for msg in warnings:
-            log(f"warning: {msg}")
+    for msg in warnings:
+        logger.warning(msg)
     found = rows[:, 5] == 1.0
     theta = np.full(n, np.nan)
     theta[found] = angles(rows[found, 0], rows[found, 1], center, method=angle,
@@ -415,14 +415,16 @@ def frame_times(source, setup_fps: float, times: str = "auto"):
 def measure(recording, setup: Setup | str | None = None, background=None, *,
             method: str = "subpixel", angle: str = "atan2", fit_method: str = "lsq",
             offset: bool = False, fit: bool = True, progress: bool = False,
-            median_frames: int = 41, log=None, fit_kwargs: dict | None = None,
+            median_frames: int = 41, fit_kwargs: dict | None = None,
             times: str = "auto"):
     """Measure mu from a recording: (track DataFrame, FitResult or None when ``fit=False``).
 
     ``recording``: a path (see :func:`rollfric.io.open_recording`) or a FrameSource.
     ``setup``: a Setup, a path to a setup TOML, or None to take it from the recording's attrs.
     ``background``: an image path or array; None: the recording's own, else the per-pixel
-    median of ``median_frames`` frames (reported through ``log`` and ``track.attrs``).
+    median of ``median_frames`` frames (reported in ``track.attrs``).
+    Messages go to the ``rollfric.track`` logger: info (what was chosen), warning (what to
+    check; the warnings are also in ``track.attrs["warnings"]``).
     ``method``: "subpixel" (default), "thesis-large" or "thesis-small".
     ``times``: "auto" (the recording's per-frame timestamps when it has them, else frame /
     camera.fps) or "fps" (always frame / camera.fps); see :func:`frame_times`.
@@ -448,11 +450,10 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     fps_note = fps_mismatch(getattr(source, "fps", None), setup.fps) \
         if times_desc == "frame / camera.fps" else None
     time_notes = time_notes + ([fps_note] if fps_note else [])
-    if log:
-        for msg in time_notes:
-            log(f"warning: {msg}")
+    for msg in time_notes:
+        logger.warning(msg)
     bg, bg_desc, bg_notes = resolve_background(source, background, median_frames=median_frames,
-                                               log=log, r_px=ball_radius_px(setup))
+                                               r_px=ball_radius_px(setup))
     if setup.center_px is not None:
         center, center_desc = setup.center_px, "setup center_px"
     else:
@@ -467,12 +468,11 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         center, center_desc = contour.center, (
             f"contour in the background ({contour.n_points} points over "
             f"{contour.arc_deg:.0f} deg, radius {contour.radius:.1f} px)")
-        if log:
-            log(f"cylinder centre from the background contour: ({center[0]:.2f}, "
-                f"{center[1]:.2f}) px")
+        logger.info(f"cylinder centre from the background contour: ({center[0]:.2f}, "
+                    f"{center[1]:.2f}) px")
         check_setup_fits(setup.replace(center_px=center), source.shape)
     df = track_recording(source, setup, bg, method=method, angle=angle, center=center,
-                         progress=progress, log=log, times=t)
+                         progress=progress, times=t)
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
     df.attrs.update({"setup": setup, "background": bg_desc, "center_source": center_desc,
@@ -480,8 +480,9 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                      "recording": str(getattr(source, "name", recording)),
                      "times": times_desc,
                      "warnings": list(df.attrs.get("warnings", [])) + bg_notes + time_notes})
-    if n_found < len(df) and log:
-        log(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of the fit)")
+    if n_found < len(df):
+        logger.info(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of "
+                    "the fit)")
     result = None
     if fit:
         if len(df) < fitmod.MIN_SAMPLES:

@@ -32,6 +32,7 @@ fix, so their rows vanish and their effect is in the statistical row (the L-fit'
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import time
 
@@ -465,19 +466,21 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the Monte-Carlo draws")
 
 
-def run_budget(meas: Measurement, result, args, *, log=print):
+def run_budget(meas: Measurement, result, args):
     """The budget of a command's result as (fit.json keys, Budget or None), its table printed
-    through ``log``; a fit method without a Jacobian gets no budget (said so)."""
+    on stdout (the command's output); a fit method without a Jacobian gets no budget (said so,
+    as a warning of the ``rollfric.uncertainty`` logger)."""
     if args.monte_carlo < 0:
         raise InputError(f"--monte-carlo must be >= 0, got {args.monte_carlo}")
     if result.method != "lsq":
-        log(f"uncertainty budget: only for the lsq fit (this is {result.method}); "
-            "mu_stderr is its statistical error alone")
+        logging.getLogger(__name__).warning(
+            f"uncertainty budget: only for the lsq fit (this is {result.method}); mu_stderr is "
+            "its statistical error alone")
         return {"u_mu": None, "U_mu": None, "coverage_factor": None,
                 "uncertainty_budget": []}, None
     b = budget(meas, result, fit_length=args.fit_length, monte_carlo=args.monte_carlo,
                seed=args.seed)
-    log(format_budget(b))
+    print(format_budget(b))
     keys = b.to_json()
     if args.fit_length:
         keys["mu"] = b.mu

@@ -4,6 +4,7 @@ analytically (validation.drawn_frames), in a 360 x 240 frame with a 200 px troug
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 
 import numpy as np
@@ -46,3 +47,9 @@ def make_recording(n=160, *, mu=0.02, theta0=0.5, fps=200.0, bit_depth=8, noise=
     todraw = [(None, None) if np.isnan(c[0]) else tuple(c) for c in centers]
     bg, frames = make_frames(scene, todraw, seed=seed)
     return Recording(setup, scene, bg, frames, centers, theta, t)
+
+
+def messages(caplog) -> list[str]:
+    """rollfric's log records as the command prints them: warnings prefixed "warning: "."""
+    return [("warning: " if r.levelno >= logging.WARNING else "") + r.getMessage()
+            for r in caplog.records if r.name.startswith("rollfric")]

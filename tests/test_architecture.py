@@ -164,3 +164,21 @@ def test_only_the_adapter_touches_pyrenders_private_attributes():
         used = {n.attr for n in ast.walk(ast.parse(p.read_text(encoding="utf-8")))
                 if isinstance(n, ast.Attribute) and n.attr in private}
         assert not used, f"{p.name} uses pyrender's {sorted(used)}: go through the adapter"
+
+
+def test_a_command_prints_the_librarys_messages_and_stops_after(capsys):
+    import logging
+
+    from rollfric.messages import to_stderr
+
+    log = logging.getLogger("rollfric.track")
+    with to_stderr("measure"):
+        log.info("no background given")
+        log.warning("the recording says 30 frames/s")
+        logging.getLogger("sim").warning("not rollfric's")
+    log.info("after the command")
+    err = capsys.readouterr().err.splitlines()
+    assert err[:2] == ["rollfric measure: no background given",
+                       "rollfric measure: warning: the recording says 30 frames/s"]
+    assert not any("after the command" in line or line.startswith("rollfric measure: not")
+                   for line in err)

@@ -1,7 +1,9 @@
 """The median background when the ball rests in one place for most of the recording."""
 
+import logging
+
 import numpy as np
-from measure_data import make_recording
+from measure_data import make_recording, messages
 from test_measure_roi import _Plain
 
 from rollfric.background import median, median_background, sample
@@ -14,7 +16,7 @@ def _errors(df, rec):
     return found, err[found]
 
 
-def test_a_ball_resting_in_most_frames_is_taken_out_of_the_median():
+def test_a_ball_resting_in_most_frames_is_taken_out_of_the_median(caplog):
     # mu 0.1 from 0.25 rad: the ball rests from frame ~70 of 240 on (71 % of the frames)
     rec = make_recording(240, mu=0.1, theta0=0.25, noise=1.0)
     rest = np.abs(np.diff(rec.theta)) < 1e-12
@@ -27,8 +29,9 @@ def test_a_ball_resting_in_most_frames_is_taken_out_of_the_median():
     yy, xx = np.mgrid[0:plain.shape[0], 0:plain.shape[1]]
     disc = np.hypot(xx - xr, yy - yr) < 0.8 * rec.scene.r_px
     assert np.abs(plain - rec.background.astype(int))[disc].mean() > 20
-    logs = []
-    df, _ = measure(src, rec.setup, None, fit=False, log=logs.append)
+    with caplog.at_level(logging.INFO, logger="rollfric"):
+        df, _ = measure(src, rec.setup, None, fit=False)
+    logs = messages(caplog)
     found, err = _errors(df, rec)
     assert found.all()
     assert np.sqrt(np.mean(err ** 2)) < 0.05 and err.max() < 0.1

@@ -1,6 +1,7 @@
 """rollfric measure end to end on drawn recordings, the Python API, and bad input."""
 
 import json
+import logging
 import math
 
 import numpy as np
@@ -8,7 +9,7 @@ import pandas as pd
 import pytest
 import tifffile
 import zarr
-from measure_data import make_recording
+from measure_data import make_recording, messages
 
 from rollfric.cli import main
 from rollfric.cylinder import ContourError, find_cylinder_center
@@ -75,12 +76,13 @@ def test_measure_cli_tiff(tmp_path, capsys):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]  # no temp left
 
 
-def test_measure_api_median_background_missing_frames_and_16bit(tmp_path):
+def test_measure_api_median_background_missing_frames_and_16bit(tmp_path, caplog):
     missing = list(range(40, 46)) + [100]
     rec = make_recording(160, bit_depth=16, noise=2.0, missing=missing)
     path = _write(rec, tmp_path)
-    logs = []
-    df, fit = measure(path, tmp_path / "setup.toml", None, log=logs.append)
+    with caplog.at_level(logging.INFO, logger="rollfric"):
+        df, fit = measure(path, tmp_path / "setup.toml", None)
+    logs = messages(caplog)
     assert any("median" in m for m in logs)
     assert any("not found in 7 of 160" in m for m in logs)
     assert (df.loc[missing, "found"] == 0).all() and df.loc[missing, "x_px"].isna().all()

@@ -1,13 +1,15 @@
 """Regions of interest: every reader's read(i, roi) is the crop of the full frame, and the
 tracking loop reading only ROIs gives the same track as reading whole frames."""
 
+import logging
+
 import cv2
 import numpy as np
 import pandas as pd
 import pytest
 import tifffile
 import zarr
-from measure_data import make_recording
+from measure_data import make_recording, messages
 
 from rollfric import io
 from rollfric.locate import LazyFrame, locate_subpixel
@@ -208,13 +210,14 @@ def test_subpixel_on_a_lazy_frame_reads_one_region():
     assert 1 <= len(reads) <= 2
 
 
-def test_a_recording_frame_rate_other_than_the_setup_is_reported():
+def test_a_recording_frame_rate_other_than_the_setup_is_reported(caplog):
     rec = make_recording(12, noise=1.0)
     frames = [np.asarray(f) for f in rec.frames]
     src = _Plain(frames)
     src.fps = 30.0  # a video export's playback rate
-    logs = []
-    df, _ = measure(src, rec.setup, rec.background, fit=False, log=logs.append)
+    with caplog.at_level(logging.INFO, logger="rollfric"):
+        df, _ = measure(src, rec.setup, rec.background, fit=False)
+    logs = messages(caplog)
     assert any("30 frames/s" in m and "setup" in m for m in df.attrs["warnings"])
     assert any(m.startswith("warning: the recording says 30") for m in logs)
     # times still come from the setup's rate
