@@ -182,17 +182,15 @@ def from_sweep(results: pd.DataFrame, oracle: pd.DataFrame | None = None) -> pd.
 
 def plot(df: pd.DataFrame, path: Path) -> None:
     """Histograms of z (blind, full budget) and of the oracle's z (statistical part)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no backend, no global figure state
 
     from rollfric.atomic import replacing
 
     cols = [("z", "blind: (mu - truth) / u_mu"),
             ("z_oracle", "oracle: / statistical u (corrected)"),
             ("z_oracle_ordinary", "oracle: / ordinary standard error")]
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    fig = Figure(figsize=(13, 3.8))
+    axes = fig.subplots(1, 3)
     grid = np.linspace(-4, 4, 200)
     for ax, (col, title) in zip(axes, cols, strict=True):
         z = df[col].to_numpy(float)
@@ -207,7 +205,6 @@ def plot(df: pd.DataFrame, path: Path) -> None:
     fig.tight_layout()
     with replacing(path) as tmp:
         fig.savefig(tmp, dpi=110)
-    plt.close(fig)
 
 
 def main(argv=None) -> int:
