@@ -40,14 +40,48 @@ TIMES_JITTER_TOL = 0.01  # relative: an interval further from the median one is 
 
 
 def ball_radius_px(setup: Setup) -> float:
+    """The setup's ball radius in pixels.
+
+    Parameters
+    ----------
+    setup : Setup
+
+    Returns
+    -------
+    float
+        ball radius / pixel size.
+    """
     return setup.ball_radius / setup.pixel_size
 
 
 def angles(x, y, center, *, method: str = "atan2", track_radius_px: float | None = None):
-    """theta (rad) of ball centres (x, y) px about the cylinder centre (xc, yc) px.
+    """theta (rad) of ball centres about the cylinder centre.
 
     "atan2": atan2(x - xc, y - yc) (image y down: y > yc below the axis). "arcsin": the
-    thesis's arcsin((x - xc) / L_px), L_px = (R - r) / pixel size, needs ``track_radius_px``.
+    thesis's arcsin((x - xc) / L_px), L_px = (R - r) / pixel size.
+
+    Parameters
+    ----------
+    x, y : array_like
+        Ball centres (px).
+    center : tuple of float
+        (xc, yc), the cylinder axis (px).
+    method : {"atan2", "arcsin"}, optional
+        The formula.
+    track_radius_px : float, optional
+        L_px, needed by "arcsin".
+
+    Returns
+    -------
+    numpy.ndarray
+        theta, > 0 right of the bottom.
+
+    Raises
+    ------
+    InputError
+        An unknown method.
+    ValueError
+        "arcsin" without ``track_radius_px``.
     """
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -62,7 +96,22 @@ def angles(x, y, center, *, method: str = "atan2", track_radius_px: float | None
 
 
 def setup_from_recording(source) -> Setup:
-    """The setup stored in a Zarr recording's attrs ("setup": the lab-file dict)."""
+    """The setup stored in a Zarr recording's attributes.
+
+    Parameters
+    ----------
+    source : FrameSource
+        A recording whose ``attrs["setup"]`` holds the lab-file form (dict, JSON or TOML text).
+
+    Returns
+    -------
+    Setup
+
+    Raises
+    ------
+    SetupError
+        The recording holds no setup, or a bad one.
+    """
     data = source.attrs.get("setup") if hasattr(source, "attrs") else None
     if data is None:
         raise SetupError(f"{source.name}: no setup given (--setup) and the recording holds "
@@ -79,7 +128,20 @@ def setup_from_recording(source) -> Setup:
 
 
 def check_setup_fits(setup: Setup, shape: tuple[int, int, int]) -> None:
-    """Refuse a setup whose ball cannot be seen in frames of this size."""
+    """Refuse a setup whose ball cannot be seen in frames of this size.
+
+    Parameters
+    ----------
+    setup : Setup
+    shape : tuple of int
+        (T, H, W) of the recording.
+
+    Raises
+    ------
+    SetupError
+        The ball is under 1.5 px in radius or larger than the frame, or (with ``center_px``)
+        its track circle does not cross the frame.
+    """
     _, h, w = shape
     r = ball_radius_px(setup)
     if r < 1.5:
@@ -143,6 +205,12 @@ class RadiusCalibration:
         self._rel_sigma: float | None = None
 
     def add(self, loc) -> None:
+        """Take one frame's answer into the calibration if it is a good full-rim, free-radius fit.
+
+        Parameters
+        ----------
+        loc : rollfric.locate.Location
+        """
         if (loc.found and loc.radius_free and loc.inlier_frac >= CAL_MIN_INLIER
                 and loc.sigma <= CAL_MAX_SIGMA and math.isfinite(loc.r)):
             self.radii.append(float(loc.r))
@@ -167,15 +235,32 @@ class RadiusCalibration:
 
     @property
     def value(self) -> float | None:
+        """The calibrated apparent radius (px): the median of the radii seen.
+
+        None until ``min_frames`` radii were seen.
+        """
         self._update()
         return self._value
 
     @property
     def rel_sigma(self) -> float | None:
+        """Relative uncertainty of one frame's radius (robust scatter, at least 0.05 %).
+
+        None until ``min_frames`` radii were seen.
+        """
         self._update()
         return self._rel_sigma
 
     def summary(self) -> dict:
+        """The calibration's keys of fit.json.
+
+        Returns
+        -------
+        dict
+            ``ball_radius_px_seen``, ``ball_radius_px_seen_n`` and, once calibrated,
+            ``ball_radius_px_seen_rel_sigma`` and ``ball_radius_px_seen_rel_dev`` (against the
+            setup's radius).
+        """
         v = self.value
         out = {"ball_radius_px_seen": v, "ball_radius_px_seen_n": len(self.radii)}
         if v is not None:
@@ -184,6 +269,13 @@ class RadiusCalibration:
         return out
 
     def warning(self) -> str | None:
+        """A warning when the apparent radius differs from the setup's by more than 3 %.
+
+        Returns
+        -------
+        str or None
+            The message (naming ``ball.diameter_mm`` and ``camera.pixel_size_mm``), or None.
+        """
         v = self.value
         if v is None or abs(v / self.r_setup - 1.0) <= CAL_WARN_DEV:
             return None
@@ -195,19 +287,71 @@ class RadiusCalibration:
 
 def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=None,
                  r_known=None, r_known_sigma=None):
-    """One frame with the chosen locator: ROI search at ``guess`` (edge within ``search`` px of
-    the guessed circle), full frame when lost. ``r_known``, ``r_known_sigma``: the radius that
-    partial arcs are fitted with and its relative uncertainty (subpixel; default the setup's).
-    The locators are registered in :data:`rollfric.registry.LOCATORS`."""
+    """One frame with the chosen locator.
+
+    A region search at ``guess`` (the edge within ``search`` px of the guessed circle), the full
+    frame when lost. The locators are registered in :data:`rollfric.registry.LOCATORS`.
+
+    Parameters
+    ----------
+    frame, bg : numpy.ndarray or LazyFrame
+        The frame and the background.
+    r_px : float
+        The ball's radius (px).
+    method : str
+        A registered locator: "subpixel", "thesis-large", "thesis-small".
+    guess : tuple of float or None
+        The predicted centre (px), or None for a full-frame search.
+    center : tuple of float
+        The cylinder axis (px).
+    opts : SubpixelOptions, optional
+        Tuning of the sub-pixel locator.
+    search : float, optional
+        How far (px) the edge may be from the guessed circle.
+    r_known, r_known_sigma : float, optional
+        The radius that partial arcs are fitted with and its relative uncertainty (subpixel;
+        default the setup's).
+
+    Returns
+    -------
+    rollfric.locate.Location
+    """
     return LOCATORS.load(method)(frame, bg, r_px, guess, center, opts=opts, search=search,
                                  r_known=r_known, r_known_sigma=r_known_sigma)
 
 
 def resolve_background(source, background, *, r_px: float, median_frames: int = 41):
-    """(background array, description, notes): the given image, the recording's own, or the
-    median of frames (:func:`rollfric.background.median_background`, repaired where the ball
-    of radius ``r_px`` rested in most of them; notes say so, also as warnings of the
-    ``rollfric.track`` logger)."""
+    """The background: the given image, the recording's own, or the median of frames.
+
+    The median (:func:`rollfric.background.median_background`) is repaired where the ball of
+    radius ``r_px`` rested in most of the frames; the notes say so, also as warnings of the
+    ``rollfric.track`` logger.
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording.
+    background : numpy.ndarray, str, pathlib.Path or None
+        An image, an image file, or None.
+    r_px : float
+        The ball's radius (px).
+    median_frames : int, optional
+        Frames in the median.
+
+    Returns
+    -------
+    background : numpy.ndarray
+        (H, W), the frames' size.
+    description : str
+        Where it came from (written to fit.json).
+    notes : list of str
+        What was repaired, or why not.
+
+    Raises
+    ------
+    RecordingError
+        An unreadable image, or one of another size than the frames.
+    """
     if background is not None:
         if isinstance(background, np.ndarray):
             return io.check_background(background, source), "given array", []
