@@ -13,7 +13,20 @@ from rollfric.atomic import replacing
 
 
 def choose_frames(track, k: int = 6) -> list[int]:
-    """k frames spread over those where the ball was found."""
+    """k frames spread over those where the ball was found.
+
+    Parameters
+    ----------
+    track : pandas.DataFrame
+        The track (columns ``frame`` and ``found``).
+    k : int, optional
+        How many.
+
+    Returns
+    -------
+    list of int
+        Frame numbers, increasing; empty when no frame was found.
+    """
     found = track.index[track["found"] == 1].to_numpy()
     if len(found) == 0:
         return []
@@ -23,8 +36,36 @@ def choose_frames(track, k: int = 6) -> list[int]:
 
 def plot_overlays(source, track, path, *, frames: list[int] | None = None,
                   r_px: float | None = None, zoom: float = 2.5) -> Path:
-    """One PNG: each chosen frame cropped around the ball, with the fitted circle (radius from
-    the track, else ``r_px``), the centre, and the direction to the cylinder centre."""
+    """One PNG of chosen frames, each cropped around the ball.
+
+    Each shows the fitted circle (radius from the track, else ``r_px``), the centre, and the
+    direction to the cylinder centre.
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording.
+    track : pandas.DataFrame
+        Its track (with the measurement's attrs: ``center_px``, ``ball_radius_px``).
+    path : str or pathlib.Path
+        The PNG to write (atomically).
+    frames : list of int, optional
+        The frames to draw (default: 6 spread over the found ones).
+    r_px : float, optional
+        Radius drawn where the track has none.
+    zoom : float, optional
+        Crop half-size in ball radii.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        A frame outside the recording.
+    """
     frames = choose_frames(track) if frames is None else list(frames)
     bad = [f for f in frames if not 0 <= int(f) < len(track)]
     if bad:

@@ -11,7 +11,24 @@ from rollfric.atomic import replacing
 
 
 def plot_fit(t, theta, result, path, *, title: str | None = None) -> Path:
-    """Measured theta(t) (dots) against the fitted model (line), and the residual below."""
+    """Measured theta(t) (dots) against the fitted model (line), and the residual below.
+
+    Parameters
+    ----------
+    t, theta : array_like
+        The measured series (s, rad).
+    result : FitResult
+        The fit (its ``t``, ``curve``, ``mu``, ``method``, ``relative_error``).
+    path : str or pathlib.Path
+        The PNG to write (atomically).
+    title : str, optional
+        Default: the relative error.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     t = np.asarray(t, dtype=float)
     theta = np.asarray(theta, dtype=float)
     fig = Figure(figsize=(9, 6))  # no pyplot: no backend, no global figure state
@@ -37,8 +54,22 @@ def plot_fit(t, theta, result, path, *, title: str | None = None) -> Path:
 
 
 def plot_budget(budget, path) -> Path:
-    """The uncertainty budget as horizontal bars: each source's u(mu), largest on top, with
-    the combined and the expanded uncertainty (relative to mu, %)."""
+    """The uncertainty budget as horizontal bars.
+
+    Each source's u(mu), largest on top, with the combined and the expanded uncertainty
+    (relative to mu, %).
+
+    Parameters
+    ----------
+    budget : rollfric.uncertainty.Budget
+    path : str or pathlib.Path
+        The PNG to write (atomically).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     rows = [r for r in budget.rows if r.u_mu > 0]
     scale = 100.0 / budget.mu if budget.mu > 0 else 1.0
     unit = "% of mu" if budget.mu > 0 else "mu"

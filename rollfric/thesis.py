@@ -62,7 +62,28 @@ def _stages(t, theta, fps):
 
 
 def fit_paper1_eps(t, theta, setup: Setup, *, eps_step: float = PAPER1_EPS_STEP) -> FitResult:
-    """Paper 1's analytic eps iteration (see module docstring)."""
+    """Paper 1's analytic eps iteration (see the module docstring).
+
+    Parameters
+    ----------
+    t, theta : array_like
+        A gap-free record (s, rad) starting at or just after the release.
+    setup : Setup
+    eps_step : float, optional
+        Step of the eps iteration (1/s^2; the paper's 1e-4).
+
+    Returns
+    -------
+    FitResult
+        Method ``"paper1_eps"``: our mu (eps / omega^2), ``mu_stderr`` NaN, and in ``extra``
+        ``eps_s2`` and ``mu_paper1`` (the paper's eq. 13).
+
+    Raises
+    ------
+    InputError
+        A record with gaps, or one where the ball does not pass the bottom between its first
+        two turning points.
+    """
     start = time.perf_counter()
     t, theta, good = _clean(t, theta)
     if not good.all():
@@ -133,12 +154,34 @@ def fit_paper1_eps(t, theta, setup: Setup, *, eps_step: float = PAPER1_EPS_STEP)
 
 def fit_paper2_grid(t, theta, setup: Setup, *, first: dict | None = None, grid: dict | None = None,
                     offset: bool = False, progress: bool = False) -> FitResult:
-    """Paper 2's grid search around a first estimate (see module docstring).
+    """Paper 2's grid search around a first estimate (see the module docstring).
 
-    ``first``: the first estimate {"mu", "theta0", "omega0"}; by default the self-start of
-    :func:`rollfric.fit.initial_guess` (mu from the amplitude decay, theta(0) and theta'(0)
-    measured from the record), which is what the thesis had before its grid search.
-    ``grid``: override the half-widths and steps of :data:`PAPER2_GRID`.
+    Parameters
+    ----------
+    t, theta : array_like
+        The record (s, rad); NaN samples are left out.
+    setup : Setup
+    first : dict, optional
+        The first estimate {"mu", "theta0", "omega0"}; by default the self-start of
+        :func:`rollfric.fit.initial_guess` (mu from the amplitude decay, theta(0) and theta'(0)
+        measured from the record), which is what the thesis had before its grid search.
+    grid : dict, optional
+        Overrides of the half-widths and steps of :data:`PAPER2_GRID`.
+    offset : bool, optional
+        Must be False: the thesis's procedure fits no angle offset.
+    progress : bool, optional
+        Show a progress bar.
+
+    Returns
+    -------
+    FitResult
+        Method ``"paper2_grid"``, the grid point of least squared differences; ``mu_stderr``
+        NaN.
+
+    Raises
+    ------
+    InputError
+        ``offset`` True.
     """
     if offset:
         raise InputError("paper2_grid fits no angle offset (the thesis's procedure has none)")
@@ -196,13 +239,49 @@ def fit_paper2_grid(t, theta, setup: Setup, *, first: dict | None = None, grid: 
 
 def paper1_eps_method(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulomb",
                       **options) -> FitResult:
-    """The :class:`rollfric.fit.FitMethod` ``"paper1_eps"``: :func:`fit_paper1_eps` with
-    ``options``; it has neither an angle offset nor a friction model (both ignored)."""
+    """The :class:`rollfric.fit.FitMethod` ``"paper1_eps"``.
+
+    :func:`fit_paper1_eps` with ``options``; it has neither an angle offset nor a friction model
+    (both ignored).
+
+    Parameters
+    ----------
+    t, theta : array_like
+    setup : Setup
+    offset : bool, optional
+        Ignored.
+    model : str, optional
+        Ignored.
+    **options
+        Passed to :func:`fit_paper1_eps`.
+
+    Returns
+    -------
+    FitResult
+    """
     return fit_paper1_eps(t, theta, setup, **options)
 
 
 def paper2_grid_method(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulomb",
                        **options) -> FitResult:
-    """The :class:`rollfric.fit.FitMethod` ``"paper2_grid"``: :func:`fit_paper2_grid` with
-    ``offset`` and ``options``; it fits constant mu (``model`` ignored)."""
+    """The :class:`rollfric.fit.FitMethod` ``"paper2_grid"``.
+
+    :func:`fit_paper2_grid` with ``offset`` and ``options``; it fits constant mu (``model``
+    ignored).
+
+    Parameters
+    ----------
+    t, theta : array_like
+    setup : Setup
+    offset : bool, optional
+        Refused when True (the thesis has none).
+    model : str, optional
+        Ignored.
+    **options
+        Passed to :func:`fit_paper2_grid`.
+
+    Returns
+    -------
+    FitResult
+    """
     return fit_paper2_grid(t, theta, setup, offset=offset, **options)
