@@ -49,13 +49,43 @@ class Registry(Mapping):
         return tuple(self.targets)
 
     def check(self, name: str) -> str:
-        """``name`` if registered, else InputError naming the known ones."""
+        """A registered name, checked.
+
+        Parameters
+        ----------
+        name : str
+
+        Returns
+        -------
+        str
+            ``name``.
+
+        Raises
+        ------
+        InputError
+            An unregistered name (the message lists the known ones).
+        """
         if name not in self.targets:
             raise InputError(f"unknown {self.kind} {name!r} (known: {', '.join(self.targets)})")
         return name
 
     def load(self, name: str):
-        """The object registered as ``name`` (its module imported on first use)."""
+        """The object registered as ``name``, its module imported on first use.
+
+        Parameters
+        ----------
+        name : str
+
+        Returns
+        -------
+        object
+            The registered function, class or module.
+
+        Raises
+        ------
+        InputError
+            An unregistered name.
+        """
         module, _, attr = self.targets[self.check(name)].partition(":")
         obj = importlib.import_module(module)
         return getattr(obj, attr) if attr else obj

@@ -56,7 +56,20 @@ class RegionSource(FrameSource, Protocol):
     contract, see the module docstring): the tracking loop reads only where it looks."""
 
     def read(self, i: int, roi: tuple[int, int, int, int]) -> np.ndarray:
-        """Region roi = (y0, y1, x0, x1) of frame i: the bytes of ``self[i][y0:y1, x0:x1]``."""
+        """Region ``roi`` of frame ``i``: the bytes of ``self[i][y0:y1, x0:x1]``.
+
+        Parameters
+        ----------
+        i : int
+            Frame index.
+        roi : tuple of int
+            (y0, y1, x0, x1), ``0 <= y0 < y1 <= H``, ``0 <= x0 < x1 <= W``.
+
+        Returns
+        -------
+        numpy.ndarray
+            (y1 - y0, x1 - x0), the frames' dtype.
+        """
         ...
 
 
@@ -160,8 +173,25 @@ class BaseSource:
         return check_roi(roi, self.shape[1:])
 
     def read(self, i: int, roi: tuple[int, int, int, int]) -> np.ndarray:
-        """Region ``roi`` = (y0, y1, x0, x1) of frame i: the same bytes as
-        ``self[i][y0:y1, x0:x1]``."""
+        """Region ``roi`` of frame ``i``: the same bytes as ``self[i][y0:y1, x0:x1]``.
+
+        Parameters
+        ----------
+        i : int
+            Frame index.
+        roi : tuple of int
+            (y0, y1, x0, x1), ``0 <= y0 < y1 <= H``, ``0 <= x0 < x1 <= W``.
+
+        Returns
+        -------
+        numpy.ndarray
+            (y1 - y0, x1 - x0), the frames' dtype.
+
+        Raises
+        ------
+        TypeError, IndexError
+            A malformed region, or one outside the frame.
+        """
         i = self._index(i)
         return self._read_roi(i, *self._roi(roi))
 

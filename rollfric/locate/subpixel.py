@@ -148,9 +148,29 @@ def subpixel_locator(frame, background, r_px: float, guess: tuple[float, float] 
                      center: tuple[float, float], *, opts: SubpixelOptions | None = None,
                      search: float | None = None, r_known: float | None = None,
                      r_known_sigma: float | None = None) -> Location:
-    """The :class:`rollfric.locate.Locator` ``"subpixel"``: :func:`locate_subpixel` in the
-    region around ``guess`` (the edge within ``search`` px of the predicted circle), then over
-    the whole frame when the ball is not found there. ``center`` is not used."""
+    """The :class:`rollfric.locate.Locator` ``"subpixel"``.
+
+    :func:`locate_subpixel` in the region around ``guess`` (the edge within ``search`` px of the
+    predicted circle), then over the whole frame when the ball is not found there.
+
+    Parameters
+    ----------
+    frame, background : numpy.ndarray or LazyFrame
+    r_px : float
+        The ball's radius (px).
+    guess : tuple of float or None
+        The predicted centre (px); None searches the whole frame.
+    center : tuple of float
+        The cylinder axis (px); not used.
+    opts : SubpixelOptions, optional
+    search : float, optional
+    r_known, r_known_sigma : float, optional
+        As in :func:`locate_subpixel`.
+
+    Returns
+    -------
+    Location
+    """
     kw = {"opts": opts} if opts is not None else {}
     kw.update(r_known=r_known, r_known_sigma=r_known_sigma)
     loc = None

@@ -218,10 +218,28 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
 
 def thesis_large_locator(frame, background, r_px: float, guess: tuple[float, float] | None,
                          center: tuple[float, float], **unused: Any) -> Location:
-    """The :class:`rollfric.locate.Locator` ``"thesis-large"``: :func:`locate_large_thesis`
-    around ``guess`` (the full-frame search of :func:`coarse_find` without one), on the
-    quarter of the ball on the side of the trough's axis ``center`` where the ball is. The
-    sub-pixel locator's options (``unused``) do not apply."""
+    """The :class:`rollfric.locate.Locator` ``"thesis-large"``.
+
+    :func:`locate_large_thesis` around ``guess`` (the full-frame search of :func:`coarse_find`
+    without one), on the quarter of the ball on the side of the trough's axis ``center`` where
+    the ball is. The sub-pixel locator's options (``unused``) do not apply.
+
+    Parameters
+    ----------
+    frame, background : numpy.ndarray or LazyFrame
+    r_px : float
+        The ball's radius (px).
+    guess : tuple of float or None
+        The predicted centre (px).
+    center : tuple of float
+        The cylinder axis (px).
+    **unused
+        Ignored.
+
+    Returns
+    -------
+    Location
+    """
     if guess is None:
         guess = coarse_find(frame, background, r_px)
         if guess is None:
@@ -232,10 +250,28 @@ def thesis_large_locator(frame, background, r_px: float, guess: tuple[float, flo
 
 def thesis_small_locator(frame, background, r_px: float, guess: tuple[float, float] | None,
                          center: tuple[float, float], **unused: Any) -> Location:
-    """The :class:`rollfric.locate.Locator` ``"thesis-small"``: :func:`locate_small_thesis`
-    in a window of 2 r + 20 px a side around ``guess``, then over the whole frame when the
-    spot is not found there. ``center`` and the sub-pixel locator's options (``unused``) do
-    not apply."""
+    """The :class:`rollfric.locate.Locator` ``"thesis-small"``.
+
+    :func:`locate_small_thesis` in a window of 2 r + 20 px a side around ``guess``, then over the
+    whole frame when the spot is not found there. ``center`` and the sub-pixel locator's options
+    (``unused``) do not apply.
+
+    Parameters
+    ----------
+    frame, background : numpy.ndarray or LazyFrame
+    r_px : float
+        The ball's radius (px).
+    guess : tuple of float or None
+        The predicted centre (px).
+    center : tuple of float
+        Not used.
+    **unused
+        Ignored.
+
+    Returns
+    -------
+    Location
+    """
     roi = None
     if guess is not None:
         m = int(math.ceil(2 * r_px + 20))
