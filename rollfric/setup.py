@@ -242,6 +242,11 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
                 if base not in table:
                     raise SetupError(f"{source}: {section}.{key} (a standard uncertainty) is "
                                      f"given without {section}.{base}")
+                if (section, base) not in {(sec, k) for sec, k, _ in LAB_KEYS.values()}:
+                    raise SetupError(f"{source}: {section}.{key}: no standard uncertainty is "
+                                     f"taken for {section}.{base} (only for "
+                                     + ", ".join(f"{sec}.{k}" for sec, k, _ in LAB_KEYS.values())
+                                     + ")")
                 continue
             if key not in _SCHEMA[section]:
                 raise SetupError(f"{source}: unknown key {section}.{key} "

@@ -250,3 +250,28 @@ def test_coverage_sweep_smoke(tmp_path):
     df = from_sweep(pd.DataFrame(rows))
     s = summarize(df)
     assert s["cases"] == 2 and 0.0 <= s["blind_within_U"] <= 1.0
+
+
+def test_coverage_report_matches_oracle_cases_by_their_parameters():
+    from validation.coverage import from_sweep, summarize
+
+    def rows(oracle, order):
+        out = []
+        for seed in order:
+            mu, err = 0.0079, 1e-6 * (seed - 1)
+            out.append({"case_id": f"{'o' if oracle else 'b'}{seed}", "status": "ok",
+                        "render.seed": seed, "scenario.motion.mu": mu, "mu_true": mu,
+                        "mu_recovered": mu + err, "mu_stderr": 1e-6, "u_mu": 2e-6,
+                        "U_mu": 4e-6, "z_budget": err / 2e-6, "t_budget_s": 0.1,
+                        "z_stat": err / (1e-6 if oracle else 5e-7)})
+        return pd.DataFrame(out)
+
+    df = from_sweep(rows(False, [0, 1, 2, 3]), rows(True, [3, 2, 1, 0]))
+    # seed s: blind z (s - 1) / 2, oracle z (s - 1), matched on the seed, not the row order
+    assert df["z"].tolist() == pytest.approx([-0.5, 0.0, 0.5, 1.0])
+    assert df["z_oracle"].tolist() == pytest.approx([-1.0, 0.0, 1.0, 2.0])
+    assert df["z_oracle_ordinary"].tolist() == pytest.approx([-1.0, 0.0, 1.0, 2.0])
+    s = summarize(df)
+    assert s["blind_within_u"] == 1.0 and s["oracle_within_u_stat"] == 0.75
+    # without an oracle run the blind run's statistical part stands in
+    assert from_sweep(rows(False, [0, 1]))["z_oracle"].tolist() == pytest.approx([-2.0, 0.0])

@@ -169,10 +169,10 @@ def from_sweep(results: pd.DataFrame, oracle: pd.DataFrame | None = None) -> pd.
                        "fit_seconds": ok["t_measure_s"] if "t_measure_s" in ok else np.nan})
     src = ok
     if oracle is not None:
-        keys = [c for c in ("mu_true", "theta0_deg", "scenario.motion.mu",
-                            "scenario.motion.theta0_deg", "scenario.ball", "render.lighting",
-                            "render.noise", "render.seed") if c in ok and c in oracle]
-        o = oracle[oracle["status"] == "ok"].astype({k: str for k in keys})
+        # the swept parameters (dotted case keys) name a case in both runs
+        keys = [c for c in ok.columns if "." in c and c in oracle.columns]
+        o = oracle[oracle["status"] == "ok"]
+        o = o.assign(**{k: o[k].astype(str) for k in keys})
         src = ok[keys].astype(str).merge(o, on=keys, how="left")
     df["z_oracle"] = src["z_stat"].to_numpy(float)
     df["z_oracle_ordinary"] = ((src["mu_recovered"] - src["mu_true"])
