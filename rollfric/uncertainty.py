@@ -4,13 +4,12 @@ A budget has one row per source:
 
 - ``"statistical"``: the least-squares standard error of mu, corrected for correlated
   residuals with a heteroscedasticity-and-autocorrelation-consistent (HAC, Newey-West)
-  sandwich: cov = (J'J)^-1 S (J'J)^-1 with S = sum over lags |j| <= m of Bartlett-weighted
-  cross products of the per-sample scores J_t r_t. The lag window m is three times the first
-  lag at which the residuals' autocorrelation falls below 2/sqrt(n) (the noise level of an
-  autocorrelation estimate), so white residuals give m of a few samples and the ordinary
-  standard error, residuals correlated over tens of samples (a locator's smoothing, model
-  error) widen it. The corrected value is never taken below the ordinary one (negative
-  residual correlation estimated at short lags is sampling noise, not a gain in precision).
+  sandwich, prewhitened (:func:`hac_covariance`), computed on the residuals of a noise fit
+  that also frees L and a cubic angle map (so a setup error's misfit, which its own row
+  covers, is not counted as noise). White residuals give the ordinary standard error,
+  residuals correlated over tens of samples (a locator's smoothing) widen it. The corrected
+  value is never taken below the ordinary one (negative residual correlation estimated at
+  short lags is sampling noise, not a gain in precision).
 - one row per uncertain setup input (a key ``K`` with ``K_u`` in setup.toml, see
   :mod:`rollfric.setup`): its sensitivity coefficient c = d mu / d input by central
   differences over +-u, each side a re-evaluation of the measurement with that input moved:
@@ -114,14 +113,18 @@ def autocorrelation(x: np.ndarray) -> np.ndarray:
 
 
 def hac_covariance(jac: np.ndarray, res: np.ndarray, *, lag: int | None = None,
-                   dof: int | None = None):
-    """Parameter covariance of a least-squares fit: (ordinary, HAC) and the lag window used.
+                   dof: int | None = None, max_rho: float = 0.97):
+    """Parameter covariance of a least-squares fit: (ordinary, HAC, lag window, rho).
 
     ``res``: the noise part of the residuals (those of the fit, or of a fit with more free
     nuisance parameters; ``dof`` is then n minus their count, default n - p).
-    Ordinary: s^2 (J'J)^-1. HAC: Newey-West sandwich with Bartlett weights 1 - j/(m+1) over
-    lags j <= m; ``lag`` None picks m as three times the first lag where the residuals'
-    autocorrelation drops below 2/sqrt(n) (at most n/4). Both carry the n/dof correction.
+    Ordinary: s^2 (J'J)^-1. HAC: the Newey-West sandwich (J'J)^-1 S (J'J)^-1 of the scores
+    g_t = J_t r_t, prewhitened (Andrews and Monahan, 1992): rho, the lag-1 autocorrelation of
+    the residuals (at most ``max_rho`` in size), whitens the scores, g_t - rho g_(t-1); their
+    long-run covariance is a Bartlett-weighted sum (weights 1 - j/(m+1), lags j <= m) recoloured
+    by 1/(1 - rho)^2. ``lag`` None picks m as three times the first lag where the whitened
+    residuals' autocorrelation drops below 2/sqrt(n) (at most n/4). Both carry the n/dof
+    correction.
     """
     jac = np.asarray(jac, dtype=float)
     res = np.asarray(res, dtype=float)
@@ -131,20 +134,24 @@ def hac_covariance(jac: np.ndarray, res: np.ndarray, *, lag: int | None = None,
         a = np.linalg.inv(jac.T @ jac)
     except np.linalg.LinAlgError:
         nan = np.full((p, p), np.nan)
-        return nan, nan, 0
+        return nan, nan, 0, math.nan
     ordinary = a * float(res @ res) / dof
+    r = res - res.mean()
+    rr = float(r @ r)
+    rho = float(np.clip((r[1:] @ r[:-1]) / rr, -max_rho, max_rho)) if rr > 0 else 0.0
+    g = jac * res[:, None]
+    gw = g[1:] - rho * g[:-1]
     if lag is None:
-        rho = autocorrelation(res)
-        below = np.nonzero(rho[1:] < 2.0 / math.sqrt(n))[0]
+        ac = autocorrelation(res[1:] - rho * res[:-1])
+        below = np.nonzero(ac[1:] < 2.0 / math.sqrt(n))[0]
         first = int(below[0]) + 1 if below.size else n
         lag = min(3 * first, n // 4)
-    g = jac * res[:, None]
-    s = g.T @ g
+    s = gw.T @ gw
     for j in range(1, lag + 1):
-        c = g[j:].T @ g[:-j]
+        c = gw[j:].T @ gw[:-j]
         s += (1.0 - j / (lag + 1.0)) * (c + c.T)
-    hac = a @ s @ a * (n / dof)
-    return ordinary, hac, int(lag)
+    hac = a @ (s / (1.0 - rho) ** 2) @ a * (n / dof)
+    return ordinary, hac, int(lag), rho
 
 
 # -- re-evaluating the measurement ----------------------------------------------------------
@@ -333,13 +340,14 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     names = list(params)
     aug, _, noise = refit.fit(setup, augmented=True)
     # its free parameters: the motion's, L and the map's four coefficients
-    ordinary, hac, lag = hac_covariance(jac, noise, dof=noise.size - len(aug) - 4)
+    ordinary, hac, lag, rho = hac_covariance(jac, noise, dof=noise.size - len(aug) - 4)
     i_mu = names.index("mu")
     u_plain = float(math.sqrt(max(ordinary[i_mu, i_mu], 0.0)))
     u_hac = float(math.sqrt(max(hac[i_mu, i_mu], 0.0)))
     u_stat = max(u_plain, u_hac)
     mu = params["mu"]
     statistical = {"stderr_ordinary": u_plain, "stderr_hac": u_hac, "lag_window": lag,
+                   "noise_lag1_autocorrelation": rho,
                    "n_samples": int(res.size), "inflation": u_stat / u_plain
                    if u_plain > 0 else math.nan,
                    "rms_residual_rad": float(np.sqrt(np.mean(res**2))),

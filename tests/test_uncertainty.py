@@ -76,13 +76,15 @@ def test_hac_covariance_of_a_mean_matches_the_long_run_variance():
     for i in range(1, n):
         e[i] = rho * e[i - 1] + math.sqrt(1 - rho**2) * w[i]
     jac = np.ones((n, 1))
-    ordinary, hac, lag = hac_covariance(jac, e - e.mean())
+    ordinary, hac, lag, rho_hat = hac_covariance(jac, e - e.mean())
     assert ordinary[0, 0] == pytest.approx(1.0 / n, rel=0.02)
+    assert rho_hat == pytest.approx(rho, abs=0.01)
     assert hac[0, 0] == pytest.approx((1 + rho) / (1 - rho) / n, rel=0.1)
-    assert lag > 10
+    assert lag < 10  # whitened: no correlation left to sum
     white = rng.normal(0.0, 1.0, n)
-    ordinary, hac, lag = hac_covariance(jac, white - white.mean())
+    ordinary, hac, lag, rho_hat = hac_covariance(jac, white - white.mean())
     assert hac[0, 0] == pytest.approx(ordinary[0, 0], rel=0.05) and lag < 10
+    assert abs(rho_hat) < 0.01
 
 
 def _lab_track(noise_px=0.02, seed=0, seconds=4.0, mu=0.0079, theta0_deg=12.0, ar=0.0):
