@@ -1,30 +1,48 @@
 """The ``rollfric`` command: one entry point, one subcommand per stage.
 
-Each stage registers its own subcommands through a ``register(subparsers)`` function in a
-light module (argparse only); the heavy imports happen inside the handlers, so ``rollfric fit``
-does not load MuJoCo or OpenGL.
+The measurement's own subcommands (``fit``, ``measure``) are registered here. Every other
+subcommand comes from an installed entry point of the group ``rollfric.commands``: a
+``register(subparsers)`` function in a light module (argparse only; the heavy imports happen
+inside the handlers). The validation suite registers its commands that way, so ``rollfric``
+imports nothing of it. An entry point that names extras (``module:register [suite]``) is loaded
+only when the requirements of those extras are installed; otherwise its commands answer with
+exit status 2 and the ``pip install`` line that brings them.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
+import functools
+import importlib.metadata
 import sys
 
+from rollfric import cli_fit, cli_measure
 from rollfric.errors import InputError
 
-# module that registers subcommands, in the order --help lists them
-_SUBCOMMAND_MODULES = [
-    "rollfric.cli_fit",
-    "rollfric.cli_measure",
-    "sim.cli",
-    "synth.cli",
-    "validation.cli",
-    "validation.cli_bench",
-]
+COMMAND_GROUP = "rollfric.commands"
+
+# The validation suite's commands, known here only as text: `rollfric --help` lists them, and
+# running one without the suite says how to install it. Their parsers come from the suite.
+SUITE_COMMANDS = {
+    "simulate": "ground-truth trajectory from an engine",
+    "render": "render a trajectory as a synthetic camera recording with exact ground truth",
+    "validate": "the main job: one case end to end against the truth, with a report",
+    "sweep": "many validation cases on Dask, one table row per case, with plots",
+    "bench": "speed and accuracy of every stage beside its baseline",
+}
+SUITE_INSTALL = 'pip install "rollfric[suite]"'
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``rollfric`` argument parser with every available subcommand.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        Subcommands in the order ``--help`` lists them: ``fit``, ``measure``, then those of
+        the ``rollfric.commands`` entry points sorted by entry point name; the suite's commands
+        are listed even when the suite is not installed (running one then exits with 2).
+    """
     parser = argparse.ArgumentParser(
         prog="rollfric",
         description=(
@@ -34,9 +52,82 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in _SUBCOMMAND_MODULES:
-        importlib.import_module(name).register(sub)
+    cli_fit.register(sub)
+    cli_measure.register(sub)
+    reasons = []
+    for ep in command_entry_points():
+        missing = missing_requirements(ep)
+        if missing:
+            reasons.append(f"missing: {', '.join(missing)}")
+            continue
+        try:
+            register = ep.load()
+        except ImportError as exc:
+            reasons.append(f"entry point {ep.name} ({ep.value}) cannot be loaded: {exc}")
+            continue
+        register(sub)
+    for name, summary in SUITE_COMMANDS.items():
+        if name not in sub.choices:
+            _add_unavailable(sub, name, summary, "; ".join(dict.fromkeys(reasons)))
     return parser
+
+
+def command_entry_points() -> list[importlib.metadata.EntryPoint]:
+    """The installed entry points of the group ``rollfric.commands``, sorted by name.
+
+    Returns
+    -------
+    list of importlib.metadata.EntryPoint
+        One per distinct name (the first found wins, as in ``importlib.metadata``).
+    """
+    eps = importlib.metadata.entry_points(group=COMMAND_GROUP)
+    return sorted(eps, key=lambda ep: ep.name)
+
+
+def missing_requirements(ep: importlib.metadata.EntryPoint) -> list[str]:
+    """The distributions that the extras named by an entry point need and that are absent.
+
+    Parameters
+    ----------
+    ep : importlib.metadata.EntryPoint
+        An entry point such as ``name = "package.module:register [suite]"``.
+
+    Returns
+    -------
+    list of str
+        Names of the requirements of the entry point's extras (in its distribution's metadata)
+        that are not installed, in the metadata's order; empty when the entry point names no
+        extras or all are installed.
+    """
+    if not ep.extras or ep.dist is None:
+        return []
+    from packaging.requirements import Requirement
+
+    missing = []
+    for text in ep.dist.requires or []:
+        req = Requirement(text)
+        if req.marker is None or req.marker.evaluate({"extra": ""}):
+            continue  # a requirement of the base install, not of an extra
+        if not any(req.marker.evaluate({"extra": extra}) for extra in ep.extras):
+            continue
+        try:
+            importlib.metadata.distribution(req.name)
+        except importlib.metadata.PackageNotFoundError:
+            missing.append(req.name)
+    return missing
+
+
+def _add_unavailable(sub, name: str, summary: str, reason: str) -> None:
+    p = sub.add_parser(name, add_help=False, help=f"{summary} (needs: {SUITE_INSTALL})",
+                       description=f"{summary}. Needs the validation suite: {SUITE_INSTALL}")
+    p.set_defaults(func=functools.partial(_suite_missing, reason=reason), accepts_any=True)
+
+
+def _suite_missing(args: argparse.Namespace, reason: str) -> int:
+    why = f" ({reason})" if reason else ""
+    raise InputError(f"this command belongs to the validation suite, which is not "
+                     f"installed{why}: {SUITE_INSTALL} "
+                     f'(in a source checkout: pip install -e ".[suite]")')
 
 
 def _version() -> str:
@@ -49,8 +140,23 @@ def _version() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``rollfric`` command line.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after ``rollfric`` (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status: 0 good result, 2 bad input (or a command whose package is not
+        installed), 3 a measurement that cannot be trusted, 130 interrupted.
+    """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown and not getattr(args, "accepts_any", False):
+        parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
         result = args.func(args)
     except InputError as exc:

@@ -6,8 +6,8 @@ anything (the CLI builds its ``choices`` from them and stays light), the impleme
 imported on first use (:meth:`Registry.load`). An unknown name is bad input
 (:class:`rollfric.errors.InputError`, naming the known ones).
 
-rollfric's registries are here; ``sim.engines.ENGINES`` is the simulation engines'. To add a
-locator or a fit method: write it (a :class:`rollfric.locate.Locator` or a
+rollfric's registries are here (the simulation engines' is ``ENGINES`` in the suite's engines
+module). To add a locator or a fit method: write it (a :class:`rollfric.locate.Locator` or a
 :class:`rollfric.fit.FitMethod`) and add one line below; the CLI offers it and
 ``tests/test_architecture.py`` checks that it loads and has the interface.
 """
