@@ -267,7 +267,7 @@ class _Refitter:
             return m + off - th
 
         sol = optimize.least_squares(residual, x0, bounds=(lower, upper), x_scale=scale,
-                                     diff_step=1e-7, xtol=1e-10, ftol=1e-10, gtol=1e-10,
+                                     xtol=1e-10, ftol=1e-10, gtol=1e-10,
                                      max_nfev=200)
         self.count += 1
         out = (dict(zip(names, (float(v) for v in sol.x), strict=True)),
