@@ -3,37 +3,147 @@
 Everything the project writes goes to a temporary path beside its destination and is moved
 into place (``os.replace``, atomic on one file system) only when complete; on an error the
 temporary path is removed and the destination is left as it was.
+
+Temporary paths are hidden and name the process that writes them:
+``.NAME.part-PID-START.SUFFIX`` (START: the process's start time, so a reused PID is told
+apart). A run that is killed cannot remove its temporary path; :func:`remove_leftovers` removes
+those whose process is gone (or whose PID now belongs to another process), and every command
+calls it for the folders it writes in.
+
+A file never replaces a directory and a directory never replaces a file: :func:`replacing`
+raises :class:`~rollfric.errors.InputError` instead (a directory replaces a directory only
+when the caller says so, ``folder_ok=True``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
+import re
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
+
+from rollfric.errors import InputError
+
+# .NAME.part-PID[-START][.SUFFIX] (temporary output) and .NAME.old-PID[-START][.SUFFIX] (a
+# directory moved aside while being replaced); names without START come from older versions
+_TEMP_RE = re.compile(r"^\.(?P<stem>.*)\.(?P<kind>part|old)-(?P<pid>\d+)(?:-(?P<start>\d+))?"
+                      r"(?P<suffix>\.[^.]*)?$")
+
+
+@functools.cache
+def _own_start() -> int:
+    return _start_time(os.getpid()) or 0
+
+
+def _start_time(pid: int) -> int | None:
+    """The start time of process ``pid`` (1/100 s since the epoch), None when no such process
+    exists; 0 when it exists but its start time cannot be read."""
+    try:
+        import psutil
+    except ImportError:  # pragma: no cover - psutil is a dependency
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return None
+        except PermissionError:
+            return 0
+        return 0
+    try:
+        return int(round(psutil.Process(pid).create_time() * 100))
+    except psutil.NoSuchProcess:
+        return None
+    except psutil.AccessDenied:
+        return 0
+
+
+def temp_path(path: str | Path, kind: str = "part") -> Path:
+    """The hidden temporary path of this process beside ``path`` (same suffix, so writers that
+    go by the suffix pick the same format)."""
+    path = Path(path)
+    return path.with_name(f".{path.stem}.{kind}-{os.getpid()}-{_own_start()}{path.suffix}")
+
+
+def is_leftover(path: str | Path) -> bool:
+    """True if ``path`` is a temporary path (see :func:`temp_path`) of a process that no longer
+    runs: its PID is gone, or now belongs to a process started at another time."""
+    m = _TEMP_RE.match(Path(path).name)
+    if m is None:
+        return False
+    pid = int(m["pid"])
+    start = None if m["start"] is None else int(m["start"])
+    if pid == os.getpid():
+        return start != _own_start()  # ours only if it carries this process's start time
+    now = _start_time(pid)
+    if now is None:
+        return True
+    return start is not None and now != 0 and now != start
+
+
+def remove_leftovers(folder: str | Path) -> list[Path]:
+    """Remove the temporary paths in ``folder`` (not its subfolders) left by killed runs;
+    returns what was removed. A missing or unreadable folder removes nothing."""
+    removed = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for e in entries:
+        if e.name.startswith(".") and is_leftover(e.path):
+            _remove(Path(e.path))
+            removed.append(Path(e.path))
+    return removed
 
 
 def _remove(path: Path) -> None:
     if path.is_dir() and not path.is_symlink():
         shutil.rmtree(path, ignore_errors=True)
     else:
-        path.unlink(missing_ok=True)
+        with contextlib.suppress(FileNotFoundError, IsADirectoryError, PermissionError):
+            path.unlink()
+
+
+def install(tmp: Path, path: Path, *, folder_ok: bool = False) -> None:
+    """Move the finished ``tmp`` to ``path``. A file never replaces a directory nor a directory
+    a file (InputError); a directory replaces a directory only with ``folder_ok`` (the old one is
+    moved aside first and removed once the new one is in place)."""
+    new_is_dir = tmp.is_dir() and not tmp.is_symlink()
+    old_is_dir = path.is_dir() and not path.is_symlink()
+    if old_is_dir and not new_is_dir:
+        raise InputError(f"{path} is a folder: a file is not written in its place")
+    if path.exists() and not old_is_dir and new_is_dir:
+        raise InputError(f"{path} is a file: a folder is not written in its place")
+    if not old_is_dir:
+        os.replace(tmp, path)
+        return
+    if not folder_ok:
+        raise InputError(f"{path} is an existing folder: not replaced")
+    aside = temp_path(path, "old")
+    _remove(aside)
+    os.replace(path, aside)
+    try:
+        os.replace(tmp, path)
+    except BaseException:
+        os.replace(aside, path)
+        raise
+    _remove(aside)
 
 
 @contextlib.contextmanager
-def replacing(path: str | Path) -> Iterator[Path]:
+def replacing(path: str | Path, *, folder_ok: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``path`` (same suffix, so writers that go by the suffix
-    pick the same format); when the block succeeds it replaces ``path``, file or directory."""
+    pick the same format); when the block succeeds it replaces ``path`` (see :func:`install`:
+    never a directory by a file or a file by a directory; a directory by a directory only with
+    ``folder_ok``). On an error the temporary path is removed and ``path`` is left as it was."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.part-{os.getpid()}{path.suffix}")
+    tmp = temp_path(path)
     _remove(tmp)
     try:
         yield tmp
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path)
-        os.replace(tmp, path)
+        install(tmp, path, folder_ok=folder_ok)
     except BaseException:
         _remove(tmp)
         raise

@@ -139,6 +139,15 @@ def _version() -> str:
         return "rollfric (not installed)"
 
 
+def _os_error_text(exc: OSError) -> str:
+    """An OSError as 'PATH: problem' (the file first, as the other messages name it)."""
+    what = exc.strerror or str(exc)
+    if exc.filename is not None:
+        names = f"{exc.filename}" + (f" -> {exc.filename2}" if exc.filename2 else "")
+        return f"{names}: {what}"
+    return str(exc)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the ``rollfric`` command line.
 
@@ -161,6 +170,13 @@ def main(argv: list[str] | None = None) -> int:
         result = args.func(args)
     except InputError as exc:
         print(f"rollfric {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a file that cannot be read or written (permissions, disk full)
+        print(f"rollfric {args.command}: error: {_os_error_text(exc)}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"rollfric {args.command}: error: not enough memory for this input",
+              file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"rollfric {args.command}: interrupted", file=sys.stderr)

@@ -34,6 +34,9 @@ def register(sub) -> None:
                         "uncertainty budget's bar chart (_budget.png)")
     from rollfric.uncertainty import add_arguments
 
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing FIT.json (and its figures); without it an existing "
+                        "output is refused (exit 2)")
     add_arguments(p)
     p.set_defaults(func=run)
 
@@ -62,6 +65,26 @@ def read_track(path):
     return t, theta
 
 
+def check_outputs(out, *, plot: bool, overwrite: bool, inputs=()):
+    """The paths ``rollfric fit`` writes (FIT.json; with ``plot`` FIT.png and FIT_budget.png),
+    checked before any work (:mod:`rollfric.outputs`); returns the three paths."""
+    from pathlib import Path
+
+    from rollfric.outputs import check_distinct, check_file, check_not_input
+
+    out = Path(out)
+    png = out.with_suffix(".png")
+    budget_png = out.with_name(out.stem + "_budget.png")
+    check_distinct([out, png, budget_png], "--out and its figures (--plot)")
+    for p in (out, png, budget_png):
+        check_not_input(p, inputs)
+    check_file(out, overwrite=overwrite)
+    if plot or overwrite:
+        for p in (png, budget_png):
+            check_file(p, overwrite=overwrite, what="the figure")
+    return out, png, budget_png
+
+
 def run(args) -> int:
     from rollfric.messages import to_stderr
 
@@ -70,26 +93,29 @@ def run(args) -> int:
 
 
 def _run(args) -> int:
-    from pathlib import Path
-
     from rollfric.fit import fit_mu, save_fit
+    from rollfric.outputs import remove_stale
     from rollfric.setup import load_setup
     from rollfric.uncertainty import Measurement, run_budget
 
+    out, png, budget_png = check_outputs(args.out, plot=args.plot, overwrite=args.overwrite,
+                                         inputs=(args.track, args.setup))
     setup = load_setup(args.setup)
     t, theta = read_track(args.track)
     kw = {"model": args.model} if args.method == "lsq" else {}
     result = fit_mu(t, theta, setup, method=args.method, offset=args.offset, **kw)
     keys, budget = run_budget(Measurement(setup=setup, t=t, theta=theta), result, args)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     save_fit(result, out, **keys)
     if args.plot:
         from rollfric.plots import plot_budget, plot_fit
 
-        plot_fit(t, theta, result, out.with_suffix(".png"))
+        plot_fit(t, theta, result, png)
         if budget is not None:
-            plot_budget(budget, out.with_name(out.stem + "_budget.png"))
+            plot_budget(budget, budget_png)
+    if args.overwrite:  # figures of an earlier fit do not stay beside this one
+        written = {png, budget_png} if args.plot and budget is not None else \
+            {png} if args.plot else set()
+        remove_stale(out.parent, [p.name for p in (png, budget_png) if p not in written])
     unc = f"+- {result.mu_stderr:.2g} (standard error)" if budget is None else \
         f"+- {budget.u_mu:.2g} (u), U = {budget.U_mu:.2g} (k = 2)"
     mu = result.mu if budget is None else budget.mu

@@ -55,7 +55,41 @@ def register(sub) -> None:
 
     add_arguments(p)
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--overwrite", action="store_true",
+                   help="write into an existing non-empty DIR: measure's own files (track.csv, "
+                        "fit.json, fit.png, budget.png, overlays.png) are replaced, or removed "
+                        "when not written this time; other files are left alone")
     p.set_defaults(func=run)
+
+
+# the files measure writes into DIR (rollfric.outputs: --overwrite replaces only these)
+OUTPUTS = {"track.csv": "file", "fit.json": "file", "fit.png": "file", "budget.png": "file",
+           "overlays.png": "file"}
+
+
+def remove_legacy_leftovers(out) -> list:
+    """Remove the hidden ``.DIR.XXXXXXXX`` folders that earlier versions of measure left beside
+    DIR when killed (named by tempfile.mkdtemp, without a PID): only folders that hold nothing
+    but measure's own output names (or temporary files) are removed."""
+    import re
+    import shutil
+    from pathlib import Path
+
+    out = Path(out)
+    pat = re.compile(rf"^\.{re.escape(out.name)}\.[a-z0-9_]{{8}}$")
+    removed = []
+    try:
+        entries = list(out.parent.iterdir())
+    except OSError:
+        return removed
+    for p in entries:
+        if not (pat.match(p.name) and p.is_dir() and not p.is_symlink()):
+            continue
+        names = [c.name for c in p.iterdir()]
+        if all(n in OUTPUTS or n.startswith(".") and ".part-" in n for n in names):
+            shutil.rmtree(p, ignore_errors=True)
+            removed.append(p)
+    return removed
 
 
 def run(args) -> int:
@@ -66,15 +100,17 @@ def run(args) -> int:
 
 
 def _run(args) -> int:
-    import os
-    import shutil
-    import tempfile
     from pathlib import Path
 
     from rollfric.errors import InputError
     from rollfric.fit import save_fit
+    from rollfric.outputs import check_folder, check_not_input, staged_folder
     from rollfric.track import TRACK_COLUMNS, measure
     from rollfric.uncertainty import measurement_from_track, run_budget
+
+    out = Path(args.out)
+    check_not_input(out, (args.recording, args.setup, args.background))
+    check_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure")
 
     frames = None
     if args.overlay_frames:
@@ -90,13 +126,8 @@ def _run(args) -> int:
                             progress=not args.no_progress, median_frames=args.median_frames,
                             times=args.times)
     keys, budget = run_budget(measurement_from_track(track, track.attrs["setup"]), result, args)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} exists and is not a folder")
-    parent = out.resolve().parent
-    parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
-    try:
+    remove_legacy_leftovers(out)
+    with staged_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure") as tmp:
         csv = track[TRACK_COLUMNS].copy()
         csv.to_csv(tmp / "track.csv", index=False, float_format="%.6f", na_rep="")
         extra = {"n_frames": int(track.attrs["n_frames"]), "n_found": int(track.attrs["n_found"]),
@@ -126,11 +157,6 @@ def _run(args) -> int:
                 plot_budget(budget, tmp / "budget.png")
             plot_overlays(open_recording(args.recording), track, tmp / "overlays.png",
                           frames=frames)
-        out.mkdir(exist_ok=True)
-        for f in sorted(tmp.iterdir()):
-            os.replace(f, out / f.name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
     unc = f"+- {result.mu_stderr:.2g} (standard error)" if budget is None else \
         f"+- {budget.u_mu:.2g} (u), U = {budget.U_mu:.2g} (k = 2)"
     mu = result.mu if budget is None else budget.mu

@@ -42,6 +42,8 @@ def register(subparsers) -> None:
                    help="engine option, e.g. timestep_s=1e-4 (repeatable)")
     p.add_argument("--progress", action="store_true", help="show a progress bar")
     p.add_argument("--out", required=True, help="output CSV path (sidecar: same name .json)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing CSV and sidecar (without it: refused, exit 2)")
     p.set_defaults(func=handle)
 
 
@@ -91,9 +93,22 @@ def scenario_from_args(args):
     return base.replace(**changes) if changes else base
 
 
+def check_outputs(out, *, overwrite: bool, inputs=()):
+    """The CSV and its sidecar, checked before any work (rollfric.outputs)."""
+    from rollfric.outputs import check_file, check_not_input
+    from sim.trajectory import sidecar_path
+
+    side = sidecar_path(out, check=True)
+    for p, what in ((out, "--out"), (side, "the sidecar")):
+        check_not_input(p, inputs, what)
+        check_file(p, overwrite=overwrite, what=what)
+    return side
+
+
 def handle(args) -> int:
     import sim
 
+    check_outputs(args.out, overwrite=args.overwrite, inputs=(args.scenario,))
     scenario = scenario_from_args(args)
     traj = sim.simulate(scenario, progress=args.progress)
     path = traj.to_csv(args.out)

@@ -89,18 +89,26 @@ class Trajectory:
     def to_csv(self, path: str | Path) -> Path:
         """Write NAME.csv and its sidecar NAME.json atomically; returns the CSV path."""
         path = Path(path)
+        side = sidecar_path(path, check=True)
         buf = io.StringIO()
         np.savetxt(buf, self.table(), fmt="%.17g", delimiter=",", header=",".join(COLUMNS),
                    comments="")
         write_text(path, buf.getvalue())
-        write_text(sidecar_path(path),
-                      json.dumps(self.sidecar(), indent=2, sort_keys=False, default=_jsonable)
-                      + "\n")
+        write_text(side,
+                   json.dumps(self.sidecar(), indent=2, sort_keys=False, default=_jsonable)
+                   + "\n")
         return path
 
 
-def sidecar_path(csv_path: str | Path) -> Path:
-    return Path(csv_path).with_suffix(".json")
+def sidecar_path(csv_path: str | Path, check: bool = False) -> Path:
+    """NAME.json beside NAME.csv. ``check``: ScenarioError when the CSV path itself ends in
+    .json (it would be its own sidecar)."""
+    side = Path(csv_path).with_suffix(".json")
+    if check and side == Path(csv_path):
+        raise ScenarioError(f"{csv_path}: a trajectory is a CSV file and its sidecar is "
+                            f"NAME.json: give a name that does not end in .json (e.g. "
+                            f"{Path(csv_path).with_suffix('.csv')})")
+    return side
 
 
 def _jsonable(obj):

@@ -44,7 +44,11 @@ def register(sub) -> None:
     p.add_argument("--export", metavar="DIR", default=None,
                    help="also write a lab-style export: frames.tif, background.png, "
                         "setup.toml, truth.csv")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing recording (a folder holding anything else is never "
+                        "replaced) and the export's own files in an existing --export DIR "
+                        "(other files there are left alone); without it an existing output is "
+                        "refused before rendering (exit 2)")
     p.set_defaults(func=run)
 
 
@@ -52,7 +56,17 @@ def run(args) -> int:
     import dataclasses
 
     import synth
-    from synth.export import export_recording
+    from rollfric.outputs import check_distinct, check_not_input
+    from synth.export import check_export, export_recording
+    from synth.pipeline import check_output
+
+    # every destination checked before any work
+    check_not_input(args.out, (args.trajectory,))
+    check_output(args.out, overwrite=args.overwrite, what="--out")
+    if args.export:
+        check_distinct([args.out, args.export], "--out and --export")
+        check_not_input(args.export, (args.trajectory,), "--export")
+        check_export(args.export, overwrite=args.overwrite)
 
     scene = synth.SceneConfig(lighting=synth.lighting_preset(args.lighting),
                               supersample=args.supersample, motion_blur=args.motion_blur)

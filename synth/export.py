@@ -11,26 +11,41 @@ from pathlib import Path
 
 import numpy as np
 
-from rollfric.atomic import replacing
+from rollfric.outputs import OutputError, check_folder, staged_folder
 from synth.config import SynthError
 from synth.store import open_recording
+
+# what an export writes into its folder (--overwrite replaces only these; other files stay)
+OUTPUTS = {"frames.tif": "file", "background.png": "file", "setup.toml": "file",
+           "truth.csv": "file"}
+
+
+def check_export(out_dir, *, overwrite: bool = False) -> Path:
+    """SynthError unless the export may be written to ``out_dir`` (absent, empty, or with
+    ``overwrite``: a folder whose export files may be replaced); checked before any work."""
+    try:
+        return check_folder(out_dir, OUTPUTS, overwrite=overwrite, what="export directory",
+                            command="render --export")
+    except OutputError as exc:
+        raise SynthError(str(exc)) from None
 
 
 def export_recording(recording, out_dir, *, progress: bool = False,
                      overwrite: bool = False) -> Path:
-    """Write the lab-style export of ``recording`` (a path or a synth.Recording) to out_dir."""
+    """Write the lab-style export of ``recording`` (a path or a synth.Recording) to out_dir.
+
+    An existing non-empty ``out_dir`` is refused unless ``overwrite``; then only the export's
+    own files (:data:`OUTPUTS`) are replaced and other files are left alone."""
     import cv2
     import tifffile
     from tqdm import tqdm
 
     from rollfric.setup import save_setup, setup_from_dict
 
+    out_dir = check_export(out_dir, overwrite=overwrite)
     rec = recording if hasattr(recording, "frames") else open_recording(recording)
-    out_dir = Path(out_dir)
-    if out_dir.exists() and not overwrite and any(out_dir.iterdir()):
-        raise SynthError(f"export directory exists and is not empty: {out_dir}")
-    with replacing(out_dir) as tmp:
-        tmp.mkdir()
+    with staged_folder(out_dir, OUTPUTS, overwrite=overwrite, what="export directory",
+                       command="render --export") as tmp:
         frames = rec.frames
         n = len(frames)
         nbytes = n * int(np.prod(frames.shape[1:])) * frames.dtype.itemsize

@@ -182,15 +182,13 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     sensor = sensor or SensorConfig()
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise SynthError(f"seed must be a non-negative integer, got {seed!r}")
+    out = check_output(out, overwrite=overwrite)
     traj = load_trajectory(trajectory)
     n = len(traj) if frames is None else int(frames)
     if n < 1 or n > len(traj):
         raise SynthError(f"frames must be 1..{len(traj)}, got {frames!r}")
     if n < len(traj):
         traj = _head(traj, n)
-    out = Path(out)
-    if out.exists() and not overwrite:
-        raise SynthError(f"output exists: {out} (use overwrite=True / --overwrite)")
     base = traj.setup()
     cam = scene.camera
     setup = Setup(cylinder_radius=base.cylinder_radius, ball_diameter=base.ball_diameter,
@@ -205,7 +203,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     if threads is None and workers > 1:
         threads = 1  # one llvmpipe thread per process: the processes fill the cores
 
-    with replacing(out) as tmp:
+    with replacing(out, folder_ok=True) as tmp:
         sr = SceneRenderer(scene, r_ball, r_cyl)
         bg = sr.render_full()
         sr.close()
@@ -261,6 +259,39 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             "gamma": 2.2,
             "truth_columns": TRUTH_COLUMNS,
         })
+    return out
+
+
+def is_recording(path) -> bool:
+    """True if ``path`` is a folder holding a synth recording (a Zarr group whose attrs say
+    so): what ``render(..., overwrite=True)`` may replace."""
+    import json
+
+    meta = Path(path) / "zarr.json"
+    try:
+        return json.loads(meta.read_text()).get("attributes", {}).get("format") == FORMAT
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def check_output(out, *, overwrite: bool, what: str = "output") -> Path:
+    """``out`` as a Path if a recording may be written there: absent, an empty folder, or (with
+    ``overwrite``) an earlier recording; SynthError otherwise (a file, a folder of something
+    else, an unwritable place). Checked before any work."""
+    from rollfric.atomic import is_leftover
+    from rollfric.outputs import OutputError, check_folder
+
+    out = Path(out)
+    if out.is_dir() and any(not is_leftover(p) for p in out.iterdir()):
+        if not overwrite:
+            raise SynthError(f"{what} exists: {out} (use overwrite=True / --overwrite)")
+        if not is_recording(out):
+            raise SynthError(f"{what} {out} is a folder that does not hold a synth recording: "
+                             "not replaced, even with --overwrite")
+    try:
+        check_folder(out, {}, overwrite=True, what=what, command="render")
+    except OutputError as exc:
+        raise SynthError(str(exc)) from None
     return out
 
 

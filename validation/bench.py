@@ -257,12 +257,22 @@ SECTIONS = {
 }  # keys match validation.cli_bench.SECTION_NAMES
 
 
-def run_bench(out: str | Path, *, quick: bool = False, sections=None, progress: bool = True):
-    """Run the chosen sections (all by default); write bench.md and bench.json into out."""
+# what bench writes into its folder (--overwrite replaces only these)
+OUTPUTS = {"bench.md": "file", "bench.json": "file"}
+
+
+def run_bench(out: str | Path, *, quick: bool = False, sections=None, progress: bool = True,
+              overwrite: bool = False):
+    """Run the chosen sections (all by default); write bench.md and bench.json into out.
+
+    An existing non-empty ``out`` is refused before any work unless ``overwrite`` (then only
+    bench.md and bench.json are replaced; :mod:`rollfric.outputs`)."""
     from tqdm.auto import tqdm
 
+    from rollfric.outputs import check_folder, staged_folder
+
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    check_folder(out, OUTPUTS, overwrite=overwrite, command="bench")
     names = list(sections or SECTIONS)
     rows: list[Row] = []
     timings = {}
@@ -273,9 +283,10 @@ def run_bench(out: str | Path, *, quick: bool = False, sections=None, progress: 
     meta = {"date": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
             "machine": machine(), "quick": quick, "section_seconds": timings}
     md = to_markdown(rows, meta)
-    (out / "bench.md").write_text(md)
     data = {"meta": meta, "rows": [
         {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
          for k, v in dataclasses.asdict(r).items()} for r in rows]}
-    (out / "bench.json").write_text(json.dumps(data, indent=2) + "\n")
+    with staged_folder(out, OUTPUTS, overwrite=overwrite, command="bench") as tmp:
+        (tmp / "bench.md").write_text(md, encoding="utf-8")
+        (tmp / "bench.json").write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     return rows, meta

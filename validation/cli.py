@@ -78,6 +78,10 @@ def register(subparsers) -> None:
                    help="report directory")
     p.add_argument("--keep-recording", action="store_true",
                    help="keep the rendered recording in DIR/recording.zarr")
+    p.add_argument("--overwrite", action="store_true",
+                   help="write into an existing non-empty DIR: the report's own files are "
+                        "replaced (or removed when not written this time), others left alone; "
+                        "without it an existing non-empty DIR is refused (exit 2)")
     p.add_argument("--json", action="store_true",
                    help="print the metrics as one JSON object instead of the summary")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -101,6 +105,10 @@ def register(subparsers) -> None:
     s.add_argument("--dry-run", action="store_true",
                    help="print the cases (id and parameters) without running them")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.add_argument("--overwrite", action="store_true",
+                   help="start afresh in a DIR that holds results (the sweep's own files there "
+                        "are removed first, others stay); without it a DIR of the same sweep is "
+                        "resumed and any other non-empty DIR is refused (exit 2)")
     s.set_defaults(func=handle_sweep)
 
 
@@ -127,9 +135,12 @@ def handle_validate(args) -> int:
     import os
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    from rollfric.outputs import check_folder, check_not_input
     from validation import case as case_mod
     from validation import e2e, report
 
+    check_not_input(args.out, (args.case,))
+    check_folder(args.out, report.OUTPUTS, overwrite=args.overwrite, command="validate")
     overrides = _parse_set(args.set)
     if args.engine:
         overrides["scenario.engine.name"] = args.engine
@@ -147,7 +158,8 @@ def handle_validate(args) -> int:
     case = case_mod.case_from_dict(case_mod.apply_overrides(base, overrides),
                                    source=args.case or "built-in case")
     result = e2e.run_case(case, keep_recording=args.keep_recording, report_dir=args.out,
-                          progress=not args.no_progress and not args.json)
+                          progress=not args.no_progress and not args.json,
+                          overwrite=args.overwrite)
     if args.json:
         print(json.dumps(report.json_safe(result.metrics), sort_keys=True))
     else:
@@ -178,6 +190,7 @@ def handle_sweep(args) -> int:
         raise InputError("--out DIR is required to run a sweep")
     summary = sweep_mod.run_sweep(spec, args.out, scheduler=args.scheduler,
                                   n_workers=args.workers, keep_recordings=args.keep_recordings,
-                                  retry_failed=args.retry_failed, progress=not args.no_progress)
+                                  retry_failed=args.retry_failed, progress=not args.no_progress,
+                                  overwrite=args.overwrite)
     print(summary.text())
     return 0 if summary.n_failed == 0 else 1

@@ -24,6 +24,9 @@ def register(sub) -> None:
                    help="smaller inputs and fewer repeats (under 2 minutes, for CI smoke runs)")
     p.add_argument("--only", nargs="+", choices=SECTION_NAMES, metavar="SECTION",
                    help=f"run only these sections ({', '.join(SECTION_NAMES)})")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace bench.md and bench.json in an existing non-empty DIR (other "
+                        "files are left alone); without it such a DIR is refused (exit 2)")
     p.set_defaults(func=run)
 
 
@@ -32,6 +35,7 @@ def run(args) -> int:
 
     from validation.bench import run_bench
 
-    rows, meta = run_bench(args.out, quick=args.quick, sections=args.only)
+    rows, meta = run_bench(args.out, quick=args.quick, sections=args.only,
+                           overwrite=args.overwrite)
     print((Path(args.out) / "bench.md").read_text())
     return 0

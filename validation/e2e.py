@@ -63,15 +63,41 @@ def _timer(timings: dict, stage: str):
 def run_case(case: Case | dict, *, recording: str | Path | None = None,
              keep_recording: bool = False, report_dir: str | Path | None = None,
              render_workers: int | None = None, render_threads: int | None = None,
-             progress: bool = False) -> CaseResult:
+             progress: bool = False, overwrite: bool = False) -> CaseResult:
     """Run one case end to end and return its metrics, per-stage timings and arrays.
 
     ``recording``: where to write the rendered recording (kept); otherwise it goes to a
     temporary directory, removed at the end unless ``keep_recording`` (then it is kept as
     ``report_dir/recording.zarr``). ``report_dir``: also write the report there
-    (:mod:`validation.report`). ``render_workers``/``render_threads``: rendering
-    processes (synth's default: up to 2) and llvmpipe threads each; a sweep worker uses 1/1.
+    (:mod:`validation.report`): an existing non-empty folder is refused unless ``overwrite``,
+    which replaces the report's own files only (:mod:`rollfric.outputs`); the report is written
+    to a hidden folder first and moved in when complete. ``render_workers``/
+    ``render_threads``: rendering processes (synth's default: up to 2) and llvmpipe threads
+    each; a sweep worker uses 1/1.
     """
+    from rollfric.outputs import check_folder, staged_folder
+    from validation.report import OUTPUTS
+
+    if keep_recording and recording is None and report_dir is None:
+        raise ValueError("keep_recording needs report_dir (or recording=PATH)")
+    if report_dir is None:
+        return _run_case(case, recording, None, render_workers, render_threads, progress)
+    check_folder(report_dir, OUTPUTS, overwrite=overwrite, command="validate")
+    if isinstance(case, dict):
+        case = case_from_dict(case)
+    with staged_folder(report_dir, OUTPUTS, overwrite=overwrite, command="validate") as tmp:
+        rec = recording
+        if rec is None and keep_recording:
+            rec = tmp / "recording.zarr"
+        result = _run_case(case, rec, tmp, render_workers, render_threads, progress)
+    if result.recording is not None and Path(result.recording).parent == tmp:
+        result = dataclasses.replace(result,
+                                     recording=Path(report_dir) / Path(result.recording).name)
+    return result
+
+
+def _run_case(case, recording, report_tmp, render_workers, render_threads,
+              progress) -> CaseResult:
     import sim
     import synth
     from rollfric.fit import fit_mu
@@ -89,10 +115,6 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
     tmpdir = None
     if recording is not None:
         rec_path = Path(recording)
-    elif keep_recording:
-        if report_dir is None:
-            raise ValueError("keep_recording needs report_dir (or recording=PATH)")
-        rec_path = Path(report_dir) / "recording.zarr"
     else:
         tmpdir = Path(tempfile.mkdtemp(prefix="rollfric-case-"))
         rec_path = tmpdir / "recording.zarr"
@@ -121,10 +143,10 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
         result = CaseResult(case=case, metrics=metrics, timings=dict(timings), trajectory=traj,
                             truth=truth, track=track, fit=fit, fit_truth=fit_truth, setup=setup,
                             setup_dict=setup_dict, recording=rec_path)
-        if report_dir is not None:
+        if report_tmp is not None:
             from validation.report import write_report
 
-            write_report(result, report_dir)  # while the recording exists (overlay frames)
+            write_report(result, report_tmp)  # while the recording exists (overlay frames)
     finally:
         if tmpdir is not None:
             shutil.rmtree(tmpdir, ignore_errors=True)

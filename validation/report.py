@@ -26,6 +26,13 @@ from matplotlib.patches import Circle
 from rollfric.atomic import replacing, write_text
 from rollfric.fit import json_safe  # noqa: F401  (validation.cli prints with it)
 
+# everything a report folder may hold from validate (rollfric.outputs: --overwrite replaces or
+# removes only these names; recording.zarr with --keep-recording)
+OUTPUTS = {name: "file" for name in (
+    "metrics.json", "case.toml", "setup.toml", "fit.json", "fit_truth.json", "frames.csv",
+    "angle_vs_model.png", "center_error_hist.png", "center_error_vs_time.png", "overlays.png")}
+OUTPUTS["recording.zarr"] = "folder"
+
 
 def _savefig(fig, path: Path) -> None:
     with replacing(path) as tmp:

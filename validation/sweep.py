@@ -33,6 +33,7 @@ kills workers repeatedly.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib.resources
 import itertools
@@ -310,6 +311,81 @@ def _write_recordings_index(out: Path, spec: SweepSpec, df) -> None:
             pd.DataFrame(rows).to_csv(tmp, index=False)
 
 
+# -- the output folder ------------------------------------------------------------------------
+
+# what a sweep writes into OUT (rollfric.outputs: --overwrite replaces only these)
+OUTPUTS = {"parts": "folder", "plots": "folder", "recordings": "folder", "sweep.toml": "file",
+           "results.parquet": "file", "results.csv": "file", "summary.md": "file"}
+
+
+def _previous_name(out: Path) -> str | None:
+    """The name of the sweep whose results OUT holds (sweep.toml, else a part), if known."""
+    try:
+        data = tomllib.loads((out / "sweep.toml").read_text(encoding="utf-8"))
+        name = data.get("sweep", {}).get("name")
+        if isinstance(name, str):
+            return name
+    except (OSError, ValueError):
+        pass
+    import pandas as pd
+
+    for p in sorted((out / "parts").glob("*.parquet"))[:1]:
+        try:
+            row = pd.read_parquet(p).iloc[0]
+            return json.loads(row["case_json"]).get("name")
+        except Exception:  # an unreadable part says nothing about the name
+            return None
+    return None
+
+
+def check_out(out: str | Path, spec: SweepSpec, *, overwrite: bool = False) -> str:
+    """What running ``spec`` into OUT means, checked before any work: ``"new"`` (absent or
+    empty), ``"resume"`` (OUT holds this sweep's results: the cases not done yet are run),
+    ``"fresh"`` (``overwrite``: the sweep's own outputs in OUT are removed first, other files
+    stay). Refused (SweepError, exit 2): a file; a folder holding another sweep's results or
+    anything else, without ``overwrite``."""
+    from rollfric.atomic import is_leftover
+    from rollfric.outputs import check_folder
+
+    out = Path(out)
+    check_folder(out, OUTPUTS, overwrite=True, command="sweep")  # kinds, permissions
+    if not out.is_dir() or all(is_leftover(p) for p in out.iterdir()):
+        return "new"
+    if overwrite:
+        return "fresh"
+    if (out / "parts").is_dir() or (out / "sweep.toml").is_file():
+        prev = _previous_name(out)
+        if prev is not None and prev != spec.name:
+            raise SweepError(f"--out {out} holds the results of sweep {prev!r}, not "
+                             f"{spec.name!r}: give another folder, or --overwrite to start "
+                             "afresh there")
+        return "resume"
+    raise SweepError(f"--out {out} exists and is not empty (and holds no sweep results); "
+                     "--overwrite writes the sweep's own files there and leaves the others alone")
+
+
+def _remove_own_outputs(out: Path) -> None:
+    """Start afresh: remove the sweep's own outputs from OUT (parts, tables, summary, plots,
+    recordings, sweep.toml); files that are not the sweep's stay."""
+    import re
+
+    from rollfric.atomic import _remove
+
+    own_part = re.compile(r"^[0-9a-f]{12}\.(parquet|zarr)$")
+    for sub, keep_names in (("parts", ()), ("recordings", ("index.csv",)), ("plots", ())):
+        d = out / sub
+        if not d.is_dir():
+            continue
+        for p in d.iterdir():
+            if own_part.match(p.name) or p.name in keep_names \
+                    or (sub == "plots" and p.suffix == ".png"):
+                _remove(p)
+        with contextlib.suppress(OSError):
+            d.rmdir()  # only if empty
+    for name in ("sweep.toml", "results.parquet", "results.csv", "summary.md"):
+        _remove(out / name)
+
+
 # -- the sweep --------------------------------------------------------------------------------
 
 @dataclasses.dataclass
@@ -348,24 +424,32 @@ def _start_client(scheduler: str | None, n_workers: int):
 
 def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
               n_workers: int = 2, keep_recordings: bool = False, retry_failed: bool = False,
-              progress: bool = True, case_fn=None, client=None) -> SweepSummary:
+              progress: bool = True, case_fn=None, client=None,
+              overwrite: bool = False) -> SweepSummary:
     """Run the sweep's cases not yet in OUT/parts on Dask; rebuild the table; plot.
 
     ``case_fn(case_dict) -> metrics dict`` replaces the end-to-end case (for cheap sweeps
     and tests); ``client``: an existing ``distributed.Client`` to use (else ``scheduler``,
-    else a local cluster of ``n_workers`` processes, one thread each).
+    else a local cluster of ``n_workers`` processes, one thread each). OUT is checked first
+    (:func:`check_out`): a folder of this sweep is resumed; ``overwrite`` starts afresh.
     """
     import pandas as pd
     from distributed import as_completed
     from tqdm import tqdm
 
+    from rollfric.atomic import remove_leftovers
+
     t0 = time.perf_counter()
     out = Path(out)
+    if check_out(out, spec, overwrite=overwrite) == "fresh":
+        _remove_own_outputs(out)
     out.mkdir(parents=True, exist_ok=True)
     parts_dir = out / "parts"
     parts_dir.mkdir(exist_ok=True)
+    for d in (out, parts_dir, out / "plots", out / "recordings"):
+        remove_leftovers(d)
     if spec.text:
-        (out / "sweep.toml").write_text(spec.text)
+        write_text(out / "sweep.toml", spec.text)
     done = read_parts(out, {c.case_id for c in spec.cases})
     status = dict(zip(done["case_id"], done["status"], strict=True)) if len(done) else {}
     todo = [c for c in spec.cases

@@ -1,0 +1,171 @@
+"""Where a command writes: nothing of the user's is deleted or mixed with new results.
+
+Every command checks its destinations before it does any work (exit status 2 and nothing
+written when one is refused):
+
+- a destination that exists is refused unless the user said ``--overwrite``;
+- a file is never written where a folder is, nor a folder where a file is, even with
+  ``--overwrite``; a destination under a regular file, or in a folder that cannot be written, is
+  refused with a message naming it;
+- an output *folder* (``measure --out DIR``, ``validate``, ``bench``, ``render --export``) may
+  hold other files: ``--overwrite`` replaces the command's own outputs (a known list of names)
+  and removes those of its own outputs it did not write this time (an old ``fit.png`` does not
+  stay beside a new ``track.csv``), and leaves every other file alone;
+- the outputs go to a hidden temporary folder first and are moved in only when all are written;
+  temporary paths of killed runs are removed by the next run (:mod:`rollfric.atomic`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterable, Iterator, Mapping
+from pathlib import Path
+
+from rollfric.atomic import _remove, install, is_leftover, remove_leftovers, temp_path
+from rollfric.errors import InputError
+
+FILE = "file"
+FOLDER = "folder"
+
+
+class OutputError(InputError):
+    """A destination that the command will not write (exists, wrong kind, not writable)."""
+
+
+def _existing_ancestor(path: Path, what: str) -> Path:
+    """The nearest existing ancestor of ``path``; OutputError if it is not a writable folder."""
+    anc = path.parent
+    while not anc.exists() and anc != anc.parent:
+        if anc.is_symlink():  # a dangling link: mkdir would fail
+            raise OutputError(f"{what} {path}: {anc} is a broken link")
+        anc = anc.parent
+    if not anc.is_dir():
+        raise OutputError(f"{what} {path}: {anc} is a file, not a folder")
+    if not os.access(anc, os.W_OK | os.X_OK):
+        raise OutputError(f"{what} {path}: cannot write in {anc} (permission denied)")
+    return anc
+
+
+def check_file(path: str | Path, *, overwrite: bool, what: str = "--out") -> Path:
+    """Refuse (OutputError) to write the file ``path`` when a folder is there, when it exists
+    and ``overwrite`` is false, or when its folder cannot be made or written."""
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"{what} {path} is a folder (this output is a file; a folder is "
+                          "never replaced by a file)")
+    if path.exists() or path.is_symlink():
+        if not overwrite:
+            raise OutputError(f"{what} {path} exists (--overwrite replaces it)")
+        if not os.access(path.parent, os.W_OK | os.X_OK):
+            raise OutputError(f"{what} {path}: cannot write in {path.parent} "
+                              "(permission denied)")
+        return path
+    _existing_ancestor(path, what)
+    return path
+
+
+def _entries(folder: Path) -> list[Path]:
+    """The folder's entries, without the temporary paths of killed runs."""
+    return [p for p in folder.iterdir() if not (p.name.startswith(".") and is_leftover(p))]
+
+
+def check_folder(path: str | Path, own: Mapping[str, str], *, overwrite: bool,
+                 what: str = "--out", command: str = "the command") -> Path:
+    """Refuse (OutputError) to write the output folder ``path`` when it is a file, when it
+    exists and holds anything and ``overwrite`` is false, when one of the command's ``own``
+    names (name -> ``FILE`` or ``FOLDER``) is there as the other kind, or when it cannot be
+    written. An existing empty folder is used as it is."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"{what} {path} is a file (this output is a folder; a file is never "
+                          "replaced by a folder)")
+    if not path.exists():
+        _existing_ancestor(path, what)
+        return path
+    try:
+        entries = _entries(path)
+    except PermissionError:
+        raise OutputError(f"{what} {path}: cannot read the folder (permission denied)") from None
+    if entries and not overwrite:
+        raise OutputError(f"{what} {path} exists and is not empty (--overwrite replaces "
+                          f"{command}'s own files in it and leaves the others alone)")
+    for name, kind in own.items():
+        p = path / name
+        if kind == FILE and p.is_dir():
+            raise OutputError(f"{what}: {p} is a folder where {command} writes a file: "
+                              "not replaced")
+        if kind == FOLDER and p.exists() and not p.is_dir():
+            raise OutputError(f"{what}: {p} is a file where {command} writes a folder: "
+                              "not replaced")
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise OutputError(f"{what} {path}: cannot write in the folder (permission denied)")
+    return path
+
+
+def check_distinct(paths: Iterable[str | Path], what: str = "outputs") -> None:
+    """OutputError if two of ``paths`` are the same file (e.g. an output named like an input
+    or like another output of the same command)."""
+    seen: dict[Path, Path] = {}
+    for p in paths:
+        key = Path(os.path.abspath(p))
+        if key in seen:
+            raise OutputError(f"{what}: {seen[key]} and {p} are the same path")
+        seen[key] = Path(p)
+
+
+def check_not_input(out: str | Path, inputs: Iterable[str | Path | None],
+                    what: str = "--out") -> None:
+    """OutputError if ``out`` is one of the ``inputs`` (the same path or the same file)."""
+    o = Path(os.path.abspath(out))
+    for i in inputs:
+        if i is None:
+            continue
+        same = Path(os.path.abspath(i)) == o
+        if not same:
+            with contextlib.suppress(OSError):
+                same = o.exists() and os.path.samefile(o, i)
+        if same:
+            raise OutputError(f"{what} {out} is an input of the command ({i})")
+
+
+def remove_stale(folder: str | Path, names: Iterable[str]) -> list[Path]:
+    """Remove ``names`` (the command's own outputs not written this time) from ``folder``."""
+    removed = []
+    for name in names:
+        p = Path(folder) / name
+        if p.exists() or p.is_symlink():
+            _remove(p)
+            removed.append(p)
+    return removed
+
+
+@contextlib.contextmanager
+def staged_folder(out: str | Path, own: Mapping[str, str], *, overwrite: bool,
+                  what: str = "--out", command: str = "the command") -> Iterator[Path]:
+    """Yield an empty hidden folder beside ``out``; write the outputs there. When the block
+    succeeds they are moved into ``out`` (created if needed): each replaces the same name, and
+    the ``own`` names not written this time are removed; other files in ``out`` stay. On an
+    error nothing in ``out`` changes. Every written name must be one of ``own``."""
+    out = Path(out)
+    check_folder(out, own, overwrite=overwrite, what=what, command=command)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    remove_leftovers(out.parent)
+    tmp = temp_path(out)
+    _remove(tmp)
+    tmp.mkdir()
+    try:
+        yield tmp
+        written = sorted(p.name for p in tmp.iterdir())
+        unknown = [n for n in written if n not in own]
+        if unknown:
+            raise RuntimeError(f"{command} wrote {unknown}, not among its own output names")
+        # again: the folder may have changed while the command ran
+        check_folder(out, own, overwrite=overwrite, what=what, command=command)
+        out.mkdir(exist_ok=True)
+        remove_leftovers(out)
+        for name in written:
+            install(tmp / name, out / name, folder_ok=True)
+        remove_stale(out, [n for n in own if n not in written])
+    finally:
+        _remove(tmp)
