@@ -44,9 +44,15 @@ def sample(source, max_frames: int = 41) -> tuple[np.ndarray, np.ndarray]:
     stack : numpy.ndarray
         The sampled frames, shape (k, H, W), the recording's dtype.
     """
+    from rollfric.limits import check_memory
+
     n = len(source)
     k = min(n, max(3, int(max_frames)))
     idx = np.unique(np.linspace(0, n - 1, k).round().astype(int))
+    h, w = source.shape[1:]
+    # the stack, its median and the repair's pixel grids
+    check_memory(len(idx) * h * w * np.dtype(source.dtype).itemsize + 4 * 8 * h * w,
+                 f"the median background of {len(idx)} frames of {w} x {h} px")
     stack = np.empty((len(idx),) + tuple(source.shape[1:]), dtype=source.dtype)
     for j, i in enumerate(idx):
         stack[j] = source[int(i)]

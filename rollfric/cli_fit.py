@@ -51,7 +51,10 @@ def read_track(path):
         df = pd.read_csv(path)
     except FileNotFoundError:
         raise InputError(f"track file not found: {path}") from None
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+    except IsADirectoryError:
+        raise InputError(f"track file {path} is a directory") from None
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError,
+            ValueError) as exc:
         raise InputError(f"{path}: not a readable CSV file: {exc}") from None
     missing = [c for c in ("t_s", "theta_rad") if c not in df.columns]
     if missing:
@@ -62,6 +65,40 @@ def read_track(path):
         theta = pd.to_numeric(df["theta_rad"], errors="raise").to_numpy(float)
     except (ValueError, TypeError) as exc:
         raise InputError(f"{path}: non-numeric value in t_s or theta_rad: {exc}") from None
+    return check_track(t, theta, path)
+
+
+def check_track(t, theta, path, fps: float | None = None):
+    """(t, theta) if they can be an angle series; InputError naming the file otherwise.
+
+    Every row needs a finite time, and the times must increase; theta may be empty (NaN: no
+    ball found) but a value must be finite and an angle in radians (|theta| <= pi); with the
+    setup's ``fps``, the span of the times may not hold more than the sample limit
+    (:data:`rollfric.limits.MAX_SAMPLES`).
+    """
+    import math
+
+    import numpy as np
+
+    from rollfric.errors import InputError
+    from rollfric.limits import MAX_SAMPLES
+
+    bad = ~np.isfinite(t)
+    if bad.any():
+        raise InputError(f"{path}: t_s is empty or not finite in {int(bad.sum())} row(s), the "
+                         f"first data row {int(np.argmax(bad)) + 1}")
+    if t.size > 1 and not np.all(np.diff(t) > 0):
+        i = int(np.argmax(~(np.diff(t) > 0)))
+        raise InputError(f"{path}: the times t_s do not increase (data rows {i + 1} and "
+                         f"{i + 2}: {t[i]:g}, {t[i + 1]:g})")
+    big = np.isinf(theta) | (np.abs(np.nan_to_num(theta)) > math.pi)
+    if big.any():
+        i = int(np.argmax(big))
+        raise InputError(f"{path}: theta_rad = {theta[i]:g} in data row {i + 1} is not an angle "
+                         "in radians (|theta| <= pi; degrees by mistake?)")
+    if fps is not None and t.size > 1 and (t[-1] - t[0]) * fps > MAX_SAMPLES:
+        raise InputError(f"{path}: the times span {t[-1] - t[0]:g} s, {(t[-1] - t[0]) * fps:.3g} "
+                         f"frames at {fps:g} Hz: more than the limit of {MAX_SAMPLES:,} samples")
     return t, theta
 
 
@@ -101,7 +138,7 @@ def _run(args) -> int:
     out, png, budget_png = check_outputs(args.out, plot=args.plot, overwrite=args.overwrite,
                                          inputs=(args.track, args.setup))
     setup = load_setup(args.setup)
-    t, theta = read_track(args.track)
+    t, theta = check_track(*read_track(args.track), args.track, fps=setup.fps)
     kw = {"model": args.model} if args.method == "lsq" else {}
     result = fit_mu(t, theta, setup, method=args.method, offset=args.offset, **kw)
     keys, budget = run_budget(Measurement(setup=setup, t=t, theta=theta), result, args)

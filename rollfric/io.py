@@ -71,13 +71,26 @@ class TiffSource(_Source):
             shape = tuple(first.shape)
         except Exception as exc:  # tifffile raises several types for broken files
             raise RecordingError(f"{path}: not a readable TIFF file ({exc})") from None
+        colour = len(shape) == 3 and shape[-1] in (3, 4)
+        if not (len(shape) == 2 or colour or (n == 1 and len(shape) == 3)) \
+                or not all(isinstance(v, int) and v > 0 for v in shape):
+            raise RecordingError(f"{path}: the first page holds an array of shape {shape}, not "
+                                 "an image (corrupt file?)")
         self._stack = None
-        if n == 1 and len(shape) == 3 and shape[-1] not in (3, 4):
+        if n == 1 and len(shape) == 3 and not colour:
             # one page holding a whole (T, H, W) stack: memory-map it if possible
             try:
                 self._stack = self._tif.asarray(out="memmap")
             except Exception:
-                self._stack = self._tif.asarray()
+                from rollfric.limits import check_memory
+
+                check_memory(math.prod(shape) * np.dtype(first.dtype).itemsize,
+                             f"{path}: its one compressed page of {shape} pixels")
+                try:
+                    self._stack = self._tif.asarray()
+                except Exception as exc:  # tifffile raises several types for broken files
+                    raise RecordingError(f"{path}: cannot read the stack (truncated or corrupt "
+                                         f"file? {exc})") from None
             n, hw = self._stack.shape[0], self._stack.shape[1:]
         else:
             hw = shape[:2]
@@ -113,6 +126,9 @@ class TiffSource(_Source):
         h, w = self.shape[1:]
         dt = self.dtype.newbyteorder(self._tif.byteorder)
         off = int(page.dataoffsets[0])
+        if off < 0 or off + h * w * dt.itemsize > self._mmap.size:
+            raise RecordingError(f"{self.name}: cannot read frame {i}: its data lies beyond the "
+                                 f"end of the file (truncated or corrupt file?)")
         img = self._mmap[off:off + h * w * dt.itemsize].view(dt).reshape(h, w)
         return np.ascontiguousarray(img[y0:y1, x0:x1], dtype=self.dtype)
 

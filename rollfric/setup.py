@@ -38,6 +38,49 @@ class SetupError(InputError):
     """A setup file or value that cannot describe a real trough, ball and camera."""
 
 
+# The range of each quantity (SI) that a real trough, ball and camera can have: generous, but a
+# value outside it is a typing or unit mistake (1e300 for the gravity, fps in kHz, ...) that
+# would only overflow the fit. sim's scenarios use the same ranges.
+PLAUSIBLE = {  # name -> (lowest, highest, SI unit)
+    "cylinder_radius": (1e-4, 100.0, "m"),
+    "ball_diameter": (1e-6, 100.0, "m"),
+    "ball_mass": (1e-12, 1e6, "kg"),
+    "fps": (1e-3, 1e8, "Hz"),
+    "pixel_size": (1e-9, 1.0, "m"),
+    "gravity": (0.01, 1000.0, "m/s^2"),  # the Moon's 1.62, Jupiter's 24.8
+}
+
+
+def check_plausible(name: str, value: float, error: type[InputError] = InputError,
+                    label: str | None = None, scale: float = 1.0, unit: str | None = None
+                    ) -> float:
+    """``value`` if it lies in the plausible range of ``name`` (:data:`PLAUSIBLE`, SI).
+
+    Parameters
+    ----------
+    name : str
+        The quantity (a key of :data:`PLAUSIBLE`).
+    value : float
+        Its value in SI units.
+    error : type
+        The InputError subclass raised when the value is outside the range.
+    label, scale, unit : str, float, str
+        How the message names the quantity, and the factor and unit it is shown in (default:
+        ``name`` in SI units).
+
+    Returns
+    -------
+    float
+        ``value``.
+    """
+    lo, hi, si = PLAUSIBLE[name]
+    if not lo <= value <= hi:
+        u = si if unit is None else unit
+        raise error(f"{label or name} = {value * scale:g} {u} is outside the plausible range "
+                    f"{lo * scale:g}..{hi * scale:g} {u}")
+    return value
+
+
 @dataclasses.dataclass(frozen=True)
 class Setup:
     """Geometry and camera of one measurement, in SI units.
@@ -87,6 +130,7 @@ class Setup:
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
                 raise SetupError(f"{name} must be a positive number, got {value!r}")
+            check_plausible(name, value, SetupError)
         if self.ball_diameter >= 2 * self.cylinder_radius:
             raise SetupError(
                 f"ball_diameter ({self.ball_diameter * 1e3:g} mm) must be smaller than the "
@@ -256,12 +300,22 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
             if required and key not in table:
                 raise SetupError(f"{source}: missing key {section}.{key}")
 
+    # key -> (Setup field, factor lab unit -> SI, lab unit)
+    fields = {"radius_mm": ("cylinder_radius", 1e-3, "mm"),
+              "diameter_mm": ("ball_diameter", 1e-3, "mm"), "mass_g": ("ball_mass", 1e-3, "g"),
+              "fps": ("fps", 1.0, "Hz"), "pixel_size_mm": ("pixel_size", 1e-3, "mm"),
+              "gravity_m_s2": ("gravity", 1.0, "m/s^2")}
+
     def number(section: str, key: str) -> float:
         value = data[section][key]
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise SetupError(f"{source}: {section}.{key} must be a number, got {value!r}")
         if not math.isfinite(value) or value <= 0:
             raise SetupError(f"{source}: {section}.{key} must be positive, got {value!r}")
+        if key in fields:
+            field, factor, unit = fields[key]
+            check_plausible(field, float(value) * factor, SetupError,
+                            f"{source}: {section}.{key}", 1.0 / factor, unit)
         return float(value)
 
     center = data["cylinder"].get("center_px")

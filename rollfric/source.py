@@ -136,12 +136,18 @@ class BaseSource:
     background: np.ndarray | None = None
 
     def __init__(self, name: str, n: int, hw: tuple[int, int], dtype) -> None:
+        from rollfric.limits import MAX_FRAME_PIXELS
+
         self.name = name
         self.shape = (int(n), int(hw[0]), int(hw[1]))
         self.dtype = np.dtype(dtype)
         self.attrs: dict = {}
         if n == 0:
             raise RecordingError(f"{name}: the recording holds no frames")
+        h, w = self.shape[1:]
+        if h < 1 or w < 1 or h * w > MAX_FRAME_PIXELS:
+            raise RecordingError(f"{name}: frames of {w} x {h} px (corrupt header?): a frame "
+                                 f"must hold 1..{MAX_FRAME_PIXELS:,} pixels")
 
     def __len__(self) -> int:
         return self.shape[0]

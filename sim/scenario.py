@@ -33,7 +33,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from rollfric.setup import THESIS_BALLS, THESIS_TROUGH_RADIUS, Setup
+from rollfric.limits import MAX_SAMPLES
+from rollfric.setup import PLAUSIBLE, THESIS_BALLS, THESIS_TROUGH_RADIUS, Setup, check_plausible
 from rollfric.tomlfile import read_toml
 from sim.engines import ENGINES
 from sim.errors import ScenarioError
@@ -80,6 +81,8 @@ class Scenario:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
                     or v <= 0:
                 raise ScenarioError(f"{name} must be a positive number, got {v!r}")
+            if name in PLAUSIBLE:
+                check_plausible(name, float(v), ScenarioError)
             object.__setattr__(self, name, float(v))
         for name in ("mu", "theta0", "theta_dot0"):
             v = getattr(self, name)
@@ -96,6 +99,20 @@ class Scenario:
             raise ScenarioError(
                 f"theta0 ({math.degrees(self.theta0):g} deg) is beyond +-{MAX_THETA0_DEG:g} deg: "
                 "the ball would leave the trough wall or slip")
+        # energy of rolling without slipping, (7/10) m (L theta')^2 = m g L (cos th - cos th0):
+        # the highest angle the release speed reaches without friction
+        try:
+            cos_max = math.cos(self.theta0) - 0.7 * self.track_radius * self.theta_dot0 ** 2 \
+                / self.gravity
+        except OverflowError:
+            cos_max = -math.inf
+        if cos_max < math.cos(math.radians(MAX_THETA0_DEG)):
+            reach = "over the top" if cos_max < -1 else \
+                f"to {math.degrees(math.acos(cos_max)):.4g} deg"
+            raise ScenarioError(
+                f"theta_dot0 ({math.degrees(self.theta_dot0):g} deg/s) at theta0 "
+                f"{math.degrees(self.theta0):g} deg would swing the ball {reach}, beyond "
+                f"+-{MAX_THETA0_DEG:g} deg: it would leave the trough wall or slip")
         if self.engine not in ENGINES:
             raise ScenarioError(f"unknown engine {self.engine!r} (known: {', '.join(ENGINES)})")
         if self.surface not in SURFACES[self.engine]:
@@ -121,6 +138,10 @@ class Scenario:
             if isinstance(value, (int, float)) and not isinstance(value, bool) and value <= 0:
                 raise ScenarioError(f"engine option {key} must be positive, got {value!r}")
         object.__setattr__(self, "engine_options", dict(sorted(self.engine_options.items())))
+        n = self.duration * self.fps
+        if n > MAX_SAMPLES:
+            raise ScenarioError(f"duration x fps = {self.duration:g} s x {self.fps:g} Hz = "
+                                f"{n:.4g} samples, more than the limit of {MAX_SAMPLES:,}")
         if self.n_samples < 2:
             raise ScenarioError(f"duration x fps gives {self.n_samples} sample(s): need >= 2")
 

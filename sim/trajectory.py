@@ -121,25 +121,71 @@ def _jsonable(obj):
 
 
 
+# columns that hold a value in every row (the others: NaN where an engine has no value)
+_FINITE_COLUMNS = COLUMNS[:13]
+
+
 def read_trajectory(path: str | Path) -> Trajectory:
-    """Read a trajectory CSV and its JSON sidecar (written by Trajectory.to_csv)."""
+    """Read a trajectory CSV and its JSON sidecar (written by Trajectory.to_csv).
+
+    ScenarioError names the file and the problem: missing, not UTF-8, truncated or
+    non-numeric rows, NaN where a value is needed, times not increasing, a sidecar that is not
+    the JSON object Trajectory.to_csv writes.
+    """
+    from rollfric.limits import MAX_SAMPLES
+    from rollfric.tomlfile import decode_utf8, read_text
+
     path = Path(path)
     side = sidecar_path(path)
     if not path.is_file():
         raise ScenarioError(f"trajectory file not found: {path}")
     if not side.is_file():
         raise ScenarioError(f"trajectory sidecar not found: {side} (written next to the CSV)")
-    info = json.loads(side.read_text())
-    with path.open() as f:
-        header = f.readline().strip().split(",")
+    try:
+        info = json.loads(read_text(side, "trajectory sidecar", ScenarioError))
+    except json.JSONDecodeError as exc:
+        raise ScenarioError(f"{side}: not valid JSON ({exc})") from None
+    if not isinstance(info, dict) or not isinstance(info.get("scenario_si",
+                                                             info.get("scenario")), dict):
+        raise ScenarioError(f"{side}: not a trajectory sidecar (a JSON object with 'scenario' "
+                            "or 'scenario_si', as rollfric simulate writes)")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    lines = decode_utf8(raw, path, ScenarioError).splitlines()
+    header = lines[0].strip().split(",") if lines else []
     if tuple(header) != COLUMNS:
         raise ScenarioError(f"{path}: unexpected columns {header} (expected {list(COLUMNS)})")
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    if "scenario_si" in info:
-        scenario = Scenario.from_dict(info["scenario_si"])
-    else:
-        scenario = scenario_from_dict(info["scenario"], source=str(side))
+    if len(lines) - 1 > MAX_SAMPLES:
+        raise ScenarioError(f"{path}: {len(lines) - 1} rows, more than the limit of "
+                            f"{MAX_SAMPLES:,}")
+    try:
+        data = np.loadtxt(lines[1:], delimiter=",", ndmin=2)
+    except ValueError as exc:
+        raise ScenarioError(f"{path}: not a complete table of numbers (truncated file?): "
+                            f"{exc}") from None
+    if data.shape[0] < 2 or data.shape[1] != len(COLUMNS):
+        raise ScenarioError(f"{path}: {data.shape[0]} row(s) of {data.shape[1]} values; a "
+                            f"trajectory needs >= 2 rows of {len(COLUMNS)}")
+    bad = ~np.isfinite(data[:, :len(_FINITE_COLUMNS)])
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        raise ScenarioError(f"{path}: {int(bad.any(axis=1).sum())} row(s) with NaN or inf "
+                            f"where a value is needed, the first row {int(row) + 1} "
+                            f"({_FINITE_COLUMNS[col]})")
+    if not np.all(np.diff(data[:, 0]) > 0):
+        raise ScenarioError(f"{path}: the times t_s do not increase from row to row")
+    try:
+        if "scenario_si" in info:
+            scenario = Scenario.from_dict(info["scenario_si"])
+        else:
+            scenario = scenario_from_dict(info["scenario"], source=str(side))
+    except TypeError as exc:
+        raise ScenarioError(f"{side}: bad scenario ({exc})") from None
+    meta = info.get("meta", {})
     return Trajectory(t=data[:, 0], theta=data[:, 1], theta_dot=data[:, 2],
                       position=data[:, 3:6], quaternion=data[:, 6:10],
                       angular_velocity=data[:, 10:13], normal_force=data[:, 13],
-                      slip_speed=data[:, 14], scenario=scenario, meta=info.get("meta", {}))
+                      slip_speed=data[:, 14], scenario=scenario,
+                      meta=meta if isinstance(meta, dict) else {})

@@ -17,6 +17,9 @@ class SynthError(InputError):
     """A synthetic-recording input that cannot be rendered (the message names it)."""
 
 
+MAX_LAMP_DISTANCE = 100.0  # m: a lamp further away from the trough is no lamp of a lab
+
+
 @dataclasses.dataclass(frozen=True)
 class Lamp:
     """A spot lamp: position and aim point in the world frame (m), intensity (pyrender candela),
@@ -31,9 +34,13 @@ class Lamp:
     def __post_init__(self) -> None:
         for name in ("position", "target"):
             v = tuple(float(x) for x in getattr(self, name))
-            if len(v) != 3 or not all(math.isfinite(x) for x in v):
-                raise SynthError(f"lamp {name} must be three finite numbers (m)")
+            if len(v) != 3 or not all(math.isfinite(x) and abs(x) <= MAX_LAMP_DISTANCE
+                                      for x in v):
+                raise SynthError(f"lamp {name} must be three numbers within "
+                                 f"+-{MAX_LAMP_DISTANCE:g} m, got {v}")
             object.__setattr__(self, name, v)
+        if math.dist(self.position, self.target) < 1e-6:
+            raise SynthError("a lamp's target must differ from its position")
         if not (self.intensity >= 0 and math.isfinite(self.intensity)):
             raise SynthError(f"lamp intensity must be >= 0, got {self.intensity!r}")
         if not 0 <= self.inner_cone < self.outer_cone <= math.pi / 2:
@@ -116,6 +123,18 @@ class SceneConfig:
             raise SynthError("trough_opening must be in (0, pi]")
         if self.backdrop_distance <= self.trough_length / 2:
             raise SynthError("backdrop_distance must exceed half the trough length")
+        # the scene, from the trough's front face to the backdrop, must lie between the
+        # camera's clip planes (the camera sits at z = working_distance in both projections)
+        cam = self.camera
+        lo = cam.znear + self.trough_length / 2
+        hi = cam.zfar - self.backdrop_distance
+        if not lo <= cam.working_distance <= hi:
+            raise SynthError(
+                f"camera working_distance {cam.working_distance * 1e3:g} mm: the camera must "
+                f"be {lo * 1e3:g}..{hi * 1e3:g} mm from the ball plane (the trough reaches "
+                f"{self.trough_length * 500:g} mm towards it, the backdrop is "
+                f"{self.backdrop_distance * 1e3:g} mm behind, the clip planes are "
+                f"{cam.znear * 1e3:g}..{cam.zfar * 1e3:g} mm from it)")
 
     def replace(self, **changes) -> SceneConfig:
         """A copy with some fields changed.

@@ -26,13 +26,18 @@ def load_trajectory(source):
     import sim
 
     if isinstance(source, sim.Trajectory):
-        return source
-    path = Path(source)
-    if not path.exists():
-        raise SynthError(f"trajectory not found: {path}")
-    if path.suffix.lower() == ".toml":
-        return sim.simulate(sim.load_scenario(path))
-    return sim.read_trajectory(path)
+        traj = source
+    else:
+        path = Path(source)
+        if not path.exists():
+            raise SynthError(f"trajectory not found: {path}")
+        if path.suffix.lower() == ".toml":
+            return sim.simulate(sim.load_scenario(path))
+        traj = sim.read_trajectory(path)
+    for name in ("t", "theta", "theta_dot", "position"):
+        if not np.all(np.isfinite(getattr(traj, name))):
+            raise SynthError(f"the trajectory has NaN or inf in {name}: it cannot be rendered")
+    return traj
 
 
 def subframe_positions(traj, n_sub: int, exposure: float) -> np.ndarray:

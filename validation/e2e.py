@@ -33,6 +33,21 @@ from validation.case import Case, case_from_dict
 
 STAGES = ("simulate", "fit_truth", "render", "measure", "metrics")
 
+# every metric a case reports (run_case; sim_only_case reports a subset): what a sweep's
+# ``metrics`` may name
+METRICS = frozenset((
+    "case_id", "name", "mu_true", "mu_recovered", "mu_stderr", "mu_bias", "mu_bias_rel",
+    "mu_engine", "mu_engine_stderr", "mu_engine_bias_rel", "mu_pipeline_bias_rel",
+    "mu_true_within_stderr", "mu_true_within_2stderr", "mu_engine_within_stderr", "mu_z",
+    "fit_rms_residual_rad", "fit_relative_error", "fit_method", "locator", "engine", "surface",
+    "residual_lag1_autocorr", "mu_stderr_ar1", "mu_true_within_stderr_ar1", "found_fraction",
+    "n_found", "center_rms_px", "center_max_px", "center_p95_px", "center_median_px",
+    "center_bias_x_px", "center_bias_y_px", "center_std_x_px", "center_std_y_px",
+    "center_within_1px", "theta_rms_rad", "theta_max_rad", "theta_bias_rad",
+    "model_vs_truth_rms_rad", "ball_radius_px", "amplitude0_deg", "n_frames",
+    "frame_width_px", "frame_height_px", "render_fps",
+    *(f"t_{stage}_s" for stage in (*STAGES, "total"))))
+
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class CaseResult:

@@ -113,8 +113,10 @@ def _find_sweep(path_or_name: str | Path) -> Path:
 
 def load_sweep(path_or_name: str | Path) -> SweepSpec:
     """Read a sweep file (or a shipped study by name) and expand its cases."""
+    from rollfric.tomlfile import read_text
+
     path = _find_sweep(path_or_name)
-    text = path.read_text()
+    text = read_text(path, "sweep", SweepError)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -132,6 +134,16 @@ def _flatten_keys(table: dict, prefix: str = "") -> dict:
         else:
             out[key] = v
     return out
+
+
+def _check_count(n: int, source: str) -> None:
+    """SweepError when a sweep would hold more than MAX_CASES cases (checked before they are
+    made: a typo of seeds = 100000000 must not fill the memory, even for --dry-run)."""
+    from rollfric.limits import MAX_CASES
+
+    if n > MAX_CASES:
+        raise SweepError(f"{source}: {n:,} cases (grid x seeds), more than the limit of "
+                         f"{MAX_CASES:,}")
 
 
 def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepSpec:
@@ -153,6 +165,14 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
         raise SweepError(f"{source}: sweep.stages must be one of {STAGES}, got {stages!r}")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise SweepError(f"{source}: sweep.seeds must be a positive integer, got {seeds!r}")
+    if isinstance(head.get("metrics"), str) or not all(isinstance(m, str) for m in metrics):
+        raise SweepError(f"{source}: sweep.metrics must be a list of metric names")
+    from validation.e2e import METRICS
+
+    unknown_m = [m for m in metrics if m not in METRICS]
+    if unknown_m:
+        raise SweepError(f"{source}: unknown metric(s) {unknown_m} in sweep.metrics (known: "
+                         f"{', '.join(sorted(METRICS))})")
     base = merge_case(default_case_dict(), data.get("base", {}), f"{source} [base]")
     combos: list[dict] = []
     if mode == "grid":
@@ -162,6 +182,7 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
         for k, v in grid.items():
             if not isinstance(v, list) or not v:
                 raise SweepError(f"{source}: grid.{k} must be a non-empty list of values")
+        _check_count(math.prod(len(v) for v in grid.values()) * seeds, source)
         keys = list(grid)
         combos = [dict(zip(keys, vals, strict=True))
                   for vals in itertools.product(*(grid[k] for k in keys))]
@@ -170,8 +191,10 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
         if "grid" in data:
             raise SweepError(f"{source}: [grid] given but sweep.mode is 'list'")
         cases = data.get("cases", [])
-        if not isinstance(cases, list) or not cases:
+        if not isinstance(cases, list) or not cases \
+                or not all(isinstance(c, dict) for c in cases):
             raise SweepError(f"{source}: mode 'list' needs [[cases]] tables")
+        _check_count(len(cases) * seeds, source)
         combos = [_flatten_keys(c) for c in cases]
         swept = list(dict.fromkeys(k for c in combos for k in c))
     if seeds > 1:
@@ -502,17 +525,22 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
     if keep_recordings:
         _write_recordings_index(out, spec, df)
     n_failed_total = int((df["status"] != "ok").sum()) if len(df) else 0
-    plots = plot_sweep(df, spec, out / "plots") if len(df) else []
-    write_summary(df, spec, out, plots)
+    notes = []
+    try:
+        plots = plot_sweep(df, spec, out / "plots") if len(df) else []
+    except Exception as exc:  # the table and the summary are written whatever the plots do
+        plots = []
+        notes.append(f"the plots could not be drawn: {type(exc).__name__}: {exc}")
+    write_summary(df, spec, out, plots, notes=notes)
     _ = pd
     return SweepSummary(out=out, n_cases=len(spec.cases), n_done_before=n_before,
                         n_run=len(todo), n_ok=n_ok, n_failed=n_failed_total,
                         seconds=time.perf_counter() - t0, plots=plots)
 
 
-def write_summary(df, spec: SweepSpec, out: Path, plots: list) -> Path:
+def write_summary(df, spec: SweepSpec, out: Path, plots: list, notes=()) -> Path:
     """OUT/summary.md: what was swept, one line per case (parameters, status, the plotted
-    metrics), and the plots."""
+    metrics), the plots, and ``notes`` (e.g. why a plot is missing)."""
     import math as _m
 
     def fmt(v):
@@ -540,6 +568,9 @@ def write_summary(df, spec: SweepSpec, out: Path, plots: list) -> Path:
     if plots:
         lines += ["", "## plots", ""]
         lines += [f"![{p.stem}](plots/{p.name})" for p in plots]
+    if notes:
+        lines += ["", "## notes", ""]
+        lines += [f"- {n}" for n in notes]
     return write_text(out / "summary.md", "\n".join(lines) + "\n")
 
 
@@ -558,27 +589,31 @@ def plot_sweep(df, spec: SweepSpec, plot_dir: Path) -> list[Path]:
     written = []
     keys = [k for k in spec.swept if k in ok.columns and k != "render.seed"]
 
-    def determines(a, b):  # every value of a comes with one value of b
-        return bool((ok.groupby(a, dropna=False)[b].nunique(dropna=False) <= 1).all())
+    def determines(a, b):  # every value of a comes with one value of b (where both are set)
+        both = ok[ok[a].notna() & ok[b].notna()]
+        return not both.empty and bool((both.groupby(a)[b].nunique() <= 1).all())
 
     plotted: list = []
     for x in keys:
         if any(determines(x, k) and determines(k, x) for k in plotted):
             continue  # co-varies one to one with a key already plotted (a list sweep)
         plotted.append(x)
-        # separate lines only for keys that vary independently of x
-        others = [k for k in keys if k != x and not determines(x, k)]
         metrics = [m for m in spec.metrics if m in ok.columns]
-        if not metrics:
+        # the cases that set x (in a list sweep a case may leave a key at the base's value)
+        sub = ok[ok[x].notna()]
+        # separate lines only for keys that vary among them, independently of x
+        others = [k for k in keys if k != x and not determines(x, k)
+                  and sub[k].nunique(dropna=False) > 1]
+        if not metrics or sub.empty:
             continue
         fig = Figure(figsize=(8, 2.8 * len(metrics) + 0.6))
         axes = fig.subplots(len(metrics), 1, squeeze=False, sharex=True)
-        xs_all = list(dict.fromkeys(ok[x].tolist()))
+        xs_all = list(dict.fromkeys(sub[x].tolist()))
         numeric = all(isinstance(v, (int, float, np.number)) and not isinstance(v, bool)
                       for v in xs_all)
         pos = ({v: float(v) for v in xs_all} if numeric
                else {v: float(i) for i, v in enumerate(xs_all)})
-        groups = ok.groupby(others, dropna=False) if others else [((), ok)]
+        groups = list(sub.groupby(others, dropna=False)) if others else [((), sub)]
         for ax, met in zip(axes[:, 0], metrics, strict=True):
             for gkey, g in groups:
                 agg = g.groupby(x, dropna=False)[met].agg(["mean", "std", "count"])
