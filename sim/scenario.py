@@ -251,6 +251,8 @@ _ENGINE_KEYS = ("name", "surface", "seed", "options")
 
 def scenario_from_dict(data: dict, source: str = "scenario") -> Scenario:
     """Build a Scenario from its TOML form, refusing unknown keys and non-numbers."""
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{source}: must be a table of sections, got {data!r}")
     kwargs: dict[str, Any] = {}
     for section, table in data.items():
         if section not in _SCHEMA and section != "engine":

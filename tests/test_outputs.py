@@ -206,8 +206,8 @@ def _measure(lab, out, *extra):
 def test_measure_never_mixes_old_and_new_outputs(lab, capsys):
     out = lab / "m"
     assert _measure(lab, out, "--plot") == 0
-    assert sorted(p.name for p in out.iterdir()) == ["fit.json", "fit.png", "overlays.png",
-                                                     "track.csv"]
+    assert sorted(p.name for p in out.iterdir()) == ["budget.png", "fit.json", "fit.png",
+                                                     "overlays.png", "track.csv"]
     (out / "notes.txt").write_text("mine")
     before = _snapshot(out)
     # refused before any work (the recording is not even opened)
@@ -349,6 +349,9 @@ def test_validate_report_overwrite_keeps_other_files(tmp_path):
     with pytest.raises(OutputError, match="not empty"):
         e2e.run_case(d, report_dir=out, render_workers=1)
     r = e2e.run_case(d, report_dir=out, render_workers=1, overwrite=True)
+    # every metric a case reports can be named in a sweep file
+    assert [k for k in r.metrics if not e2e.is_metric(k)] == []
+    assert [k for k in e2e.sim_only_case(d) if not e2e.is_metric(k)] == []
     names = sorted(p.name for p in out.iterdir())
     assert "notes.txt" in names and "recording.zarr" not in names
     assert json.loads((out / "fit.json").read_text())["mu"] == pytest.approx(r.fit.mu)

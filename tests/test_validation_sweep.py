@@ -184,3 +184,40 @@ def test_table_holds_this_sweeps_cases_only(tmp_path):
     assert list(df["case_id"]) == [c.case_id for c in spec.cases]
     assert "stale_metric" not in df.columns
     assert len(S.read_parts(tmp_path)) == 3  # nothing deleted
+
+
+def test_list_sweep_with_a_failing_case_still_writes_table_plots_and_summary(client, tmp_path):
+    """A list sweep whose cases set different keys, one case failing: the table, a plot per
+    key and summary.md are written, on the first run and on every rerun."""
+    spec = S.sweep_from_dict({
+        "sweep": {"name": "lst", "mode": "list", "stages": "sim",
+                  "metrics": ["mu_engine_bias_rel"]},
+        "base": {"scenario": {"motion": {"seconds": 0.5}}},
+        "cases": [{"scenario.motion.mu": 0.005}, {"scenario.motion.mu": 0.0},
+                  {"scenario.motion.mu": 0.006}, {"scenario.motion.theta0_deg": 10.0},
+                  {"scenario.motion.theta0_deg": 12.0}]})
+    out = tmp_path / "out"
+    for run in range(2):
+        summary = S.run_sweep(spec, out, client=client, progress=False,
+                              case_fn=functools.partial(_failing_case, 0.0))
+        assert summary.n_run == (5 if run == 0 else 0) and summary.n_failed == 1
+        df = pd.read_csv(out / "results.csv")
+        assert len(df) == 5 and (df["status"] == "failed").sum() == 1
+        assert sorted(p.name for p in (out / "plots").iterdir()) == [
+            "scenario_motion_mu.png", "scenario_motion_theta0_deg.png"]
+        text = (out / "summary.md").read_text()
+        assert "## failed" in text and "no good: mu 0.0" in text and "## notes" not in text
+
+
+def test_overwrite_starts_a_sweep_afresh(client, tmp_path):
+    spec = _mu_spec([0.005, 0.006], name="fresh")
+    out = tmp_path / "out"
+    S.run_sweep(spec, out, client=client, progress=False)
+    (out / "notes.txt").write_text("mine")
+    again = S.run_sweep(spec, out, client=client, progress=False)
+    assert again.n_run == 0  # resumed: nothing to do
+    fresh = S.run_sweep(spec, out, client=client, progress=False, overwrite=True)
+    assert fresh.n_run == 2 and fresh.n_done_before == 0
+    assert (out / "notes.txt").read_text() == "mine"
+    with pytest.raises(S.SweepError, match="holds the results of sweep 'fresh'"):
+        S.run_sweep(_mu_spec([0.005], name="other"), out, client=client, progress=False)

@@ -345,6 +345,8 @@ class Case:
 
 
 def _check_types(table: dict, schema: dict, where: str) -> dict:
+    if not isinstance(table, dict):
+        raise CaseError(f"{where} must be a table, got {table!r}")
     out = {}
     for k, v in table.items():
         if k not in schema:

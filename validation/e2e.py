@@ -34,7 +34,7 @@ from validation.case import Case, case_from_dict
 STAGES = ("simulate", "fit_truth", "render", "measure", "metrics")
 
 # every metric a case reports (run_case; sim_only_case reports a subset): what a sweep's
-# ``metrics`` may name
+# ``metrics`` may name. A new metric is added here (tests check run_case's keys against it).
 METRICS = frozenset((
     "case_id", "name", "mu_true", "mu_recovered", "mu_stderr", "mu_bias", "mu_bias_rel",
     "mu_engine", "mu_engine_stderr", "mu_engine_bias_rel", "mu_pipeline_bias_rel",
@@ -46,7 +46,32 @@ METRICS = frozenset((
     "center_within_1px", "theta_rms_rad", "theta_max_rad", "theta_bias_rad",
     "model_vs_truth_rms_rad", "ball_radius_px", "amplitude0_deg", "n_frames",
     "frame_width_px", "frame_height_px", "render_fps",
-    *(f"t_{stage}_s" for stage in (*STAGES, "total"))))
+    # mode_metrics
+    "mode", "lab_center_measured", "lab_draw", "trough_center_x_px", "trough_center_y_px",
+    "trough_center_err_x_px", "trough_center_err_y_px",
+    # budget_metrics
+    "u_mu", "U_mu", "z_budget", "within_u", "within_U", "u_stat", "z_stat",
+    "budget_top_source", "budget_n_sources"))
+# families of metrics named after a stage or a lab key: t_<stage>_s, asbuilt_/lab_/lab_err_<key>
+METRIC_PATTERNS = (r"t_[a-z_]+_s", r"(asbuilt|lab|lab_err)_[A-Za-z0-9_]+")
+
+
+def is_metric(name: str) -> bool:
+    """True if ``name`` is a metric a case reports (:data:`METRICS`, :data:`METRIC_PATTERNS`).
+
+    Parameters
+    ----------
+    name : str
+        A metric name, e.g. from a sweep file's ``metrics``.
+
+    Returns
+    -------
+    bool
+        Whether a case can report it.
+    """
+    import re
+
+    return name in METRICS or any(re.fullmatch(p, name) for p in METRIC_PATTERNS)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

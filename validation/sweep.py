@@ -150,6 +150,9 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
     unknown = sorted(set(data) - {"sweep", "base", "grid", "cases"})
     if unknown:
         raise SweepError(f"{source}: unknown section(s) {unknown} (sweep, base, grid, cases)")
+    for section in ("sweep", "base", "grid"):
+        if not isinstance(data.get(section, {}), dict):
+            raise SweepError(f"{source}: [{section}] must be a table")
     head = data.get("sweep", {})
     bad = sorted(set(head) - set(SWEEP_KEYS))
     if bad:
@@ -158,21 +161,24 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
     mode = head.get("mode", "grid")
     stages = head.get("stages", "full")
     seeds = head.get("seeds", 1)
-    metrics = tuple(head.get("metrics", DEFAULT_METRICS))
-    if mode not in ("grid", "list"):
+    metrics = head.get("metrics", DEFAULT_METRICS)
+    if not isinstance(name, str) or not isinstance(head.get("description", ""), str):
+        raise SweepError(f"{source}: sweep.name and sweep.description must be strings")
+    if not isinstance(metrics, (list, tuple)) or not all(isinstance(m, str) for m in metrics):
+        raise SweepError(f"{source}: sweep.metrics must be a list of metric names")
+    metrics = tuple(metrics)
+    if not isinstance(mode, str) or mode not in ("grid", "list"):
         raise SweepError(f"{source}: sweep.mode must be 'grid' or 'list', got {mode!r}")
-    if stages not in STAGES:
+    if not isinstance(stages, str) or stages not in STAGES:
         raise SweepError(f"{source}: sweep.stages must be one of {STAGES}, got {stages!r}")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise SweepError(f"{source}: sweep.seeds must be a positive integer, got {seeds!r}")
-    if isinstance(head.get("metrics"), str) or not all(isinstance(m, str) for m in metrics):
-        raise SweepError(f"{source}: sweep.metrics must be a list of metric names")
-    from validation.e2e import METRICS
+    from validation.e2e import METRICS, is_metric
 
-    unknown_m = [m for m in metrics if m not in METRICS]
+    unknown_m = [m for m in metrics if not is_metric(m)]
     if unknown_m:
         raise SweepError(f"{source}: unknown metric(s) {unknown_m} in sweep.metrics (known: "
-                         f"{', '.join(sorted(METRICS))})")
+                         f"{', '.join(sorted(METRICS))}, t_<stage>_s)")
     base = merge_case(default_case_dict(), data.get("base", {}), f"{source} [base]")
     combos: list[dict] = []
     if mode == "grid":
