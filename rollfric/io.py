@@ -194,9 +194,10 @@ def read_image(path: str | Path) -> np.ndarray:
         return _to_gray(img, str(path))
     if path.suffix.lower() == ".npy":
         try:
-            return _to_gray(np.load(path), str(path))
-        except ValueError as exc:
+            img = np.load(path, allow_pickle=False)
+        except Exception as exc:  # numpy raises several types for broken headers and data
             raise RecordingError(f"{path}: not a readable .npy image ({exc})") from None
+        return _to_gray(np.asarray(img), str(path))
     return _imread(path)
 
 
