@@ -270,7 +270,7 @@ def _f(x) -> float:
 
 
 def compute_metrics(case: Case, traj, truth, track, fit, fit_truth, setup) -> dict:
-    """The flat metric dict of one case (see the module docstring and README)."""
+    """The flat metric dict of one case (see the module docstring and docs/guide/validate.md)."""
     import pandas as pd
 
     mu_true = float(case.scenario.mu)
