@@ -60,15 +60,38 @@ def _start_time(pid: int) -> int | None:
 
 
 def temp_path(path: str | Path, kind: str = "part") -> Path:
-    """The hidden temporary path of this process beside ``path`` (same suffix, so writers that
-    go by the suffix pick the same format)."""
+    """The hidden temporary path of this process beside ``path``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The destination.
+    kind : str, optional
+        ``"part"`` (an output being written) or ``"old"`` (a folder moved aside).
+
+    Returns
+    -------
+    pathlib.Path
+        ``.NAME.KIND-PID-START.SUFFIX`` beside ``path`` (the same suffix, so writers that go by
+        the suffix pick the same format).
+    """
     path = Path(path)
     return path.with_name(f".{path.stem}.{kind}-{os.getpid()}-{_own_start()}{path.suffix}")
 
 
 def is_leftover(path: str | Path) -> bool:
-    """True if ``path`` is a temporary path (see :func:`temp_path`) of a process that no longer
-    runs: its PID is gone, or now belongs to a process started at another time."""
+    """Whether ``path`` is a temporary path left by a process that no longer runs.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        Any path; only names of the :func:`temp_path` form can be leftovers.
+
+    Returns
+    -------
+    bool
+        True when its PID is gone, or now belongs to a process started at another time.
+    """
     m = _TEMP_RE.match(Path(path).name)
     if m is None:
         return False
@@ -83,8 +106,18 @@ def is_leftover(path: str | Path) -> bool:
 
 
 def remove_leftovers(folder: str | Path) -> list[Path]:
-    """Remove the temporary paths in ``folder`` (not its subfolders) left by killed runs;
-    returns what was removed. A missing or unreadable folder removes nothing."""
+    """Remove the temporary paths left by killed runs in a folder (not its subfolders).
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The folder; a missing or unreadable one removes nothing.
+
+    Returns
+    -------
+    list of pathlib.Path
+        What was removed.
+    """
     removed = []
     try:
         entries = list(os.scandir(folder))
@@ -106,9 +139,24 @@ def _remove(path: Path) -> None:
 
 
 def install(tmp: Path, path: Path, *, folder_ok: bool = False) -> None:
-    """Move the finished ``tmp`` to ``path``. A file never replaces a directory nor a directory
-    a file (InputError); a directory replaces a directory only with ``folder_ok`` (the old one is
-    moved aside first and removed once the new one is in place)."""
+    """Move a finished temporary file or folder to its destination.
+
+    Parameters
+    ----------
+    tmp : pathlib.Path
+        The finished output.
+    path : pathlib.Path
+        Its destination.
+    folder_ok : bool, optional
+        Whether a folder may replace an existing folder (the old one is moved aside first and
+        removed once the new one is in place).
+
+    Raises
+    ------
+    InputError
+        A file would replace a folder or a folder a file, or a folder a folder without
+        ``folder_ok``.
+    """
     new_is_dir = tmp.is_dir() and not tmp.is_symlink()
     old_is_dir = path.is_dir() and not path.is_symlink()
     if old_is_dir and not new_is_dir:
@@ -133,10 +181,21 @@ def install(tmp: Path, path: Path, *, folder_ok: bool = False) -> None:
 
 @contextlib.contextmanager
 def replacing(path: str | Path, *, folder_ok: bool = False) -> Iterator[Path]:
-    """Yield a temporary path beside ``path`` (same suffix, so writers that go by the suffix
-    pick the same format); when the block succeeds it replaces ``path`` (see :func:`install`:
-    never a directory by a file or a file by a directory; a directory by a directory only with
-    ``folder_ok``). On an error the temporary path is removed and ``path`` is left as it was."""
+    """Write ``path`` all at once: a temporary path to write, moved into place at the end.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The destination (its folder is created).
+    folder_ok : bool, optional
+        Whether the output (a folder) may replace an existing folder (see :func:`install`).
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary path beside ``path``, with the same suffix. When the block succeeds it
+        replaces ``path``; on an error it is removed and ``path`` is left as it was.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = temp_path(path)
@@ -150,7 +209,20 @@ def replacing(path: str | Path, *, folder_ok: bool = False) -> Iterator[Path]:
 
 
 def write_text(path: str | Path, text: str) -> Path:
-    """Write ``text`` (UTF-8, newlines as given) to ``path`` atomically."""
+    """Write text to a file atomically.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+    text : str
+        Written as UTF-8, newlines as given.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     with replacing(path) as tmp:
         with open(tmp, "w", encoding="utf-8", newline="") as f:
             f.write(text)

@@ -48,8 +48,28 @@ def _existing_ancestor(path: Path, what: str) -> Path:
 
 
 def check_file(path: str | Path, *, overwrite: bool, what: str = "--out") -> Path:
-    """Refuse (OutputError) to write the file ``path`` when a folder is there, when it exists
-    and ``overwrite`` is false, or when its folder cannot be made or written."""
+    """Check, before any work, that a command may write the file ``path``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The output file.
+    overwrite : bool
+        Whether the user said ``--overwrite``.
+    what : str, optional
+        How the message names the output.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    OutputError
+        A folder is there; it exists and ``overwrite`` is false; its folder cannot be made
+        (a regular file on the way) or written.
+    """
     path = Path(path)
     if path.is_dir():
         raise OutputError(f"{what} {path} is a folder (this output is a file; a folder is "
@@ -72,10 +92,32 @@ def _entries(folder: Path) -> list[Path]:
 
 def check_folder(path: str | Path, own: Mapping[str, str], *, overwrite: bool,
                  what: str = "--out", command: str = "the command") -> Path:
-    """Refuse (OutputError) to write the output folder ``path`` when it is a file, when it
-    exists and holds anything and ``overwrite`` is false, when one of the command's ``own``
-    names (name -> ``FILE`` or ``FOLDER``) is there as the other kind, or when it cannot be
-    written. An existing empty folder is used as it is."""
+    """Check, before any work, that a command may write its output folder ``path``.
+
+    An existing empty folder (temporary paths of killed runs aside) is used as it is.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The output folder.
+    own : mapping of str to str
+        The command's own output names in it, each ``FILE`` or ``FOLDER``.
+    overwrite : bool
+        Whether the user said ``--overwrite``.
+    what, command : str, optional
+        How the message names the output and the command.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    OutputError
+        It is a file; it holds anything and ``overwrite`` is false; one of the ``own`` names is
+        there as the other kind; it cannot be made or written.
+    """
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise OutputError(f"{what} {path} is a file (this output is a folder; a file is never "
@@ -104,8 +146,20 @@ def check_folder(path: str | Path, own: Mapping[str, str], *, overwrite: bool,
 
 
 def check_distinct(paths: Iterable[str | Path], what: str = "outputs") -> None:
-    """OutputError if two of ``paths`` are the same file (e.g. an output named like an input
-    or like another output of the same command)."""
+    """Check that the outputs of a command do not collide.
+
+    Parameters
+    ----------
+    paths : iterable of str or pathlib.Path
+        The paths a command writes.
+    what : str, optional
+        How the message names them.
+
+    Raises
+    ------
+    OutputError
+        Two of them are the same path.
+    """
     seen: dict[Path, Path] = {}
     for p in paths:
         key = Path(os.path.abspath(p))
@@ -116,7 +170,22 @@ def check_distinct(paths: Iterable[str | Path], what: str = "outputs") -> None:
 
 def check_not_input(out: str | Path, inputs: Iterable[str | Path | None],
                     what: str = "--out") -> None:
-    """OutputError if ``out`` is one of the ``inputs`` (the same path or the same file)."""
+    """Check that an output is not one of the command's inputs.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The output.
+    inputs : iterable of str, pathlib.Path or None
+        The inputs (None entries are skipped).
+    what : str, optional
+        How the message names the output.
+
+    Raises
+    ------
+    OutputError
+        ``out`` is the same path or the same file as an input.
+    """
     o = Path(os.path.abspath(out))
     for i in inputs:
         if i is None:
@@ -130,7 +199,20 @@ def check_not_input(out: str | Path, inputs: Iterable[str | Path | None],
 
 
 def remove_stale(folder: str | Path, names: Iterable[str]) -> list[Path]:
-    """Remove ``names`` (the command's own outputs not written this time) from ``folder``."""
+    """Remove a command's own outputs that it did not write this time.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        Where they are.
+    names : iterable of str
+        Their names.
+
+    Returns
+    -------
+    list of pathlib.Path
+        What was removed.
+    """
     removed = []
     for name in names:
         p = Path(folder) / name
@@ -143,10 +225,27 @@ def remove_stale(folder: str | Path, names: Iterable[str]) -> list[Path]:
 @contextlib.contextmanager
 def staged_folder(out: str | Path, own: Mapping[str, str], *, overwrite: bool,
                   what: str = "--out", command: str = "the command") -> Iterator[Path]:
-    """Yield an empty hidden folder beside ``out``; write the outputs there. When the block
-    succeeds they are moved into ``out`` (created if needed): each replaces the same name, and
-    the ``own`` names not written this time are removed; other files in ``out`` stay. On an
-    error nothing in ``out`` changes. Every written name must be one of ``own``."""
+    """Write a command's outputs into a folder all at once, its other files left alone.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The output folder (created if needed; checked with :func:`check_folder`).
+    own : mapping of str to str
+        The command's own output names, each ``FILE`` or ``FOLDER``; every name written must
+        be one of them.
+    overwrite : bool
+        Whether the user said ``--overwrite``.
+    what, command : str, optional
+        How messages name the output and the command.
+
+    Yields
+    ------
+    pathlib.Path
+        An empty hidden folder beside ``out`` to write the outputs in. When the block succeeds
+        they are moved into ``out``, each replacing the same name, and the ``own`` names not
+        written this time are removed; on an error nothing in ``out`` changes.
+    """
     out = Path(out)
     check_folder(out, own, overwrite=overwrite, what=what, command=command)
     out.parent.mkdir(parents=True, exist_ok=True)
