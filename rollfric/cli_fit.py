@@ -15,7 +15,10 @@ def register(sub) -> None:
             "Fit the rolling friction coefficient mu (M = mu r N) to an angle series theta(t). "
             "TRACK.csv needs columns t_s and theta_rad (others are ignored; rows with an empty "
             "theta_rad, e.g. frames where no ball was found, are left out). Writes a JSON file "
-            "with mu, mu_stderr, theta0_rad, omega0_rad_s, rms_residual_rad, method and more."),
+            "with mu, mu_stderr, theta0_rad, omega0_rad_s, rms_residual_rad, method and more, "
+            "and the quality checks' verdict (quality: ok or suspect, quality_reasons). Exit "
+            "status 0: ok; 2: bad input (nothing written); 3: a suspect fit (written, the "
+            "reasons on stderr)."),
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("track", metavar="TRACK.csv", help="CSV with columns t_s,theta_rad")
     p.add_argument("--setup", required=True, metavar="SETUP.toml",
@@ -158,4 +161,17 @@ def _run(args) -> int:
     mu = result.mu if budget is None else budget.mu
     print(f"mu = {mu:.6f} {unc} ({result.method}), "
           f"rms residual {result.rms_residual:.3g} rad, {result.n_samples} samples -> {out}")
-    return 0
+    return report_quality("fit", result)
+
+
+def report_quality(command: str, result) -> int:
+    """Print a suspect result's reasons on stderr; the exit status: 0 ok, 3 suspect."""
+    import sys
+
+    if not result.quality_reasons:
+        return 0
+    print(f"rollfric {command}: suspect measurement ({len(result.quality_reasons)} reason(s); "
+          "written with quality = suspect):", file=sys.stderr)
+    for r in result.quality_reasons:
+        print(f"  [{r.code}] {r.message}", file=sys.stderr)
+    return 3

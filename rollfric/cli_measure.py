@@ -21,7 +21,9 @@ def register(sub) -> None:
             "rollfric.zarr_readers entry point). Writes OUT/track.csv (frame,t_s,x_px,"
             "y_px,theta_rad,found; empty coordinates where no ball was found) and OUT/fit.json "
             "(as 'rollfric fit', plus n_frames and n_found); with --plot also OUT/fit.png and "
-            "OUT/overlays.png. Nothing is written when the input is bad (exit status 2)."),
+            "OUT/overlays.png. Nothing is written when the input is bad (exit status 2); a "
+            "measurement that fails a quality check is written with quality = suspect and its "
+            "reasons in fit.json, the reasons on stderr, and exit status 3."),
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("recording", metavar="RECORDING", help="TIFF stack, image folder, video, "
                    ".cine, .cih/.cihx (+ .mraw), or Zarr store")
@@ -102,6 +104,7 @@ def run(args) -> int:
 def _run(args) -> int:
     from pathlib import Path
 
+    from rollfric.cli_fit import report_quality
     from rollfric.errors import InputError
     from rollfric.fit import save_fit
     from rollfric.outputs import check_folder, check_not_input, staged_folder
@@ -162,4 +165,4 @@ def _run(args) -> int:
     mu = result.mu if budget is None else budget.mu
     print(f"mu = {mu:.6f} {unc} ({result.method}); ball found in "
           f"{track.attrs['n_found']} of {track.attrs['n_frames']} frames -> {out}")
-    return 0
+    return report_quality("measure", result)

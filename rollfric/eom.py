@@ -60,13 +60,20 @@ def energy(theta, theta_dot, track_radius, gravity=STANDARD_GRAVITY):
 
 
 def sticks(theta: float, mu: float) -> bool:
-    """True when a ball at rest at angle theta stays there: |tan(theta)| <= mu."""
-    return abs(math.tan(theta)) <= mu
+    """True when a ball at rest at angle theta stays there.
+
+    Below the axis (|theta| < pi/2) that is |tan(theta)| <= mu. In general the ball leaves
+    rest towards the bottom (against sin(theta)) when gravity's pull along the track beats
+    the rolling resistance there, g |sin(theta)| > mu g cos(theta): above the axis it always
+    does (and it rests only where sin(theta) = 0).
+    """
+    return abs(math.sin(theta)) <= mu * math.cos(theta) or math.sin(theta) == 0.0
 
 
 def _direction_from_rest(theta: float) -> float:
-    """Sign of theta' just after leaving rest at theta (towards the bottom)."""
-    return -1.0 if theta > 0 else 1.0
+    """Sign of theta' just after leaving rest at theta (towards the bottom: against
+    sin(theta), so also for angles beyond +-pi/2 or wound past +-pi)."""
+    return -1.0 if math.sin(theta) > 0 else 1.0
 
 
 def _check_inputs(t, track_radius, gravity, mu, mu1):
@@ -200,6 +207,12 @@ def _advance(th, om, s, h, mu0, mu1, L, g):
 
 
 @numba.njit(cache=True)
+def _sticks(th, mu0):
+    # as sticks(): gravity along the track does not beat the rolling resistance at rest
+    return abs(math.sin(th)) <= mu0 * math.cos(th) or math.sin(th) == 0.0
+
+
+@numba.njit(cache=True)
 def _solve_rk4(t, theta0, omega0, mu0, mu1, L, g, h_max):
     n = t.shape[0]
     theta = np.empty(n)
@@ -210,17 +223,18 @@ def _solve_rk4(t, theta0, omega0, mu0, mu1, L, g, h_max):
     t_stop = np.inf
     s = 1.0
     if om == 0.0:
-        if abs(math.tan(th)) <= mu0:
+        if _sticks(th, mu0):
             stuck = True
             t_stop = t[0]
         else:
-            s = -1.0 if th > 0.0 else 1.0
+            s = -1.0 if math.sin(th) > 0.0 else 1.0
     else:
         s = 1.0 if om > 0.0 else -1.0
     theta[0] = th
     omega[0] = om
     for i in range(1, n):
         remaining = t[i] - t[i - 1]
+        idle = 0  # turning points in a row that took no time (a ball that cannot move on)
         while remaining > 0.0 and not stuck:
             h = remaining
             if h > h_max:
@@ -229,11 +243,12 @@ def _solve_rk4(t, theta0, omega0, mu0, mu1, L, g, h_max):
             th, om, used, turned = _advance(th, om, s, h, mu0, mu1, L, g)
             remaining -= used
             if turned:
-                if abs(math.tan(th)) <= mu0:
+                idle = idle + 1 if used <= 1e-15 * (1.0 + h) else 0
+                if _sticks(th, mu0) or idle > 8:
                     stuck = True
                     t_stop = t[i] - remaining
                 else:
-                    s = -1.0 if th > 0.0 else 1.0
+                    s = -1.0 if math.sin(th) > 0.0 else 1.0
             if remaining < 1e-15:
                 remaining = 0.0
         theta[i] = th

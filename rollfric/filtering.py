@@ -12,6 +12,8 @@ pass and the locator noise above them does not.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import signal
 
@@ -102,3 +104,29 @@ def derivative(theta, fps: float, cutoff: float | None = None, **kw) -> np.ndarr
     """theta'(t) in rad/s: second-order central differences of the low-passed theta."""
     y = lowpass(theta, fps, cutoff, **kw)
     return np.gradient(_fill_gaps(y), 1.0 / fps)
+
+
+def noise_sigma(theta, orders=(2, 3, 4)) -> float:
+    """Standard deviation of the white noise in a uniformly sampled, smooth series.
+
+    The k-th difference of white noise of standard deviation sigma has the standard deviation
+    sigma * sqrt(C(2k, k)); that of a smooth signal falls as (omega dt)^k, so at a frame
+    rate well above the swing the differences are the noise. Each order gives a robust
+    estimate (1.4826 x the median absolute deviation, so the few kinks at turning points and
+    stray samples do not count); a signal too coarsely sampled for an order only raises its
+    estimate, so the smallest over ``orders`` is taken. Differences are taken only across
+    consecutive finite samples (NaN gaps break them). Returns NaN when fewer than 8
+    differences of any order exist.
+    """
+    x = np.asarray(theta, dtype=float)
+    best = math.inf
+    for k in orders:
+        d = x
+        for _ in range(k):
+            d = d[1:] - d[:-1]  # NaN wherever any of the k + 1 samples is missing
+        d = d[np.isfinite(d)]
+        if d.size < 8:
+            continue
+        mad = float(np.median(np.abs(d - np.median(d))))
+        best = min(best, 1.4826 * mad / math.sqrt(math.comb(2 * k, k)))
+    return best if math.isfinite(best) else float("nan")

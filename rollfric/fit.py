@@ -51,6 +51,14 @@ class FitResult:
     stderr: dict = dataclasses.field(default_factory=dict)
     extra: dict = dataclasses.field(default_factory=dict)
     seconds: float = 0.0
+    # samples that entered the fit (finite, moving, not outliers); None: every finite one
+    used: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    quality_reasons: tuple = ()  # rollfric.quality.Reason: why the fit is suspect
+
+    @property
+    def quality(self) -> str:
+        """"ok", or "suspect" when any quality check failed (see ``quality_reasons``)."""
+        return "suspect" if self.quality_reasons else "ok"
 
     def to_dict(self) -> dict:
         """The JSON form written to fit.json (no arrays)."""
@@ -68,6 +76,8 @@ class FitResult:
             "n_samples": self.n_samples,
             "stderr": dict(self.stderr),
             "fit_seconds": self.seconds,
+            "quality": self.quality,
+            "quality_reasons": [r.to_dict() for r in self.quality_reasons],
         }
         out.update(self.extra)
         return out
@@ -124,11 +134,40 @@ def turning_points(theta_smooth: np.ndarray, fps: float) -> np.ndarray:
     return np.asarray(keep, dtype=int)
 
 
+def mu_from_acceleration(t, theta, setup: Setup, *, offset: float = 0.0,
+                         span: float | None = None) -> float:
+    """mu from the start's acceleration, which the equation of motion splits into gravity and
+    friction: a cubic over the first ``span`` seconds (default 0.15 of the small-angle
+    period, at least 10 samples) gives theta, theta' and theta'' at t[0]; clipped to [0, 0.5].
+    ``offset``: the angle of the trough bottom in the data's frame. NaN samples are skipped.
+    """
+    t = np.asarray(t, dtype=float)
+    theta = np.asarray(theta, dtype=float)
+    good = np.isfinite(t) & np.isfinite(theta)
+    tt, yy = t[good], theta[good] - offset
+    if tt.size < 4:
+        return 0.0
+    if span is None:
+        span = 0.15 * 2 * math.pi / math.sqrt(eom.omega_squared(setup.track_radius,
+                                                                 setup.gravity))
+    n_acc = max(min(tt.size, 10), int(np.searchsorted(tt, tt[0] + span)))
+    c = np.polynomial.polynomial.polyfit(tt[:n_acc] - tt[0], yy[:n_acc], 3)
+    th0, om0, acc = c[0], c[1], 2 * c[2]
+    s = math.copysign(1.0, om0) if abs(om0) > 1e-3 else -math.copysign(1.0, th0)
+    k = 5.0 / (7.0 * setup.track_radius)
+    normal = setup.gravity * math.cos(th0) + setup.track_radius * om0**2
+    if not (normal > 0 and math.isfinite(acc)):
+        return 0.0
+    return float(np.clip((-acc / k - setup.gravity * math.sin(th0)) / (s * normal), 0, 0.5))
+
+
 def initial_guess(t, theta, setup: Setup) -> dict:
     """Self-start: mu from the amplitude decay per half-swing, theta0/omega0 from the data.
 
     Amplitudes are half the swing between consecutive turning points (so a constant angle
-    offset cancels); in the small-angle limit each half-swing loses 2 mu.
+    offset cancels); in the small-angle limit each half-swing loses 2 mu. ``mu_acc`` is mu
+    from the start's acceleration (:func:`mu_from_acceleration`), the only estimate a record
+    without turning points has (it is then also ``mu``).
     """
     t, theta, good = _clean(t, theta)
     fps = _sample_rate(t[good])
@@ -139,7 +178,9 @@ def initial_guess(t, theta, setup: Setup) -> dict:
     smooth = filtering.lowpass(x, fps)
     tp = turning_points(smooth, fps)
     mu0 = 0.0
-    offset = float(np.median(smooth))
+    # without two turning points the record shows no centre of the swing: the camera's zero
+    # is the best guess of the trough bottom
+    offset = 0.0
     if tp.size >= 3:
         swings = np.abs(np.diff(smooth[tp]))  # peak-to-peak of consecutive half-swings
         # each half-swing loses 2 mu of amplitude; the peak-to-peak of consecutive swings
@@ -150,6 +191,7 @@ def initial_guess(t, theta, setup: Setup) -> dict:
             mu0 = max(float(np.median(drops)) / 4.0, 0.0)
         offset = float(np.mean(0.5 * (smooth[tp[:-1]] + smooth[tp[1:]])))
     elif tp.size == 2:
+        offset = float(0.5 * (smooth[tp[0]] + smooth[tp[1]]))
         a0, a1 = abs(smooth[tp[0]] - offset), abs(smooth[tp[1]] - offset)
         mu0 = max((a0 - a1) / 2.0, 0.0)
     # the ball at rest for good at the end of the record?
@@ -165,22 +207,18 @@ def initial_guess(t, theta, setup: Setup) -> dict:
     # is least reliable at the ends of the series)
     n_head = min(int(good.sum()), max(10, int(0.03 * fps)))
     coef = np.polynomial.polynomial.polyfit(tt[:n_head] - tt[0], theta[good][:n_head], 2)
+    mu_acc = mu_from_acceleration(tt, theta[good], setup, offset=offset,
+                                  span=max(0.15 * period, (n_head - 1) / fps))
     if tp.size < 2:
-        # too short for a decay: mu from the start's acceleration, which the equation of
-        # motion splits into gravity and friction (a cubic over up to 0.15 period)
-        n_acc = min(int(good.sum()), max(n_head, int(0.15 * period * fps)))
-        c = np.polynomial.polynomial.polyfit(tt[:n_acc] - tt[0], theta[good][:n_acc], 3)
-        th0, om0, acc = c[0], c[1], 2 * c[2]
-        s = math.copysign(1.0, om0) if abs(om0) > 1e-3 else -math.copysign(1.0, th0)
-        k = 5.0 / (7.0 * setup.track_radius)
-        normal = setup.gravity * math.cos(th0) + setup.track_radius * om0**2
-        mu0 = float(np.clip((-acc / k - setup.gravity * math.sin(th0)) / (s * normal), 0, 0.5))
+        mu0 = mu_acc  # too short for a decay
     return {
         "mu": mu0,
+        "mu_acc": mu_acc,
         "theta0": float(coef[0]),
         "omega0": float(coef[1]),
         "offset": offset,
         "turning_points_s": grid[tp],
+        "turning_points_theta": smooth[tp],
         "fps": fps,
         "t_rest": t_rest,
         "period": period,
@@ -202,12 +240,51 @@ def _stderr(jac: np.ndarray, res: np.ndarray) -> np.ndarray:
     return np.sqrt(np.clip(np.diag(cov), 0, None))
 
 
+def on_grid(t: np.ndarray, y: np.ndarray, fps: float) -> np.ndarray:
+    """``y`` placed on the uniform frame grid from t[0] (NaN where a frame has no sample)."""
+    idx = np.rint((t - t[0]) * fps).astype(np.int64)
+    out = np.full(int(idx[-1]) + 1 if idx.size else 0, np.nan)
+    out[idx] = y
+    return out
+
+
+# The fitter's search: a coarse fit from every start, the best polished, then (only when some
+# samples lie far off the model) a robust fit that finds them and a final least-squares fit
+# without them. Every stage has an evaluation budget, so no input makes it run for long.
+MU_MAX = 1.0
+MU_SEEDS = (0.002, 0.02, 0.2)  # beside the turning-point and acceleration estimates
+STAGE1_NFEV = 40
+POLISH_NFEV = 200
+# a sample is an outlier when its residual exceeds this many noise sigmas: at 5 sigma a
+# Gaussian residual crosses it once in 1.7 million samples
+OUTLIER_SIGMAS = 5.0
+# the robust fit's soft-L1 loss is quadratic within ROBUST_F_SCALE noise sigmas, linear beyond
+ROBUST_F_SCALE = 3.0
+# below this the noise "floor" of a series is the integrator's accuracy (about 1e-9 rad) and
+# the rounding of the numbers, not a measured noise
+NOISE_FLOOR = 1e-8
+
+
+def _mad_sigma(x: np.ndarray) -> float:
+    return 1.4826 * float(np.median(np.abs(x - np.median(x)))) if x.size else 0.0
+
+
 def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulomb",
-            guess: dict | None = None) -> FitResult:
+            guess: dict | None = None, robust: bool = True) -> FitResult:
     """Least-squares fit of the equation of motion (see module docstring).
 
     ``offset``: also fit a constant angle offset of the trough bottom.
     ``model``: "coulomb" (constant mu) or "velocity" (mu0 + mu1 |theta'|).
+    ``robust``: when samples lie more than ``OUTLIER_SIGMAS`` noise sigmas off the fitted
+    model, find them with a soft-L1 fit (``f_scale`` ``ROBUST_F_SCALE`` noise sigmas, the
+    noise measured from the data by :func:`rollfric.filtering.noise_sigma`) and fit again
+    without them (``extra['n_outliers']``).
+
+    The search is multi-start: mu from the turning points' decay, from the start's
+    acceleration and the seeds ``MU_SEEDS``, each fitted coarsely, the best polished. One start
+    is not enough where mu and other parameters are nearly interchangeable (a record without
+    turning points with a free offset: the friction shifts the swing's centre as an offset
+    does) and the least-squares path from mu = 0 stalls against the bound.
     """
     if model not in ("coulomb", "velocity"):
         raise InputError(f"unknown friction model {model!r} (coulomb, velocity)")
@@ -223,37 +300,98 @@ def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulo
         raise InputError(f"the ball comes to rest after {int(fitted.sum())} usable samples; "
                          f"at least {MIN_SAMPLES} samples of motion are needed to fit mu")
     tg, yg = t[fitted], theta[fitted]
-    # name, start, lower, upper, typical scale
-    params = [("mu", g0["mu"], 0.0, 1.0, 1e-3),
-              ("theta0", g0["theta0"], -math.pi / 2, math.pi / 2, 1e-3),
-              ("omega0", g0["omega0"], -np.inf, np.inf, 1e-2)]
+    # name, lower, upper, typical scale
+    params = [("mu", 0.0, MU_MAX, 1e-3),
+              ("theta0", -math.pi / 2, math.pi / 2, 1e-3),
+              ("omega0", -np.inf, np.inf, 1e-2)]
     if offset:
-        params.append(("offset", g0["offset"], -0.5, 0.5, 1e-3))
+        params.append(("offset", -0.5, 0.5, 1e-3))
     if model == "velocity":
-        params.append(("mu1", 0.0, 0.0, np.inf, 1e-3))
+        params.append(("mu1", 0.0, np.inf, 1e-3))
     names = [p[0] for p in params]
-    lower = np.array([p[2] for p in params])
-    upper = np.array([p[3] for p in params])
-    scale = np.array([p[4] for p in params])
-    x0 = np.clip(np.array([p[1] for p in params], dtype=float), lower, upper)
+    lower = np.array([p[1] for p in params])
+    upper = np.array([p[2] for p in params])
+    scale = np.array([p[3] for p in params])
 
     def unpack(x):
         p = dict(zip(names, x, strict=True))
         return (p["mu"], p["theta0"], p["omega0"], p.get("offset", 0.0), p.get("mu1", 0.0))
 
-    def residual(x):
-        mu, th0, om0, off, mu1 = unpack(x)
-        return model_theta(tg, mu, th0, om0, setup, offset=off, mu1=mu1) - yg
+    def residual_on(mask):
+        def residual(x):
+            mu, th0, om0, off, mu1 = unpack(x)
+            return (model_theta(tg, mu, th0, om0, setup, offset=off, mu1=mu1) - yg)[mask]
+        return residual
 
-    sol = optimize.least_squares(residual, x0, bounds=(lower, upper), x_scale=scale,
-                                 diff_step=1e-7, xtol=1e-12, ftol=1e-12, gtol=1e-12,
-                                 max_nfev=400)
+    # diff_step None: SciPy's forward-difference step is then sqrt(eps) * max(1, |x|). A
+    # relative diff_step is multiplied by |x| alone (SciPy >= 1.5), which near mu = 0 (or a
+    # ball released from rest, omega0 = 0) is a step of 1e-19: that Jacobian column is zero,
+    # mu cannot leave 0 once it gets there (a 0.3 s record fitted to mu 7e-13 for 0.0164)
+    # and the standard errors come out NaN.
+    def solve(x0, mask, nfev, tol, **kw):
+        return optimize.least_squares(residual_on(mask), x0, bounds=(lower, upper),
+                                      x_scale=scale, diff_step=None, xtol=tol, ftol=tol,
+                                      gtol=tol, max_nfev=nfev, **kw)
+
+    everything = np.ones(tg.size, dtype=bool)
+    starts = []
+    for label, mu_s in (("turning points", g0["mu"]), ("acceleration", g0.get("mu_acc", 0.0)),
+                        *(("seed", m) for m in MU_SEEDS)):
+        mu_s = float(np.clip(mu_s, 0.0, MU_MAX))
+        if any(abs(mu_s - m) <= 0.1 * max(m, 1e-4) for _, m in starts):
+            continue
+        starts.append((label, mu_s))
+    coarse = []
+    for label, mu_s in starts:
+        x0 = {"mu": mu_s, "theta0": g0["theta0"], "omega0": g0["omega0"],
+              "offset": g0["offset"], "mu1": 0.0}
+        x0 = np.clip(np.array([x0[n] for n in names], dtype=float), lower, upper)
+        coarse.append((label, solve(x0, everything, STAGE1_NFEV, 1e-10)))
+    # polish every coarse fit that came near the best (a coarse fit that ranks first may
+    # still stall in a flat valley): keep the best polished one
+    coarse.sort(key=lambda c: c[1].cost)
+    least = coarse[0][1].cost
+    best = None
+    polished = []
+    for label, c in coarse:
+        if c.cost > 10.0 * least + 1e-30:
+            break
+        if any(np.all(np.abs(c.x - p) <= 1e-3 * scale) for p in polished):
+            continue  # the same minimum as one polished already
+        polished.append(c.x)
+        sol = solve(c.x, everything, POLISH_NFEV, 1e-12)
+        if best is None or sol.cost < best[1].cost:
+            best = (label, sol)
+    best_start, sol = best
+    # the noise of the data, measured from the data (on the frame grid, gaps as NaN)
+    fps = _sample_rate(tg)
+    noise = filtering.noise_sigma(on_grid(tg, yg, fps))
+    noise_eff = max(noise, NOISE_FLOOR) if math.isfinite(noise) else NOISE_FLOOR
+    keep = everything
+    n_outliers = 0
+    robust_used = False
+    res = sol.fun
+    if robust and np.any(np.abs(res - np.median(res))
+                         > OUTLIER_SIGMAS * max(noise_eff, _mad_sigma(res))):
+        robust_used = True
+        rob = solve(sol.x, everything, POLISH_NFEV, 1e-10, loss="soft_l1",
+                    f_scale=ROBUST_F_SCALE * noise_eff)
+        res_r = rob.fun
+        keep = np.abs(res_r - np.median(res_r)) <= OUTLIER_SIGMAS * max(noise_eff,
+                                                                        _mad_sigma(res_r))
+        if keep.sum() >= MIN_SAMPLES:
+            n_outliers = int(tg.size - keep.sum())
+            sol = solve(rob.x, keep, POLISH_NFEV, 1e-12)
+        else:
+            keep = everything
     mu, th0, om0, off, mu1 = unpack(sol.x)
     res = sol.fun
     err = _stderr(sol.jac, res)
     stderr = dict(zip(names, (float(e) for e in err), strict=True))
     curve = np.full_like(t, np.nan)
     curve[good] = model_theta(t[good], mu, th0, om0, setup, offset=off, mu1=mu1)
+    used = np.zeros(t.size, dtype=bool)
+    used[np.nonzero(fitted)[0][keep]] = True
     return FitResult(
         method="lsq",
         mu=float(mu),
@@ -262,18 +400,44 @@ def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulo
         omega0=float(om0),
         t0=float(tg[0]),
         rms_residual=float(np.sqrt(np.mean(res**2))),
-        relative_error=_relative_error(res + yg, yg),
-        n_samples=int(fitted.sum()),
+        relative_error=_relative_error(res + yg[keep], yg[keep]),
+        n_samples=int(keep.sum()),
         t=t,
         curve=curve,
         offset=float(off),
         mu1=float(mu1),
         stderr=stderr,
-        extra={"model": model, "nfev": int(sol.nfev), "converged": bool(sol.success),
+        extra={"model": model, "nfev": int(sol.nfev), "converged": bool(sol.status > 0),
                "n_rest_excluded": int(good.sum() - fitted.sum()),
-               "mu_initial": float(g0["mu"])},
+               "n_outliers": n_outliers, "robust": robust_used,
+               "noise_rad": noise if math.isfinite(noise) else None,
+               "mu_initial": float(g0["mu"]), "start": best_start, "n_starts": len(starts)},
         seconds=time.perf_counter() - start,
+        used=used,
     )
+
+
+def check_angles(theta) -> None:
+    """Refuse angles that no ball in a trough has: degrees given as radians, or not angles.
+
+    When most samples (the 90th percentile of |theta|) lie beyond +-pi/2 rad the series
+    cannot be radians of a ball below the trough's axis: up to 90 in magnitude it is taken
+    for degrees. A few stray samples beyond +-pi/2 are left to the fit's quality checks.
+    """
+    theta = np.asarray(theta, dtype=float)
+    a = np.abs(theta[np.isfinite(theta)])
+    if a.size == 0 or float(np.quantile(a, 0.9)) <= math.pi / 2:
+        return
+    top = float(a.max())
+    frac = float(np.mean(a > math.pi / 2))
+    if top <= 90.0:
+        raise InputError(
+            f"theta_rad reaches {top:.4g} and {100 * frac:.0f} % of the samples lie beyond "
+            f"+-pi/2: these look like angles in degrees ({top:.4g} deg = "
+            f"{math.radians(top):.4g} rad); give theta in radians (deg * pi / 180)")
+    raise InputError(
+        f"theta_rad reaches {top:.4g} and {100 * frac:.0f} % of the samples lie beyond +-pi/2 "
+        "(+-90 deg): not angles of a ball in a trough, in radians or in degrees")
 
 
 @runtime_checkable
@@ -306,13 +470,23 @@ class FitMethod(Protocol):
 
 
 def fit_mu(t, theta, setup: Setup, *, method: str = "lsq", offset: bool = False,
-           model: str = "coulomb", **kwargs) -> FitResult:
+           model: str = "coulomb", checks: bool = True, **kwargs) -> FitResult:
     """Fit mu (M = mu r N) to theta(t); ``method`` is one of :data:`METHODS` (registered in
     :data:`rollfric.registry.FIT_METHODS`).
 
-    NaN samples (frames without a ball) are left out. Raises InputError for too few samples.
+    NaN samples (frames without a ball) are left out. Raises InputError for too few samples
+    and for angles that are not radians (:func:`check_angles`). ``checks``: run the quality
+    checks of :mod:`rollfric.quality` on the result (``quality_reasons``; empty: ok).
     """
-    return FIT_METHODS.load(method)(t, theta, setup, offset=offset, model=model, **kwargs)
+    from rollfric import quality
+
+    check_angles(theta)
+    result = FIT_METHODS.load(method)(t, theta, setup, offset=offset, model=model, **kwargs)
+    if checks:
+        reasons = quality.check_fit(t, theta, result, setup, offset=offset,
+                                    model=model if method == "lsq" else "coulomb")
+        result = dataclasses.replace(result, quality_reasons=tuple(reasons))
+    return result
 
 
 def json_safe(value):

@@ -22,7 +22,7 @@ import sys
 import numpy as np
 import pandas as pd
 
-from rollfric import io, locate
+from rollfric import io, locate, quality
 from rollfric.background import median_background
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
@@ -320,6 +320,22 @@ def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=No
                                  r_known=r_known, r_known_sigma=r_known_sigma)
 
 
+def _tiff_pages(path) -> int:
+    """Pages in a TIFF file (1 for other files, and for a TIFF tifffile cannot read: reading it
+    as an image then says what is wrong)."""
+    from pathlib import Path
+
+    if Path(path).suffix.lower() not in io.TIFF_SUFFIXES:
+        return 1
+    import tifffile
+
+    try:
+        with tifffile.TiffFile(path) as tif:
+            return len(tif.pages)
+    except Exception:  # noqa: BLE001 - any failure is read_image's to report
+        return 1
+
+
 def resolve_background(source, background, *, r_px: float, median_frames: int = 41):
     """The background: the given image, the recording's own, or the median of frames.
 
@@ -355,6 +371,11 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
     if background is not None:
         if isinstance(background, np.ndarray):
             return io.check_background(background, source), "given array", []
+        pages = _tiff_pages(background)
+        if pages > 1:
+            raise InputError(f"background {background} holds {pages} pages (a recording?): give"
+                             " one image of the scene without the ball, or no --background to"
+                             " use the median of the recording's frames")
         bg = io.read_image(background)
         return io.check_background(bg, source, f"background {background}"), str(background), []
     if getattr(source, "background", None) is not None:
@@ -465,6 +486,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
             if accept(loc):
                 rows[i, :5] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac)
     warnings = [cal.warning()] if cal.warning() else []
+    warnings_radius = list(warnings)
     for msg in warnings:
         logger.warning(msg)
     found = rows[:, 5] == 1.0
@@ -486,7 +508,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     df.attrs.update({"center_px": [float(center[0]), float(center[1])], "locator": method,
                      "angle": angle, "ball_radius_px": r_px, "track_radius_px": L_px,
                      **cal.summary(), "n_refitted": len(redo) if r_cal is not None else 0,
-                     "warnings": warnings})
+                     "warnings": warnings, "warnings_radius": warnings_radius})
     return df
 
 
@@ -637,4 +659,11 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                              f"least {fitmod.MIN_SAMPLES} are needed to fit mu")
         result = fitmod.fit_mu(df["t_s"].to_numpy(), df["theta_rad"].to_numpy(), setup,
                                method=fit_method, offset=offset, **(fit_kwargs or {}))
+        coded = [("background_repaired", f"{msg}: a background image without the ball "
+                  "(--background) rules out a trace of it") for msg in bg_notes]
+        coded += [("ball_radius", msg) for msg in df.attrs.get("warnings_radius", [])]
+        track_reasons = quality.check_track(df, setup, center, warnings=coded,
+                                            flag_counts=df.attrs.get("flags"))
+        result = dataclasses.replace(
+            result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
     return df, result

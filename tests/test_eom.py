@@ -93,3 +93,24 @@ def test_bad_inputs():
         eom.solve(0.1, 0, 0.01, [0, 2, 1], track_radius=L10)
     with pytest.raises(ValueError, match="mu"):
         eom.solve_reference(0.1, 0, -0.01, T4, track_radius=L10)
+
+
+@pytest.mark.parametrize("solver", [eom.solve_reference, eom.solve])
+def test_a_ball_over_the_top_keeps_rolling_down(solver):
+    # beyond +-90 deg (a fit's trial parameters can get there) gravity pulls towards the
+    # bottom and no rolling resistance holds the ball: it leaves rest downwards, and an angle
+    # wound past +-pi is the same place (this used to loop for ever at a turning point)
+    mu = 0.3
+    t = np.arange(1500) / 1000.0
+    th, om, _ = solver(1.9, 0.0, mu, t, track_radius=L10)
+    assert om[1] < 0 and th[-1] < 1.9
+    ref, _, _ = solver(0.6, 25.0, mu, t, track_radius=L10)  # over the top and round again
+    wound, _, _ = solver(0.6 + 2 * math.pi, 25.0, mu, t, track_radius=L10)
+    assert np.max(np.abs(wound - 2 * math.pi - ref)) < 1e-8
+    assert np.ptp(ref) > math.pi
+
+
+def test_sticks_rule_over_the_whole_circle():
+    assert eom.sticks(0.9 * math.atan(0.05), 0.05) and not eom.sticks(0.1, 0.05)
+    assert not eom.sticks(1.7, 0.9) and not eom.sticks(-2.5, 0.9)
+    assert eom.sticks(0.0, 0.0) and eom.sticks(2 * math.pi, 0.01)

@@ -296,6 +296,9 @@ def compute_metrics(case: Case, traj, truth, track, fit, fit_truth, setup) -> di
         "fit_rms_residual_rad": _f(fit.rms_residual),
         "fit_relative_error": _f(getattr(fit, "relative_error", math.nan)),
         "fit_method": case.fit,
+        # rollfric's own verdict (rollfric.quality): "ok" or "suspect", and the reasons' codes
+        "fit_quality": getattr(fit, "quality", "ok"),
+        "fit_quality_reasons": ",".join(r.code for r in getattr(fit, "quality_reasons", ())),
         "locator": case.locator,
         "engine": case.scenario.engine,
         "surface": case.scenario.surface,

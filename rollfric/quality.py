@@ -1,0 +1,285 @@
+"""Checks that say when a fitted mu cannot be trusted, each with a named reason.
+
+After every fit (:func:`check_fit`) and, for a measurement from a recording, on the track
+(:func:`check_track`). A result with any reason is "suspect": ``rollfric fit`` and ``rollfric
+measure`` still write it (fit.json ``quality`` and ``quality_reasons``) and exit with status 3.
+Every threshold is derived in a comment beside it. The noise a residual is compared with is
+measured from the data themselves (:func:`rollfric.filtering.noise_sigma`), so no threshold
+assumes a camera or a locator.
+
+Reason codes:
+
+- ``not_converged``: the least-squares search ran out of its evaluation budget.
+- ``mu_bound``: mu at (or within two standard errors of) its bound 0, or near its upper bound.
+- ``residual_noise``: the residual is far above the noise of the data.
+- ``residual_structure``: the residual is not white: the model does not describe the data.
+- ``outliers``: many samples lay far off the model and were left out by the robust fit.
+- ``angle_range``: angles beyond +-90 deg.
+- ``period``: the swings' period disagrees with L = R - r (wrong fps, radius, or units).
+- ``half_swings``: too few half-swings for the parameters fitted.
+- track checks: ``center`` (the ball's path is not a circle about the centre used),
+  ``track_radius`` (the path's radius differs from L = R - r in pixels), ``flagged_frames``
+  (many frames rejected), ``background_repaired``, ``ball_radius``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from scipy import optimize, special
+
+from rollfric import eom, filtering
+
+# --- thresholds -------------------------------------------------------------------------
+# residual_noise: a model that describes the data leaves the noise: rms / noise ~ 1 (1.0-1.3
+# on drawn and rendered recordings, where locator errors are slightly correlated from frame to
+# frame). Three times the noise means two thirds of the residual's variance... 8/9 of it is
+# something the model does not explain.
+RESIDUAL_RATIO_MAX = 3.0
+# residual_structure: for white residuals the lag-1 autocorrelation r1 is ~ N(0, 1/n); a
+# systematic misfit (a smooth residual) drives r1 towards 1. Above 0.5 the smooth part of the
+# residual carries more variance than its white part (r1 = var_smooth / var_total), and it is
+# suspect only when that smooth part also stands out of the noise (the rms check's factor 3 on
+# its own share: rms * sqrt(r1) > STRUCTURE_NOISE_MAX * noise).
+STRUCTURE_R1_MAX = 0.5
+STRUCTURE_NOISE_MAX = 3.0
+# outliers: the robust fit left out more than this share of the samples
+OUTLIER_FRACTION_MAX = 0.05
+# mu_bound: mu within this many standard errors of 0 is not a measured friction
+MU_SIGMAS_MIN = 2.0
+MU_UPPER_NEAR = 0.9  # of the fitter's upper bound
+# period: a correct setup reproduces the swing period to the precision of the turning points
+# (a frame in a half-period of ~0.35 s: 0.3 %, averaged over the swings); the period goes as
+# sqrt(L), so 3 % is a 6 % error in L = R - r (5 mm on the thesis trough) or in the fps
+PERIOD_TOL = 0.03
+# center: the ball's centres lie on a circle of radius L about the trough axis; a horizontal
+# offset of the centre used of 0.3 % of L (2 px on the thesis camera's 630 px) biased mu by
+# -0.24 % on drawn recordings (NOTES); radius 2 % (pixel size or trough radius 2 % off)
+CENTER_TOL_REL = 0.003
+TRACK_RADIUS_TOL = 0.02
+# flagged_frames: a lab recording with more rejected frames than this has a problem
+FLAGGED_FRACTION_MAX = 0.10
+
+
+@dataclasses.dataclass(frozen=True)
+class Reason:
+    """Why a result is suspect: a short ``code`` and a sentence for the user."""
+
+    code: str
+    message: str
+
+    def to_dict(self) -> dict:
+        return {"code": self.code, "message": self.message}
+
+
+def summary(reasons) -> dict:
+    """The fit.json keys: ``quality`` ("ok" or "suspect") and ``quality_reasons``."""
+    reasons = list(reasons)
+    return {"quality": "suspect" if reasons else "ok",
+            "quality_reasons": [r.to_dict() for r in reasons]}
+
+
+def lag1_autocorrelation(res: np.ndarray) -> float:
+    """Lag-1 autocorrelation of a series with NaN gaps (pairs across a gap are skipped)."""
+    r = np.asarray(res, dtype=float)
+    a, b = r[:-1], r[1:]
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 8:
+        return float("nan")
+    m = float(np.nanmean(r))
+    a, b = a[ok] - m, b[ok] - m
+    den = math.sqrt(float(a @ a) * float(b @ b))
+    return float(a @ b) / den if den > 0 else float("nan")
+
+
+def half_period_frictionless(amplitude: float, track_radius: float, gravity: float) -> float:
+    """Half-period (s) of the ball's swing of the given amplitude (rad) without friction:
+    (2 / omega) K(sin^2(A / 2)), omega^2 = 5 g / (7 L), K the complete elliptic integral."""
+    w = math.sqrt(eom.omega_squared(track_radius, gravity))
+    m = math.sin(min(abs(amplitude), math.pi / 2) / 2) ** 2
+    return 2.0 / w * float(special.ellipk(m))
+
+
+def _round_rate(fps: float) -> bool:
+    """True for a frame rate a camera is set to: 24, 25, 30, 50, 60, 100, 120, 125, 250, 500,
+    1000, 2000, 4000, 5000, ... (a mantissa of 1, 1.2, 1.25, 1.5, 2, 2.4, 2.5, 3, 4, 5, 6, 7.5
+    or 8 within 0.5 %)."""
+    if not fps > 0 or not math.isfinite(fps):
+        return False
+    m = fps / 10 ** math.floor(math.log10(fps))
+    return any(abs(m / v - 1) <= 0.005 for v in (1, 1.2, 1.25, 1.5, 2, 2.4, 2.5, 3, 4, 5, 6,
+                                                   7.5, 8, 10))
+
+
+def _period_reason(tp_t, tp_y, setup, unit_fps: float) -> Reason | None:
+    """Compare the half-periods between turning points with L = R - r's."""
+    if len(tp_t) < 3:
+        return None
+    amps = 0.5 * np.abs(np.diff(tp_y))
+    measured = float(tp_t[-1] - tp_t[0])
+    L, g = setup.track_radius, setup.gravity
+    expected = sum(half_period_frictionless(a, L, g) for a in amps)
+    rho = measured / expected
+    if abs(rho - 1) <= PERIOD_TOL:
+        return None
+    in_deg = sum(half_period_frictionless(math.radians(a), L, g) for a in amps)
+    rho_deg = measured / in_deg
+    msg = (f"the swings take {1e3 * measured / len(amps):.1f} ms per half-swing, the equation of "
+           f"motion with L = R - r = {1e3 * L:.2f} mm gives {1e3 * expected / len(amps):.1f} ms "
+           f"({100 * (rho - 1):+.1f} %)")
+    if abs(rho_deg - 1) <= PERIOD_TOL / 3 < abs(rho - 1):
+        msg += ("; the angles look like degrees (read as degrees, the swings fit within "
+                f"{100 * abs(rho_deg - 1):.1f} %): give theta in radians")
+    elif _round_rate(unit_fps * rho):
+        msg += (f": most likely the frame rate is wrong (the swings fit {unit_fps * rho:.4g} Hz, "
+                f"the setup says {unit_fps:g} Hz: camera.fps); else L would have to be "
+                f"{1e3 * L * rho * rho:.1f} mm")
+    elif abs(rho * rho - 1) <= 0.25:
+        msg += (f": most likely cylinder.radius_mm or ball.diameter_mm is off (the swings fit "
+                f"L = {1e3 * L * rho * rho:.2f} mm), else camera.fps (they fit "
+                f"{unit_fps * rho:.4g} Hz)")
+    else:
+        msg += (f": check camera.fps (the swings fit {unit_fps * rho:.4g} Hz), the times' unit, "
+                f"and cylinder.radius_mm / ball.diameter_mm (they fit L = "
+                f"{1e3 * L * rho * rho:.1f} mm)")
+    return Reason("period", msg)
+
+
+def check_fit(t, theta, result, setup, *, offset: bool = False,
+              model: str = "coulomb") -> list[Reason]:
+    """The quality reasons of a fit ``result`` (:class:`rollfric.fit.FitResult`) of theta(t).
+
+    ``offset``, ``model``: what was fitted (they set how many half-swings are needed).
+    An empty list means the fit passed every check.
+    """
+    from rollfric.fit import MU_MAX, NOISE_FLOOR, initial_guess, on_grid
+
+    t = np.asarray(t, dtype=float)
+    theta = np.asarray(theta, dtype=float)
+    reasons: list[Reason] = []
+    good = np.isfinite(t) & np.isfinite(theta)
+    used = result.used if result.used is not None else good & np.isfinite(result.curve)
+    if result.extra.get("converged") is False:
+        reasons.append(Reason("not_converged", "the fit did not converge within its budget of "
+                              f"{result.extra.get('nfev')} evaluations: mu is not a minimum"))
+    # mu at a bound
+    se = result.mu_stderr
+    if result.mu <= 1e-9:
+        reasons.append(Reason("mu_bound", f"mu came out at its lower bound (mu = {result.mu:.2g}):"
+                              " the data show no friction the model can fit"))
+    elif math.isfinite(se) and result.mu < MU_SIGMAS_MIN * se:
+        reasons.append(Reason("mu_bound", f"mu = {result.mu:.3g} +- {se:.2g} is not "
+                              "distinguishable from 0: the record does not determine mu"))
+    elif result.mu >= MU_UPPER_NEAR * MU_MAX:
+        reasons.append(Reason("mu_bound", f"mu = {result.mu:.3g} is at the fitter's upper bound "
+                              f"{MU_MAX:g}"))
+    # angles beyond the trough's side
+    n_out = int(np.sum(np.abs(theta[good]) > math.pi / 2))
+    if n_out:
+        reasons.append(Reason("angle_range", f"{n_out} angle(s) beyond +-90 deg (up to "
+                              f"{math.degrees(float(np.max(np.abs(theta[good])))):.0f} deg): a "
+                              "ball in a trough stays below its axis; check the units and the "
+                              "located frames"))
+    # the residual against the noise of the data
+    fps = 1.0 / float(np.median(np.diff(t[good]))) if good.sum() > 1 else 1.0
+    tg = t[good]
+    noise = filtering.noise_sigma(on_grid(tg, theta[good], fps))
+    noise = max(noise, NOISE_FLOOR) if math.isfinite(noise) else NOISE_FLOOR
+    res = np.where(used, theta - result.curve, np.nan)[good]
+    rg = res[np.isfinite(res)]
+    if rg.size:
+        rms = float(np.sqrt(np.mean(rg**2)))
+        r1 = lag1_autocorrelation(on_grid(tg, res, fps))
+        if rms > RESIDUAL_RATIO_MAX * noise:
+            reasons.append(Reason("residual_noise", f"the fit's rms residual {rms:.3g} rad is "
+                                  f"{rms / noise:.1f} x the noise of the data ({noise:.2g} rad, "
+                                  "from their differences): the model does not follow the data"))
+        if (math.isfinite(r1) and r1 > STRUCTURE_R1_MAX
+                and rms * math.sqrt(r1) > STRUCTURE_NOISE_MAX * noise):
+            reasons.append(Reason("residual_structure", f"the residual is not white (lag-1 "
+                                  f"autocorrelation {r1:.2f}, its smooth part {rms * r1**0.5:.2g}"
+                                  f" rad vs noise {noise:.2g} rad): the model does not describe "
+                                  "the data (friction law, angle offset, setup, or located "
+                                  "frames)"))
+    n_outliers = int(result.extra.get("n_outliers", 0) or 0)
+    n_fit = n_outliers + int(result.n_samples)
+    if n_fit and n_outliers > OUTLIER_FRACTION_MAX * n_fit:
+        reasons.append(Reason("outliers", f"{n_outliers} of {n_fit} samples lay far off the "
+                              "model and were left out of the fit"))
+    # the swings: their number and their period
+    try:
+        guess = initial_guess(t, theta, setup)
+    except Exception:  # noqa: BLE001 - the fit itself succeeded; a failed estimate is no reason
+        guess = None
+    if guess is not None:
+        t_end = guess["t_rest"] - 0.25 * guess["period"]
+        tp_t = np.asarray(guess["turning_points_s"])
+        tp_y = np.asarray(guess["turning_points_theta"])[tp_t < t_end]
+        tp_t = tp_t[tp_t < t_end]
+        need = 1 + int(offset) + int(model == "velocity")
+        if tp_t.size + 1 < need:
+            what = " and ".join(["mu"] + (["the angle offset"] if offset else [])
+                                + (["mu1"] if model == "velocity" else []))
+            reasons.append(Reason("half_swings", f"the record has {tp_t.size + 1} half-swing(s),"
+                                  f" {need} are needed to tell {what} apart (without a turning "
+                                  "point the friction shifts the swing's centre just as an "
+                                  "offset does): record longer"))
+        period = _period_reason(tp_t, tp_y, setup, setup.fps)
+        if period is not None:
+            reasons.append(period)
+    return reasons
+
+
+def circle_center(x, y, radius: float, start) -> tuple[float, float, float]:
+    """(xc, yc, rms px): the centre of the circle of the given radius nearest to the points."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+
+    def res(c):
+        return np.hypot(x - c[0], y - c[1]) - radius
+
+    sol = optimize.least_squares(res, np.asarray(start, dtype=float), x_scale=1.0)
+    return float(sol.x[0]), float(sol.x[1]), float(np.sqrt(np.mean(sol.fun**2)))
+
+
+def check_track(df, setup, center, *, warnings=(), flag_counts=None) -> list[Reason]:
+    """Quality reasons of a measured track (a DataFrame of :func:`rollfric.track.measure`).
+
+    ``center``: the trough centre (px) the angles were taken about; ``warnings``: the
+    measurement's warnings with codes (``[(code, text), ...]``); ``flag_counts``: rejected frames
+    by flag.
+    """
+    reasons: list[Reason] = []
+    found = df["found"].to_numpy() == 1
+    x = df["x_px"].to_numpy()[found]
+    y = df["y_px"].to_numpy()[found]
+    L_px = setup.track_radius / setup.pixel_size
+    if x.size >= 10:
+        xc, yc, _ = circle_center(x, y, L_px, center)
+        d = np.hypot(x - center[0], y - center[1])
+        dist = float(np.median(d))
+        theta = np.arctan2(x - center[0], y - center[1])
+        # the horizontal offset is what biases mu; it is only seen when the ball swings
+        # sideways enough (sin theta spread): its error is the distance scatter over it
+        spread = float(np.std(np.sin(theta)))
+        if spread > 0.02 and abs(xc - center[0]) > CENTER_TOL_REL * L_px:
+            reasons.append(Reason("center", f"the ball's centres lie on a circle about "
+                                  f"({xc:.1f}, {yc:.1f}) px, the angles were taken about "
+                                  f"({center[0]:.1f}, {center[1]:.1f}) px ("
+                                  f"{xc - center[0]:+.1f} px sideways): check center_px"))
+        if abs(dist / L_px - 1) > TRACK_RADIUS_TOL:
+            reasons.append(Reason("track_radius", f"the ball's centres lie {dist:.1f} px from the"
+                                  f" centre used, L = R - r is {L_px:.1f} px "
+                                  f"({100 * (dist / L_px - 1):+.1f} %): check center_px (its "
+                                  "height), camera.pixel_size_mm, cylinder.radius_mm"))
+    n = len(df)
+    flagged = sum((flag_counts or {}).values())
+    if n and flagged > FLAGGED_FRACTION_MAX * n:
+        kinds = ", ".join(f"{k} {v}" for k, v in sorted((flag_counts or {}).items()))
+        reasons.append(Reason("flagged_frames", f"{flagged} of {n} frames were rejected "
+                              f"({kinds}): check the recording"))
+    for code, text in warnings:
+        reasons.append(Reason(code, text))
+    return reasons
