@@ -223,7 +223,10 @@ class _Refitter:
                       "offset": result.offset, "mu1": result.mu1}
         self.fit_length = fit_length
         t, th = meas.series(meas.setup)
-        self.mask = _fitted_mask(t, th, result.n_samples)
+        used = getattr(result, "used", None)
+        # the samples the nominal fit used (it may leave outliers out, not only the rest)
+        self.mask = used if used is not None and used.shape == t.shape else \
+            _fitted_mask(t, th, result.n_samples)
         self.count = 0
         self._cache: dict = {}
 
