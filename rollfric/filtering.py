@@ -130,3 +130,11 @@ def noise_sigma(theta, orders=(2, 3, 4)) -> float:
         mad = float(np.median(np.abs(d - np.median(d))))
         best = min(best, 1.4826 * mad / math.sqrt(math.comb(2 * k, k)))
     return best if math.isfinite(best) else float("nan")
+
+
+def on_grid(t: np.ndarray, y: np.ndarray, fps: float) -> np.ndarray:
+    """``y`` placed on the uniform frame grid from t[0] (NaN where a frame has no sample)."""
+    idx = np.rint((t - t[0]) * fps).astype(np.int64)
+    out = np.full(int(idx[-1]) + 1 if idx.size else 0, np.nan)
+    out[idx] = y
+    return out

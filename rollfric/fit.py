@@ -24,6 +24,7 @@ from scipy import optimize, signal
 
 from rollfric import eom, filtering
 from rollfric.errors import InputError
+from rollfric.filtering import on_grid
 from rollfric.registry import FIT_METHODS
 from rollfric.setup import Setup
 
@@ -238,14 +239,6 @@ def _stderr(jac: np.ndarray, res: np.ndarray) -> np.ndarray:
     except np.linalg.LinAlgError:
         return np.full(jac.shape[1], np.nan)
     return np.sqrt(np.clip(np.diag(cov), 0, None))
-
-
-def on_grid(t: np.ndarray, y: np.ndarray, fps: float) -> np.ndarray:
-    """``y`` placed on the uniform frame grid from t[0] (NaN where a frame has no sample)."""
-    idx = np.rint((t - t[0]) * fps).astype(np.int64)
-    out = np.full(int(idx[-1]) + 1 if idx.size else 0, np.nan)
-    out[idx] = y
-    return out
 
 
 # The fitter's search: a coarse fit from every start, the best polished, then (only when some
@@ -483,8 +476,13 @@ def fit_mu(t, theta, setup: Setup, *, method: str = "lsq", offset: bool = False,
     check_angles(theta)
     result = FIT_METHODS.load(method)(t, theta, setup, offset=offset, model=model, **kwargs)
     if checks:
+        try:
+            guess = initial_guess(t, theta, setup)
+        except InputError:  # the fit succeeded; a record too short to filter has no swings
+            guess = None
         reasons = quality.check_fit(t, theta, result, setup, offset=offset,
-                                    model=model if method == "lsq" else "coulomb")
+                                    model=model if method == "lsq" else "coulomb", guess=guess,
+                                    mu_max=MU_MAX, noise_floor=NOISE_FLOOR)
         result = dataclasses.replace(result, quality_reasons=tuple(reasons))
     return result
 

@@ -148,14 +148,19 @@ def _period_reason(tp_t, tp_y, setup, unit_fps: float) -> Reason | None:
     return Reason("period", msg)
 
 
-def check_fit(t, theta, result, setup, *, offset: bool = False,
-              model: str = "coulomb") -> list[Reason]:
+def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "coulomb",
+              guess: dict | None = None, mu_max: float = 1.0,
+              noise_floor: float = 1e-8) -> list[Reason]:
     """The quality reasons of a fit ``result`` (:class:`rollfric.fit.FitResult`) of theta(t).
 
     ``offset``, ``model``: what was fitted (they set how many half-swings are needed).
+    ``guess``: the fitter's self-start of the data (:func:`rollfric.fit.initial_guess`: the
+    turning points; None skips the swing checks); ``mu_max``: the fitter's upper bound of mu;
+    ``noise_floor``: the smallest noise (rad) a residual is compared with.
     An empty list means the fit passed every check.
     """
-    from rollfric.fit import MU_MAX, NOISE_FLOOR, initial_guess, on_grid
+    from rollfric.filtering import on_grid
+
 
     t = np.asarray(t, dtype=float)
     theta = np.asarray(theta, dtype=float)
@@ -173,9 +178,9 @@ def check_fit(t, theta, result, setup, *, offset: bool = False,
     elif math.isfinite(se) and result.mu < MU_SIGMAS_MIN * se:
         reasons.append(Reason("mu_bound", f"mu = {result.mu:.3g} +- {se:.2g} is not "
                               "distinguishable from 0: the record does not determine mu"))
-    elif result.mu >= MU_UPPER_NEAR * MU_MAX:
+    elif result.mu >= MU_UPPER_NEAR * mu_max:
         reasons.append(Reason("mu_bound", f"mu = {result.mu:.3g} is at the fitter's upper bound "
-                              f"{MU_MAX:g}"))
+                              f"{mu_max:g}"))
     # angles beyond the trough's side
     n_out = int(np.sum(np.abs(theta[good]) > math.pi / 2))
     if n_out:
@@ -187,7 +192,7 @@ def check_fit(t, theta, result, setup, *, offset: bool = False,
     fps = 1.0 / float(np.median(np.diff(t[good]))) if good.sum() > 1 else 1.0
     tg = t[good]
     noise = filtering.noise_sigma(on_grid(tg, theta[good], fps))
-    noise = max(noise, NOISE_FLOOR) if math.isfinite(noise) else NOISE_FLOOR
+    noise = max(noise, noise_floor) if math.isfinite(noise) else noise_floor
     res = np.where(used, theta - result.curve, np.nan)[good]
     # what a setup error does to the angles (a wrong centre, radius, pixel scale, a lens: a
     # smooth map of the true angle, to third order off + (1 + g1) th + g2 th^2 + g3 th^3) is
@@ -226,10 +231,6 @@ def check_fit(t, theta, result, setup, *, offset: bool = False,
         reasons.append(Reason("outliers", f"{n_outliers} of {n_fit} samples lay far off the "
                               "model and were left out of the fit"))
     # the swings: their number and their period
-    try:
-        guess = initial_guess(t, theta, setup)
-    except Exception:  # noqa: BLE001 - the fit itself succeeded; a failed estimate is no reason
-        guess = None
     if guess is not None:
         t_end = guess["t_rest"] - 0.25 * guess["period"]
         tp_t = np.asarray(guess["turning_points_s"])
