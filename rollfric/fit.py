@@ -464,12 +464,38 @@ class FitMethod(Protocol):
 
 def fit_mu(t, theta, setup: Setup, *, method: str = "lsq", offset: bool = False,
            model: str = "coulomb", checks: bool = True, **kwargs) -> FitResult:
-    """Fit mu (M = mu r N) to theta(t); ``method`` is one of :data:`METHODS` (registered in
-    :data:`rollfric.registry.FIT_METHODS`).
+    """Fit mu (M = mu r N) to theta(t).
 
-    NaN samples (frames without a ball) are left out. Raises InputError for too few samples
-    and for angles that are not radians (:func:`check_angles`). ``checks``: run the quality
-    checks of :mod:`rollfric.quality` on the result (``quality_reasons``; empty: ok).
+    NaN samples (frames without a ball) are left out.
+
+    Parameters
+    ----------
+    t, theta : array_like
+        Times (s) and angles (rad, > 0 right of the trough bottom).
+    setup : Setup
+        The geometry (L = R - r) and gravity.
+    method : str, optional
+        One of :data:`METHODS` (registered in :data:`rollfric.registry.FIT_METHODS`): ``"lsq"``
+        (least squares, default), ``"paper1_eps"``, ``"paper2_grid"``.
+    offset : bool, optional
+        Also fit a constant angle offset of the trough bottom.
+    model : {"coulomb", "velocity"}, optional
+        Constant mu, or mu0 + mu1 |theta'| (``lsq`` only).
+    checks : bool, optional
+        Run the quality checks of :mod:`rollfric.quality` on the result (``quality_reasons``;
+        empty: ok).
+    **kwargs
+        Options of the method.
+
+    Returns
+    -------
+    FitResult
+        mu, its standard error, the fitted initial state, residuals and the quality reasons.
+
+    Raises
+    ------
+    InputError
+        Too few samples, or angles that are not radians (:func:`check_angles`).
     """
     from rollfric import quality
 
@@ -488,7 +514,18 @@ def fit_mu(t, theta, setup: Setup, *, method: str = "lsq", offset: bool = False,
 
 
 def json_safe(value):
-    """``value`` with NumPy scalars made plain and non-finite floats made None (JSON null)."""
+    """A value made fit for JSON.
+
+    Parameters
+    ----------
+    value
+        A dict, list, tuple or scalar (nested).
+
+    Returns
+    -------
+    object
+        The same with NumPy scalars made plain and non-finite floats made None (JSON null).
+    """
     if isinstance(value, dict):
         return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -501,7 +538,15 @@ def json_safe(value):
 
 
 def save_fit(result: FitResult, path, **extra) -> None:
-    """Write ``result.to_dict()`` plus ``extra`` keys as JSON (NaN becomes null)."""
+    """Write ``result.to_dict()`` plus ``extra`` keys as JSON (NaN becomes null), atomically.
+
+    Parameters
+    ----------
+    result : FitResult
+    path : str or pathlib.Path
+    **extra
+        More keys for the file.
+    """
     import json
 
     from rollfric.atomic import write_text
