@@ -42,8 +42,10 @@ def register(sub) -> None:
                    help="theta = atan2(x - xc, y - yc), or the thesis's arcsin((x - xc) / L)")
     p.add_argument("--fit-method", default="lsq", choices=list(FIT_METHODS),
                    help="how mu is fitted (see rollfric fit)")
-    p.add_argument("--offset", action="store_true",
-                   help="also fit a constant angle offset of the trough bottom")
+    p.add_argument("--offset", nargs="?", const="on", default="auto",
+                   choices=["auto", "on", "off"],
+                   help="fit the angle of the trough's bottom (a camera rolled about its axis): "
+                        "auto = when the track has three turning points or more; --offset = on")
     p.add_argument("--times", default="auto", choices=["auto", "fps"],
                    help="t_s of each frame: auto = the recording's own per-frame timestamps when "
                         "it has them (a .cine's), else frame / camera.fps; fps = always "
@@ -125,7 +127,8 @@ def _run(args) -> int:
     if args.median_frames < 3:
         raise InputError(f"--median-frames must be at least 3, got {args.median_frames}")
     track, result = measure(args.recording, args.setup, args.background, method=args.method,
-                            angle=args.angle, fit_method=args.fit_method, offset=args.offset,
+                            angle=args.angle, fit_method=args.fit_method,
+                            offset={"on": True, "off": False}.get(args.offset, "auto"),
                             progress=not args.no_progress, median_frames=args.median_frames,
                             times=args.times)
     keys, budget = run_budget(measurement_from_track(track, track.attrs["setup"]), result, args)
@@ -137,6 +140,10 @@ def _run(args) -> int:
                  "locator": track.attrs["locator"], "angle": track.attrs["angle"],
                  "center_px": track.attrs["center_px"],
                  "center_source": track.attrs["center_source"],
+                 # angles from lens-undistorted centres ([camera] matrix, distortion)
+                 "undistorted": bool(track.attrs.get("undistorted", False)),
+                 "offset_fitted": bool(track.attrs.get("offset_fitted", False)),
+                 "offset_reason": track.attrs.get("offset_reason"),
                  "background": track.attrs["background"],
                  "times": track.attrs["times"],
                  "ball_radius_px": track.attrs["ball_radius_px"],

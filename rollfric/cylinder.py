@@ -78,7 +78,8 @@ def _ransac_circle(xs, ys, r_expected, rng, iters=400, tol=2.0):
 
 
 def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = None,
-                         seed: int = 0, min_arc_deg: float = 60.0) -> CylinderContour:
+                         seed: int = 0, min_arc_deg: float = 60.0,
+                         undistort=None) -> CylinderContour:
     """Centre (px) of the trough's contour circle in ``background``.
 
     Parameters
@@ -92,6 +93,11 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
         Seed of the RANSAC circle search.
     min_arc_deg : float, optional
         Smallest angular extent of contour points accepted (deg).
+    undistort : callable, optional
+        Image pixels (N, 2) -> undistorted pixels (a lens calibration's
+        :meth:`rollfric.lens.Calibration.undistort`): the chords' end points are undistorted
+        and the centre and radius are those of the circle through them (least squares on the
+        distances), in the undistorted image.
 
     Returns
     -------
@@ -182,6 +188,11 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
         raise ContourError("too few horizontal chords of the cylinder contour; give "
                            "[cylinder] center_px in the setup")
     ch = np.array(chords, dtype=float)
+    if undistort is not None:
+        ends = np.concatenate([ch[:, [1, 0]], ch[:, [2, 0]]])
+        (xc, yc), radius = fit_circle(np.asarray(undistort(ends), dtype=float))
+        return CylinderContour(center=(xc, yc), radius=radius, n_points=int(len(px)),
+                               arc_deg=arc)
     cy_rows, half, mid = ch[:, 0], 0.5 * (ch[:, 2] - ch[:, 1]), 0.5 * (ch[:, 1] + ch[:, 2])
     # widest chord: (half-width)^2 + y^2 = (R^2 - yc^2) + 2 yc y
     a = np.stack([np.ones_like(cy_rows), 2 * cy_rows], axis=1)
@@ -191,3 +202,28 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     # the vertical line through the lowest point: the chords' common midpoint
     xc = float(np.median(mid))
     return CylinderContour(center=(xc, yc), radius=radius, n_points=int(len(px)), arc_deg=arc)
+
+
+def fit_circle(points: np.ndarray) -> tuple[tuple[float, float], float]:
+    """Centre and radius of the circle through ``points`` (N, 2): the algebraic (Kasa) fit,
+    polished by least squares on the points' distances to the circle.
+
+    Parameters
+    ----------
+    points : numpy.ndarray
+        (N, 2) points (px), N >= 3.
+
+    Returns
+    -------
+    tuple
+        ((xc, yc), radius) in px.
+    """
+    from scipy.optimize import least_squares
+
+    x, y = points[:, 0], points[:, 1]
+    a = np.column_stack([2 * x, 2 * y, np.ones_like(x)])
+    (xc, yc, c), *_ = np.linalg.lstsq(a, x * x + y * y, rcond=None)
+    r0 = math.sqrt(max(c + xc * xc + yc * yc, 0.0))
+    sol = least_squares(lambda p: np.hypot(x - p[0], y - p[1]) - p[2], [xc, yc, r0],
+                        xtol=1e-12, ftol=1e-12)
+    return (float(sol.x[0]), float(sol.x[1])), float(sol.x[2])

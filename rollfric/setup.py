@@ -20,6 +20,14 @@ uncertainty in the same units and of the same shape (``radius_mm_u = 0.5``,
 ``center_px_u = [2.0, 2.0]``, ``fps_u = 0.05``, ...). A key without ``K_u`` is taken as exact.
 They are kept in :attr:`Setup.uncertainty` in SI units under the field names
 (``cylinder_radius``, ``center_px``, ...) and used by :mod:`rollfric.uncertainty`.
+
+The camera's lens calibration as ``cv2.calibrateCamera`` returns it (:mod:`rollfric.lens`)::
+
+    [camera]
+    matrix = [[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]]   # px
+    distortion = [-0.18, 0.0, 0.0, 0.0, 0.0]                                # k1 k2 p1 p2 k3
+
+With a calibration, ``center_px`` and ``pixel_size_mm`` refer to the undistorted image.
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ import math
 from pathlib import Path
 
 from rollfric.errors import InputError
+from rollfric.lens import Calibration, CalibrationError, calibration_from_dict
 from rollfric.tomlfile import read_toml
 
 STANDARD_GRAVITY = 9.81  # m/s^2, the value the thesis uses
@@ -123,6 +132,7 @@ class Setup:
     # standard uncertainties of the fields above, SI (center_px: px, a pair):
     # ((field name, u), ...); a field not listed is exact
     uncertainty: tuple = ()
+    calibration: Calibration | None = None  # the lens (rollfric.lens); None: no distortion
 
     def __post_init__(self) -> None:
         for name in ("cylinder_radius", "ball_diameter", "ball_mass", "fps", "pixel_size",
@@ -156,6 +166,9 @@ class Setup:
             SI (a pair for ``center_px``); None if the field is exact.
         """
         return dict(self.uncertainty).get(name)
+        if self.calibration is not None and not isinstance(self.calibration, Calibration):
+            raise SetupError(f"calibration must be a rollfric.lens.Calibration, got "
+                             f"{self.calibration!r}")
 
     @property
     def ball_radius(self) -> float:
@@ -191,6 +204,8 @@ class Setup:
             "ball": {"diameter_mm": self.ball_diameter * 1e3, "mass_g": self.ball_mass * 1e3},
             "camera": {"fps": self.fps, "pixel_size_mm": self.pixel_size * 1e3},
         }
+        if self.calibration is not None:
+            out["camera"].update(self.calibration.to_toml_dict())
         if self.gravity != STANDARD_GRAVITY:
             out["environment"] = {"gravity_m_s2": self.gravity}
         for name, u in self.uncertainty:
@@ -243,7 +258,7 @@ def _check_uncertainty(setup: Setup) -> tuple:
 _SCHEMA = {
     "cylinder": {"radius_mm": True, "center_px": False},
     "ball": {"diameter_mm": True, "mass_g": True},
-    "camera": {"fps": True, "pixel_size_mm": True},
+    "camera": {"fps": True, "pixel_size_mm": True, "matrix": False, "distortion": False},
     "environment": {"gravity_m_s2": False},
 }
 _REQUIRED_SECTIONS = ("cylinder", "ball", "camera")
@@ -355,7 +370,12 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
             raise SetupError(f"{where} (a standard uncertainty) must be finite and >= 0, "
                              f"got {value!r}")
         uncertainty.append((name, tuple(vals) if name == "center_px" else vals[0] / scale))
+    try:
+        calibration = calibration_from_dict(data["camera"], source)
+    except CalibrationError as exc:
+        raise SetupError(str(exc)) from None
     return Setup(
+        calibration=calibration,
         cylinder_radius=radius,
         ball_diameter=diameter,
         ball_mass=number("ball", "mass_g") * 1e-3,
@@ -405,7 +425,9 @@ def dumps_setup(setup: Setup) -> str:
         lines.append(f"[{section}]")
         for key, value in table.items():
             if isinstance(value, list):
-                text = "[" + ", ".join(repr(float(v)) for v in value) + "]"
+                text = "[" + ", ".join(
+                    "[" + ", ".join(repr(float(x)) for x in v) + "]" if isinstance(v, list)
+                    else repr(float(v)) for v in value) + "]"
             else:
                 text = repr(float(value)) if isinstance(value, float) else str(value)
             lines.append(f"{key} = {text}")

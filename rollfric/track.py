@@ -410,6 +410,12 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     L_px = setup.track_radius / setup.pixel_size
     if center is None:
         center = setup.center_px
+    lens = setup.calibration
+    # with a lens calibration the centre is in the undistorted image; the locator works in the
+    # recorded one (where the lens put the axis) and its centres are undistorted for the angles
+    center_ud = center
+    if lens is not None:
+        center = tuple(float(v) for v in lens.distort(np.asarray(center, dtype=float)))
     rows = np.full((n, 6), np.nan)
     hist: list = []
     bar = tqdm(total=n, desc="locating ball", unit="frame", disable=not progress,
@@ -491,7 +497,10 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         logger.warning(msg)
     found = rows[:, 5] == 1.0
     theta = np.full(n, np.nan)
-    theta[found] = angles(rows[found, 0], rows[found, 1], center, method=angle,
+    xy = rows[:, :2].copy()
+    if lens is not None:
+        xy[found] = lens.undistort(rows[found, :2])
+    theta[found] = angles(xy[found, 0], xy[found, 1], center_ud, method=angle,
                           track_radius_px=L_px)
     frame_idx = np.arange(n)
     df = pd.DataFrame({
@@ -505,7 +514,10 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         "sigma_px": rows[:, 3],
         "inlier_frac": rows[:, 4],
     })
-    df.attrs.update({"center_px": [float(center[0]), float(center[1])], "locator": method,
+    if lens is not None:  # the undistorted centres the angles come from
+        df["xu_px"], df["yu_px"] = xy[:, 0], xy[:, 1]
+    df.attrs.update({"center_px": [float(center_ud[0]), float(center_ud[1])],
+                     "undistorted": lens is not None, "locator": method,
                      "angle": angle, "ball_radius_px": r_px, "track_radius_px": L_px,
                      **cal.summary(), "n_refitted": len(redo) if r_cal is not None else 0,
                      "warnings": warnings, "warnings_radius": warnings_radius})
@@ -580,7 +592,7 @@ def frame_times(source, setup_fps: float, times: str = "auto"):
 
 def measure(recording, setup: Setup | str | None = None, background=None, *,
             method: str = "subpixel", angle: str = "atan2", fit_method: str = "lsq",
-            offset: bool = False, fit: bool = True, progress: bool = False,
+            offset: bool | str = "auto", fit: bool = True, progress: bool = False,
             median_frames: int = 41, fit_kwargs: dict | None = None,
             times: str = "auto"):
     """Measure mu from a recording: (track DataFrame, FitResult or None when ``fit=False``).
@@ -594,6 +606,9 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     ``method``: "subpixel" (default), "thesis-large" or "thesis-small".
     ``times``: "auto" (the recording's per-frame timestamps when it has them, else frame /
     camera.fps) or "fps" (always frame / camera.fps); see :func:`frame_times`.
+    ``offset``: fit the angle of the trough's bottom too (True), not (False), or "auto" (the
+    default): where the data support it (:func:`offset_supported`), which corrects a camera
+    rolled about its axis (0.5 deg of roll: mu +0.67 % without the offset).
     The track has the columns TRACK_COLUMNS (+ r_px, sigma_px, inlier_frac); its ``attrs``
     hold the setup used, center_px, background, n_frames, n_found and the locator.
     """
@@ -624,7 +639,9 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         center, center_desc = setup.center_px, "setup center_px"
     else:
         R_px = setup.cylinder_radius / setup.pixel_size
-        contour = find_cylinder_center(bg, radius_px=R_px)
+        lens = setup.calibration
+        contour = find_cylinder_center(bg, radius_px=R_px,
+                                       undistort=None if lens is None else lens.undistort)
         if abs(contour.radius - R_px) > 0.1 * R_px:
             raise SetupError(
                 f"the setup does not fit the images: the trough contour in the background has a "
@@ -657,8 +674,14 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         if n_found < fitmod.MIN_SAMPLES:
             raise InputError(f"the ball was found in only {n_found} of {len(df)} frames: at "
                              f"least {fitmod.MIN_SAMPLES} are needed to fit mu")
-        result = fitmod.fit_mu(df["t_s"].to_numpy(), df["theta_rad"].to_numpy(), setup,
-                               method=fit_method, offset=offset, **(fit_kwargs or {}))
+        t_s, th = df["t_s"].to_numpy(), df["theta_rad"].to_numpy()
+        use, why = resolve_offset(offset, t_s, th, setup, fit_method)
+        df.attrs.update({"offset_fitted": use, "offset_reason": why})
+        if offset == "auto":
+            logger.info(f"angle offset of the trough bottom {'fitted' if use else 'not fitted'}: "
+                        f"{why}")
+        result = fitmod.fit_mu(t_s, th, setup, method=fit_method, offset=use,
+                               **(fit_kwargs or {}))
         coded = [("background_repaired", f"{msg}: a background image without the ball "
                   "(--background) rules out a trace of it") for msg in bg_notes]
         coded += [("ball_radius", msg) for msg in df.attrs.get("warnings_radius", [])]
@@ -667,3 +690,38 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         result = dataclasses.replace(
             result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
     return df, result
+
+
+OFFSET_MIN_TURNS = 3  # turning points inside the track before the offset is fitted by default
+
+
+def offset_supported(t, theta, setup: Setup) -> tuple[bool, str]:
+    """Whether theta(t) pins down the angle of the trough's bottom, and why.
+
+    With Coulomb friction each half-swing is a cosine about +-eps/omega^2 on either side of the
+    bottom: an angle offset moves both centres alike, friction moves them apart, so whole
+    half-swings to both sides (three turning points inside the track, the release not
+    counted) separate the two. With two the fit's start is unreliable (measured: a 0.8 s
+    record of an 8 deg swing ran to the offset's bound); with fewer the offset and mu are one.
+    """
+    from rollfric import fit as fitmod
+
+    try:
+        n = len(fitmod.initial_guess(t, theta, setup)["turning_points_s"])
+    except (InputError, ValueError) as exc:
+        return False, f"no turning points found ({exc})"
+    if n >= OFFSET_MIN_TURNS:
+        return True, f"{n} turning points: the bottom's angle is separable from mu"
+    return False, (f"{n} turning point(s): fewer than {OFFSET_MIN_TURNS}, the bottom's angle "
+                   "cannot be told from mu")
+
+
+def resolve_offset(offset, t, theta, setup: Setup, fit_method: str = "lsq") -> tuple[bool, str]:
+    """``offset`` (True, False or "auto") -> (fit the offset?, why)."""
+    if offset is True or offset is False:
+        return offset, "asked for" if offset else "not asked for"
+    if offset != "auto":
+        raise InputError(f"offset must be true, false or 'auto', got {offset!r}")
+    if fit_method == "paper1_eps":
+        return False, "the paper1_eps method has no offset"
+    return offset_supported(t, theta, setup)

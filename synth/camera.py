@@ -11,6 +11,15 @@ Pixels: x right, y down, origin at the centre of the top-left pixel (OpenCV).
   u = cx + f x / (D - z), v = cy - f y / (D - z) with f = D / s (pixels), so that one pixel is
   exactly s at the ball plane.
 
+The camera may be rolled about its optical axis by ``roll`` (rad): world points are turned by
+``roll`` about the cylinder axis before they are projected, so the trough's bottom (the
+direction of gravity) appears at theta = +roll in rollfric's convention (right of the image
+vertical through the axis), a camera turned clockwise as seen from behind it.
+
+A lens (``lens_distortion`` = OpenCV's [k1, k2, p1, p2, k3] with ``lens_matrix``, default
+fx = fy = focal_px at the frame centre) bends the ideal image (:mod:`synth.lens`); the
+projections here are the ideal ones, :meth:`CameraModel.recorded` maps them through the lens.
+
 All functions are plain numpy and exact (no rendering): they are the ground truth.
 """
 
@@ -36,6 +45,9 @@ class CameraModel:
     working_distance: float = 0.5  # m, pinhole to ball plane (perspective only)
     znear: float = 0.05  # m, clip planes as distances from the camera
     zfar: float = 2.0
+    roll: float = 0.0  # rad about the optical axis: the trough bottom appears at theta = +roll
+    lens_matrix: tuple | None = None  # OpenCV 3x3 camera matrix (px) of the lens model
+    lens_distortion: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)  # OpenCV k1, k2, p1, p2, k3
 
     def __post_init__(self) -> None:
         if self.projection not in ("orthographic", "perspective"):
@@ -56,6 +68,53 @@ class CameraModel:
             raise InputError(f"camera center_px must be two finite numbers, got "
                              f"{self.center_px!r}")
         object.__setattr__(self, "center_px", c)
+        if not math.isfinite(self.roll) or abs(self.roll) > math.pi / 4:
+            raise InputError(f"camera roll must be within +-45 deg, got {self.roll!r} rad")
+        d = tuple(float(v) for v in self.lens_distortion)
+        if len(d) != 5 or not all(math.isfinite(v) for v in d):
+            raise InputError(f"camera lens_distortion must be [k1, k2, p1, p2, k3], got "
+                             f"{self.lens_distortion!r}")
+        object.__setattr__(self, "lens_distortion", d)
+        if self.lens_matrix is not None:
+            from synth.lens import Lens
+
+            object.__setattr__(self, "lens_matrix", Lens(self.lens_matrix, d).matrix)
+
+    @property
+    def lens(self):
+        """The :class:`synth.lens.Lens` (None without distortion)."""
+        from synth.lens import lens_of
+
+        return lens_of(self)
+
+    def recorded(self, uv) -> np.ndarray:
+        """Ideal pixel coordinates (..., 2) -> where the lens puts them in the recording."""
+        lens = self.lens
+        return np.asarray(uv, dtype=float) if lens is None else lens.distort(uv)
+
+    def ideal(self) -> CameraModel:
+        """The camera without its lens whose frame covers everything the lens shows: the
+        render that :mod:`synth.lens` bends into this camera's frames (self when no lens)."""
+        lens = self.lens
+        if lens is None:
+            return self
+        from synth.lens import cached_window
+
+        win = cached_window(lens, self.width, self.height)
+        return dataclasses.replace(
+            self, width=win.width, height=win.height, lens_matrix=None,
+            lens_distortion=(0.0,) * 5,
+            center_px=(self.center_px[0] - win.x0, self.center_px[1] - win.y0))
+
+    def _turned(self, p: np.ndarray) -> np.ndarray:
+        """World points with x, y turned by the camera's roll (what the camera sees)."""
+        if not self.roll:
+            return p
+        c, s = math.cos(self.roll), math.sin(self.roll)
+        out = p.copy()
+        out[..., 0] = c * p[..., 0] - s * p[..., 1]
+        out[..., 1] = s * p[..., 0] + c * p[..., 1]
+        return out
 
     @property
     def focal_px(self) -> float:
@@ -71,6 +130,10 @@ class CameraModel:
         """4x4 camera-to-world pose (OpenGL camera: looks along its -z)."""
         pose = np.eye(4)
         pose[2, 3] = self.camera_z
+        if self.roll:
+            # camera-to-world: the inverse of the roll that turns world points for the camera
+            c, s = math.cos(self.roll), math.sin(self.roll)
+            pose[:2, :2] = [[c, s], [-s, c]]
         return pose
 
     # -- exact projections -------------------------------------------------------------------
@@ -94,7 +157,7 @@ class CameraModel:
         InputError
             A point lies behind the perspective camera.
         """
-        p = np.asarray(points, dtype=float)
+        p = self._turned(np.asarray(points, dtype=float))
         cx, cy = self.center_px
         if self.projection == "orthographic":
             u = cx + p[..., 0] / self.pixel_size
@@ -136,6 +199,7 @@ class CameraModel:
         c = np.atleast_2d(np.asarray(centres, dtype=float))
         if self.projection == "orthographic":
             return self.project(c), np.full(len(c), radius / self.pixel_size)
+        c = self._turned(c)
         # camera coordinates with y down, z = depth (standard pinhole)
         X = c[:, 0]
         Y = -c[:, 1]
@@ -218,4 +282,8 @@ class CameraModel:
         -------
         dict
         """
-        return dataclasses.asdict(self) | {"center_px": list(self.center_px)}
+        d = dataclasses.asdict(self) | {"center_px": list(self.center_px),
+                                        "lens_distortion": list(self.lens_distortion)}
+        if self.lens_matrix is not None:
+            d["lens_matrix"] = [list(r) for r in self.lens_matrix]
+        return d

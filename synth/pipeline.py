@@ -62,9 +62,13 @@ def subframe_positions(traj, n_sub: int, exposure: float) -> np.ndarray:
 
 
 def truth_table(traj, camera: CameraModel, ball_radius: float) -> dict:
+    """The truth columns (TRUTH_COLUMNS). Through a lens the ball's positions are the distorted
+    ones of its ideal projections (:meth:`CameraModel.recorded`: the sphere centre's and the
+    silhouette centre's); the axis (cx_px, cy_px) stays in the ideal (undistorted) image."""
     pos = np.asarray(traj.position, float)
-    uv = camera.project(pos)
+    uv = camera.recorded(camera.project(pos))
     sil, rad = camera.sphere_silhouette(pos, ball_radius)
+    sil = camera.recorded(sil)
     n = len(pos)
     return {
         "t_s": np.asarray(traj.t, float),
@@ -104,10 +108,20 @@ def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads):
     from synth.scene import SceneRenderer
 
     cfg = SceneConfig.from_dict(scene_dict)
-    _W["renderer"] = SceneRenderer(cfg, ball_radius, cylinder_radius)
+    lens = cfg.camera.lens
+    _W["renderer"] = SceneRenderer(cfg.replace(camera=cfg.camera.ideal()), ball_radius,
+                                   cylinder_radius)
     g = zarr.open_group(store_path, mode="r+")
     _W["diff"] = g["clean_diff"]
-    _W["bg"] = np.asarray(g["background_clean"][...], dtype=np.int64)
+    _W["lens"] = None
+    if lens is not None:
+        from synth.lens import cached_window
+
+        _W["lens"] = (lens, cached_window(lens, cfg.camera.width, cfg.camera.height),
+                      (cfg.camera.height, cfg.camera.width))
+        _W["bg"] = np.asarray(g["background_ideal_clean"][...], dtype=np.int64)
+    else:
+        _W["bg"] = np.asarray(g["background_clean"][...], dtype=np.int64)
 
 
 def _worker_batch(indices, centres):
@@ -116,16 +130,38 @@ def _worker_batch(indices, centres):
     bg = _W["bg"]
     k = centres.shape[1]
     dtype = diff_arr.dtype
+    lens = _W.get("lens")
     for n, i in enumerate(indices):
         poses = [sr.ball_pose(c) for c in centres[n]]
         tiles = sr.tiles_for(centres[n])
-        out = np.zeros(bg.shape, dtype=dtype)
-        if tiles:
+        out = np.zeros(bg.shape if lens is None else lens[2], dtype=dtype)
+        if tiles and lens is None:
             rendered = sr.render_tiles(poses, tiles)
             for (x0, y0, w, h), img in zip(tiles, rendered, strict=True):
                 out[y0:y0 + h, x0:x0 + w] = img.astype(np.int64) - k * bg[y0:y0 + h, x0:x0 + w]
+        elif tiles:
+            _through_lens(out, tiles, sr.render_tiles(poses, tiles), bg, k, lens)
         diff_arr[int(i)] = out
     return len(indices)
+
+
+def _through_lens(out, tiles, rendered, bg, k, lens) -> None:
+    """The ideal tiles' difference from the background, bent by the lens into ``out``."""
+    from synth.lens import distort_tile
+
+    lens_, win, shape = lens
+    x0 = min(t[0] for t in tiles)
+    y0 = min(t[1] for t in tiles)
+    x1 = max(t[0] + t[2] for t in tiles)
+    y1 = max(t[1] + t[3] for t in tiles)
+    canvas = np.zeros((y1 - y0, x1 - x0), dtype=np.float64)
+    for (tx, ty, w, h), img in zip(tiles, rendered, strict=True):
+        canvas[ty - y0:ty - y0 + h, tx - x0:tx - x0 + w] = \
+            img.astype(np.int64) - k * bg[ty:ty + h, tx:tx + w]
+    bent = distort_tile(canvas, (x0, y0, x1 - x0, y1 - y0), win, lens_, shape)
+    if bent is not None:
+        (fx, fy, w, h), vals = bent
+        out[fy:fy + h, fx:fx + w] = np.rint(vals).astype(out.dtype)
 
 
 MAX_POOL_RESTARTS = 3
@@ -180,6 +216,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     from tqdm import tqdm
     from zarr.codecs import ZstdCodec
 
+    from rollfric.lens import Calibration
     from rollfric.setup import Setup
     from synth.scene import SceneRenderer
 
@@ -198,7 +235,9 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     cam = scene.camera
     setup = Setup(cylinder_radius=base.cylinder_radius, ball_diameter=base.ball_diameter,
                   ball_mass=base.ball_mass, fps=base.fps, pixel_size=cam.pixel_size,
-                  center_px=cam.center_px, gravity=base.gravity)
+                  center_px=cam.center_px, gravity=base.gravity,
+                  calibration=None if cam.lens is None else
+                  Calibration(cam.lens.matrix, cam.lens.distortion))
     r_ball, r_cyl = setup.ball_radius, setup.cylinder_radius
     k_sub = scene.motion_blur
     centres = subframe_positions(traj, k_sub, sensor.exposure)
@@ -208,16 +247,26 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     if threads is None and workers > 1:
         threads = 1  # one llvmpipe thread per process: the processes fill the cores
 
+    lens = cam.lens
     with replacing(out, folder_ok=True) as tmp:
-        sr = SceneRenderer(scene, r_ball, r_cyl)
+        sr = SceneRenderer(scene.replace(camera=cam.ideal()), r_ball, r_cyl)
         bg = sr.render_full()
         sr.close()
+        bg_ideal = None
+        if lens is not None:
+            from synth.lens import cached_window, distort_image
+
+            bg_ideal = bg
+            bg = np.rint(distort_image(bg, cached_window(lens, cam.width, cam.height)))
         scale = sr.scale
         frame_scale = scale * k_sub
         H, W = cam.height, cam.width
         g = zarr.open_group(str(tmp), mode="w")
         bg_dtype = "uint16" if scale <= 65535 else "uint32"
         g.create_array("background_clean", data=bg.astype(bg_dtype), chunks=(H, W))
+        if bg_ideal is not None:  # what the workers subtract from the ideal tiles
+            g.create_array("background_ideal_clean", data=bg_ideal.astype(bg_dtype),
+                           chunks=bg_ideal.shape)
         diff_dtype = "int16" if frame_scale <= 32767 else "int32"
         # flat chunk names (0.0.0, 1.0.0, ...): no two directories per frame on disk. One chunk
         # a frame: a region read decodes the whole chunk (mostly zeros: ~1 ms with zarr 3.1),

@@ -642,7 +642,8 @@ class SceneRenderer:
         else:
             f, D = cam.focal_px, cam.camera_z
             lo, hi = R * f / (D - half), (R + wall) * f / (D + half)
-        phi = np.abs(np.arctan2(q[:, 0], q[:, 1]))  # angle from the bottom (image y down)
+        # angle from the bottom (image y down; the bottom appears at +roll)
+        phi = np.abs(np.arctan2(q[:, 0], q[:, 1]) - cam.roll)
         # 3 px and 1 degree inside the wall's silhouette, to stay clear of its edges
         return (rho > lo + 3) & (rho < hi - 3) & (phi < self.config.trough_opening - 0.02)
 

@@ -10,6 +10,8 @@ Layout (a directory ``REC.zarr``)::
                                                 zero outside the ball's region, so it compresses
                                                 to a few kB a frame and decodes in ~1 ms
     truth/<column>    (T,)       float64        exact ground truth, see TRUTH_COLUMNS
+    background_ideal_clean (H', W')             with a lens only: the ideal render the lens
+                                                bends into the frames (synth.lens)
 
 Root attributes: ``format``, ``setup`` (the lab setup, TOML form), ``scene``, ``sensor``,
 ``sensor_noise`` (the noise generator, ``synth.sensor.NOISES``; absent: "tiles/1", the stores
@@ -45,12 +47,13 @@ TRUTH_COLUMNS = {
     "t_s": "time of the exposure centre (s)",
     "theta_rad": "ball angle about the cylinder axis (rad)",
     "theta_dot_rad_s": "angular velocity about the axis (rad/s)",
-    "x_px": "projected sphere centre, x (px)",
+    "x_px": "projected sphere centre, x (px; through a lens: its distorted position)",
     "y_px": "projected sphere centre, y (px)",
-    "sil_x_px": "centre of the ball's silhouette, x (px; differs in perspective)",
+    "sil_x_px": "centre of the ball's silhouette, x (px; differs in perspective; through a "
+                "lens: the distorted position of the ideal silhouette's centre)",
     "sil_y_px": "centre of the ball's silhouette, y (px)",
     "r_px": "ball radius in pixels (area-equivalent radius of the silhouette)",
-    "cx_px": "cylinder axis in the image, x (px)",
+    "cx_px": "cylinder axis in the image, x (px; in the ideal, undistorted image)",
     "cy_px": "cylinder axis in the image, y (px)",
 }
 

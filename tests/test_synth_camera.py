@@ -71,3 +71,23 @@ def test_bad_camera_refused():
         CameraModel(projection="fisheye")
     with pytest.raises(InputError, match="pixel_size"):
         CameraModel(pixel_size=0.0)
+
+
+def test_roll_turns_the_image_about_the_axis():
+    """Rolled by +r, the camera sees the trough bottom (straight below the axis) at theta = +r
+    (right of the image vertical), every point turned by r about center_px; the pose's rotation
+    is the inverse of that turn."""
+    r = math.radians(0.5)
+    cam = CameraModel(center_px=(640.0, 380.0), roll=r)
+    L = 0.0803
+    for th in (0.0, 0.3, -0.2):
+        p = np.array([L * math.sin(th), -L * math.cos(th), 0.0])
+        u, v = cam.project(p)
+        assert math.atan2(u - 640.0, v - 380.0) == pytest.approx(th + r, abs=1e-12)
+        assert math.hypot(u - 640.0, v - 380.0) == pytest.approx(L / cam.pixel_size, rel=1e-12)
+    # the pose: world point -> camera frame by the inverse pose, then an unrolled projection
+    p = np.array([0.01, -0.07, 0.002])
+    q = np.linalg.inv(cam.pose()) @ np.append(p, 1.0)
+    flat = CameraModel(center_px=(640.0, 380.0))
+    np.testing.assert_allclose(flat.project(q[:3] + [0, 0, cam.camera_z]), cam.project(p),
+                               atol=1e-9)

@@ -107,3 +107,24 @@ def test_blind_case_finds_the_trough_centre_from_the_contour(tmp_path):
     assert abs(m["trough_center_err_x_px"]) < 0.2 and abs(m["trough_center_err_y_px"]) < 0.3
     assert m["found_fraction"] == 1.0 and m["center_rms_px"] < 0.1
     assert abs(m["mu_bias_rel"]) < 0.02
+
+
+def test_camera_roll_is_the_fitted_angle_offset(tmp_path):
+    """A camera rolled by 0.5 deg: the trough bottom appears at theta = +0.5 deg; the fit's
+    angle offset (on by default: three turning points in 1.2 s) finds it and keeps mu."""
+    from rollfric.fit import fit_mu
+
+    d = C.small_case_dict(seconds=1.2)
+    d["render"]["shadows"] = False
+    d["render"]["camera"]["roll_deg"] = 0.5
+    r = e2e.run_case(d, recording=tmp_path / "rec.zarr", render_workers=1)
+    m = r.metrics
+    assert m["camera_roll_deg"] == 0.5 and m["offset_fitted"]
+    assert m["center_rms_px"] < 0.1  # the render and its truth agree under roll
+    assert m["theta_bias_rad"] == pytest.approx(math.radians(0.5), abs=math.radians(0.01))
+    assert m["fit_offset_rad"] == pytest.approx(math.radians(0.5), abs=math.radians(0.01))
+    t, th = r.track["t_s"].to_numpy(), r.track["theta_rad"].to_numpy()
+    off = fit_mu(t, th, r.setup, offset=False)
+    bias_off = off.mu / 0.0079 - 1
+    assert abs(m["mu_bias_rel"]) < 0.005
+    assert bias_off > abs(m["mu_bias_rel"]) + 0.003, (bias_off, m["mu_bias_rel"])

@@ -26,6 +26,9 @@ case of ``rollfric validate``)::
     read_noise = 8.0           #   exposure, gain, bit_depth, prnu, dsnu, vignetting, ...
     [render.camera]            # width, height, center_px, projection, working_distance
     width = 1280
+    roll_deg = 0.5             # camera rolled: the trough bottom appears at theta = +0.5 deg
+    lens_distortion = [-0.18, 0.0, 0.0, 0.0, 0.0]   # OpenCV k1 k2 p1 p2 k3 (synth.lens)
+    lens_matrix = [[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]]
 
     [lab]                      # blind mode: the lab's setup file (validation/lab.py)
     cylinder = { radius_mm = 85.3, radius_mm_u = 0.05 }   # nominal values the lab types
@@ -35,7 +38,8 @@ case of ``rollfric validate``)::
     [measure]                  # rollfric
     locator = "subpixel"       # subpixel, thesis-large, thesis-small
     fit = "lsq"                # lsq, paper1_eps, paper2_grid
-    offset = false             # also fit an angle offset of the trough bottom
+    offset = "auto"            # fit the trough bottom's angle: true, false, "auto" (rollfric's
+                               # default: when the track has three turning points or more)
     oracle = false             # true: rollfric gets the exact geometry and center_px
     budget = false             # true: also the uncertainty budget (u_mu, U_mu, z_budget, ...)
 
@@ -71,7 +75,8 @@ RENDER_KEYS = {
     "supersample": int, "shadows": bool, "seed": int, "sensor": dict, "camera": dict,
     "scene": dict, "lamps": list,
 }
-MEASURE_KEYS = {"locator": str, "fit": str, "offset": bool, "oracle": bool, "budget": bool}
+MEASURE_KEYS = {"locator": str, "fit": str, "offset": (bool, str), "oracle": bool,
+                "budget": bool}
 LOCATORS = ("subpixel", "thesis-large", "thesis-small")
 FITS = ("lsq", "paper1_eps", "paper2_grid")
 TOP_KEYS = ("name", "scenario", "render", "lab", "measure")
@@ -101,7 +106,7 @@ def default_case_dict() -> dict:
         },
         "render": {"lighting": "thesis", "noise": "realistic", "motion_blur": 1,
                    "supersample": 1, "shadows": True, "seed": 0},
-        "measure": {"locator": "subpixel", "fit": "lsq", "offset": False},
+        "measure": {"locator": "subpixel", "fit": "lsq", "offset": "auto"},
     }
 
 
@@ -315,7 +320,7 @@ class Case:
     render_seed: int
     locator: str
     fit: str
-    offset: bool
+    offset: bool | str  # True, False or "auto"
     data: dict  # the case dict it came from (merged over the defaults)
     oracle: bool = False  # rollfric gets the exact setup and center_px (else blind mode)
     lab: object = None  # validation.lab.Lab: the lab's nominal setup and the as-built truth
@@ -327,7 +332,7 @@ class Case:
 
     def lab_setup_dict(self) -> dict:
         """The setup file the lab hands rollfric in blind mode (lab-file form)."""
-        return self.lab.setup_dict(self.scene.camera.center_px)
+        return self.lab.setup_dict(self.scene.camera.center_px, self.scene.camera)
 
     @property
     def case_id(self) -> str:
@@ -356,7 +361,9 @@ def _check_types(table: dict, schema: dict, where: str) -> dict:
             v = float(v)
         ok = isinstance(v, want) and not (want in (int, float) and isinstance(v, bool))
         if not ok:
-            raise CaseError(f"{where}.{k} must be {want.__name__}, got {v!r}")
+            name = " or ".join(w.__name__ for w in want) if isinstance(want, tuple) \
+                else want.__name__
+            raise CaseError(f"{where}.{k} must be {name}, got {v!r}")
         if want is float and not math.isfinite(v):
             raise CaseError(f"{where}.{k} must be finite, got {v!r}")
         out[k] = v
@@ -407,6 +414,9 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
     if m.get("locator", "subpixel") not in LOCATORS:
         raise CaseError(f"{source}: measure.locator must be one of {', '.join(LOCATORS)}, "
                         f"got {m['locator']!r}")
+    if m.get("offset", "auto") not in (True, False, "auto"):
+        raise CaseError(f"{source}: measure.offset must be true, false or \"auto\", "
+                        f"got {m['offset']!r}")
     if m.get("fit", "lsq") not in FITS:
         raise CaseError(f"{source}: measure.fit must be one of {', '.join(FITS)}, "
                         f"got {m['fit']!r}")
@@ -437,9 +447,13 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
         cam = CameraModel(pixel_size=scenario.pixel_size)
         if "camera.pixel_size_mm" in drawn:
             cam_over.pop("pixel_size", None)  # the drawn as-built pixel size
-        _known(cam_over, cam, f"{source}: render.camera")
+        _known({k: v for k, v in cam_over.items() if k != "roll_deg"}, cam,
+               f"{source}: render.camera")
         if "center_px" in cam_over:
             cam_over["center_px"] = tuple(cam_over["center_px"])
+        if "roll_deg" in cam_over:  # lab units: the trough bottom appears at +roll_deg
+            cam_over["roll"] = math.radians(_finite(cam_over.pop("roll_deg"),
+                                                    f"{source}: render.camera.roll_deg"))
         cam = dataclasses.replace(cam, **cam_over)
         scene_over = dict(r.get("scene", {}))
         scene = sc.SceneConfig(camera=cam, lighting=lighting)
@@ -462,7 +476,7 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
         raise CaseError(f"{source}: name must be a string")
     case = Case(name=name, scenario=scenario, scene=scene, sensor=sensor, render_seed=seed,
                 locator=m.get("locator", "subpixel"), fit=m.get("fit", "lsq"),
-                offset=m.get("offset", False), data=d, oracle=m.get("oracle", False), lab=lab)
+                offset=m.get("offset", "auto"), data=d, oracle=m.get("oracle", False), lab=lab)
     from rollfric.setup import setup_from_dict
 
     try:
@@ -470,6 +484,12 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
     except InputError as exc:
         raise CaseError(str(exc)) from None
     return case
+
+
+def _finite(v, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise CaseError(f"{where} must be a finite number, got {v!r}")
+    return float(v)
 
 
 def _known(over: dict, obj, where: str) -> None:

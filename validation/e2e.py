@@ -151,7 +151,8 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
         traj = sim.simulate(case.scenario)
     setup_truth = case.scenario.setup()
     with _timer(timings, "fit_truth"):
-        fit_truth = fit_mu(traj.t, traj.theta, setup_truth, method=case.fit, offset=case.offset)
+        fit_truth = fit_mu(traj.t, traj.theta, setup_truth, method=case.fit,
+                           offset=_offset(case, traj.t, traj.theta, setup_truth))
 
     tmpdir = None
     if recording is not None:
@@ -223,16 +224,28 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
     return track, fit, setup, setup_dict
 
 
+def _offset(case: Case, t, theta, setup) -> bool:
+    """The case's offset choice for a fit of theta(t) ("auto": as rollfric decides)."""
+    from rollfric.track import resolve_offset
+
+    return resolve_offset(case.offset, t, theta, setup, case.fit)[0]
+
+
 def mode_metrics(case: Case, track, truth) -> dict:
     """Blind or oracle, the lab's errors and the trough centre rollfric used against the true
     one (px, in the image rollfric measured in)."""
     cx = float(np.asarray(truth["cx_px"], float)[0])
     cy = float(np.asarray(truth["cy_px"], float)[0])
+    if not track.attrs.get("undistorted", False):  # rollfric worked in the recorded image
+        cx, cy = (float(v) for v in case.scene.camera.recorded(np.array([cx, cy])))
     used = track.attrs.get("center_px", [math.nan, math.nan])
     m = {"mode": case.mode,
          "lab_center_measured": bool(not case.oracle
                                      and case.lab.center_error_px is not None),
          "lab_draw": bool(case.lab.draw),
+         "undistorted": bool(track.attrs.get("undistorted", False)),
+         "offset_fitted": bool(track.attrs.get("offset_fitted", False)),
+         "camera_roll_deg": math.degrees(case.scene.camera.roll),
          "trough_center_x_px": float(used[0]), "trough_center_y_px": float(used[1]),
          "trough_center_err_x_px": float(used[0]) - cx,
          "trough_center_err_y_px": float(used[1]) - cy}
@@ -296,6 +309,7 @@ def compute_metrics(case: Case, traj, truth, track, fit, fit_truth, setup) -> di
         "mu_z": (mu - mu_true) / se if se > 0 else math.nan,
         "fit_rms_residual_rad": _f(fit.rms_residual),
         "fit_relative_error": _f(getattr(fit, "relative_error", math.nan)),
+        "fit_offset_rad": _f(getattr(fit, "offset", 0.0)),
         "fit_method": case.fit,
         # rollfric's own verdict (rollfric.quality): "ok" or "suspect", and the reasons' codes
         "fit_quality": getattr(fit, "quality", "ok"),
@@ -412,7 +426,7 @@ def sim_only_case(case: Case | dict) -> dict:
         traj = sim.simulate(case.scenario)
     with _timer(timings, "fit_truth"):
         ft = fit_mu(traj.t, traj.theta, case.scenario.setup(), method=case.fit,
-                    offset=case.offset)
+                    offset=_offset(case, traj.t, traj.theta, case.scenario.setup()))
     timings["total"] = time.perf_counter() - t0
     mu_true = float(case.scenario.mu)
     m = {"case_id": case.case_id, "name": case.name, "mu_true": mu_true,

@@ -12,6 +12,8 @@ exactly)::
                                     # absent: no center_px, rollfric finds it from the contour
     center_px_u = [2.0, 2.0]   # the stated uncertainty of that measurement (px); with draw,
                                # the error is drawn from it (added to center_error_px, if any)
+    lens_calibrated = true     # the lab calibrated the lens exactly (its [camera] matrix and
+                               # distortion are the rendering lens's)
     [lab.cylinder]
     radius_mm = 85.3
     radius_mm_u = 0.05         # standard uncertainty of radius_mm (same unit)
@@ -20,6 +22,8 @@ exactly)::
     [lab.camera]
     fps = 1000.0
     pixel_size_mm = 0.1343
+    matrix = [[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]]  # or a calibration
+    distortion = [-0.18, 0.0, 0.0, 0.0, 0.0]                               # of its own
 
 The as-built truth (what sim simulates and synth films) is the ``[scenario]``'s values, so a
 case keys a known error by stating both (``scenario.cylinder.radius_mm = 85.5`` with
@@ -38,6 +42,8 @@ import functools
 import hashlib
 import math
 
+import numpy as np
+
 from rollfric.errors import InputError
 
 # the lab-file keys a case may state as nominal values (section -> keys); the same keys name
@@ -48,7 +54,8 @@ NOMINAL_KEYS = {
     "camera": ("fps", "pixel_size_mm"),
     "environment": ("gravity_m_s2",),
 }
-TOP_KEYS = ("draw", "seed", "center_error_px", "center_px_u")
+TOP_KEYS = ("draw", "seed", "center_error_px", "center_px_u", "lens_calibrated")
+CALIBRATION_KEYS = ("matrix", "distortion")
 
 
 class LabError(InputError):
@@ -71,16 +78,29 @@ class Lab:
     draw: bool
     seed: int
     center_u: tuple[float, float] | None = None  # the lab's stated u of its centre (px)
+    calibration: dict | None = None  # the lab's [camera] matrix and distortion
+    lens_calibrated: bool = False  # the lab's calibration is the rendering lens
 
-    def setup_dict(self, center_px: tuple[float, float] | None = None) -> dict:
+    def setup_dict(self, center_px: tuple[float, float] | None = None, camera=None) -> dict:
         """The lab's setup file (lab-file form) with the nominal values, their ``_u`` keys and,
-        when the lab measured it, ``center_px`` = the true ``center_px`` + the error."""
+        when the lab measured it, ``center_px`` = the true ``center_px`` + the error (in the
+        undistorted image when the lab has a lens calibration, else where the ``camera``'s
+        lens puts the axis)."""
         out: dict = {}
         for dotted, value in self.nominal.items():
             sec, key = dotted.split(".")
             out.setdefault(sec, {})[key] = value
             if dotted in self.tolerance and setup_reads_tolerances():
                 out[sec][f"{key}_u"] = self.tolerance[dotted]
+        cal = self.calibration
+        if cal is None and self.lens_calibrated and camera is not None \
+                and camera.lens is not None:
+            cal = {"matrix": [list(r) for r in camera.lens.matrix],
+                   "distortion": list(camera.lens.distortion)}
+        if cal is not None:
+            out.setdefault("camera", {}).update(cal)
+        elif camera is not None and center_px is not None:
+            center_px = tuple(camera.recorded(np.asarray(center_px, dtype=float)))
         if self.center_error_px is not None and center_px is not None:
             out.setdefault("cylinder", {})["center_px"] = [
                 float(center_px[0]) + self.center_error_px[0],
@@ -122,8 +142,6 @@ def _number(v, where: str, positive: bool = True) -> float:
 def standard_normal(seed: int, key: str) -> float:
     """One standard-normal draw for ``key`` from ``seed``: its own stream per key name, so
     adding a tolerance to one key leaves the others' draws unchanged."""
-    import numpy as np
-
     k = int.from_bytes(hashlib.sha256(key.encode()).digest()[:8], "little")
     return float(np.random.default_rng([int(seed), k]).standard_normal())
 
@@ -178,7 +196,8 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
         t = table.get(sec, {})
         if not isinstance(t, dict):
             raise LabError(f"{source}: lab.{sec} must be a table")
-        known = [*keys, *(f"{k}_u" for k in keys)]
+        known = [*keys, *(f"{k}_u" for k in keys),
+                 *(CALIBRATION_KEYS if sec == "camera" else ())]
         for k in t:
             if k not in known:
                 raise LabError(f"{source}: unknown key lab.{sec}.{k} (known: "
@@ -197,8 +216,17 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
                                    f"{tol[dotted]:g} is not positive")
                 overrides[dotted] = truth
             asbuilt[dotted] = truth
+    lens_cal = table.get("lens_calibrated", False)
+    if not isinstance(lens_cal, bool):
+        raise LabError(f"{source}: lab.lens_calibrated must be true or false, got {lens_cal!r}")
+    cam = table.get("camera", {})
+    calibration = {k: cam[k] for k in CALIBRATION_KEYS if k in cam} or None
+    if calibration is not None and lens_cal:
+        raise LabError(f"{source}: lab.lens_calibrated and lab.camera.matrix/distortion "
+                       "both give the lab's calibration: keep one")
     return Lab(nominal=nominal, tolerance=tol, asbuilt=asbuilt, center_error_px=ce,
-               draw=draw, seed=seed, center_u=cu), overrides
+               draw=draw, seed=seed, center_u=cu, calibration=calibration,
+               lens_calibrated=lens_cal), overrides
 
 
 def apply_asbuilt(scenario_dict: dict, overrides: dict) -> dict:

@@ -200,7 +200,7 @@ def summary_text(result, out: str | Path | None = None) -> str:
         f" sensor {c.data['render'].get('noise')}, lighting {c.data['render'].get('lighting')},"
         f" seed {c.render_seed}",
         f"  measure    {m['mode']} mode ({_mode_text(m)}), locator {c.locator}, fit {c.fit}"
-        f"{' + offset' if c.offset else ''}",
+        f"{' + offset' if m.get('offset_fitted') else ''}",
         "",
         f"  mu true        {m['mu_true']:.6f}",
         f"  mu recovered   {m['mu_recovered']:.6f} +- {m['mu_stderr']:.2g}"

@@ -1,0 +1,119 @@
+"""The lab camera's lens calibration: OpenCV's camera matrix and distortion coefficients.
+
+A setup file may carry the calibration exactly as ``cv2.calibrateCamera`` returns it::
+
+    [camera]
+    matrix = [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]   # px
+    distortion = [k1, k2, p1, p2, k3]
+
+Located ball centres and the trough's contour points are then undistorted
+(``cv2.undistortPoints``, iterated to convergence) before the trough centre and the angles are
+computed; ``pixel_size_mm`` is the scale of the undistorted image at the ball.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from rollfric.errors import InputError
+
+
+class CalibrationError(InputError):
+    """A camera matrix or distortion vector that OpenCV's model cannot take."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Calibration:
+    """OpenCV camera matrix (3 x 3, px) and distortion coefficients [k1, k2, p1, p2, k3]
+    (4, 5, 8, 12 or 14 coefficients, as OpenCV accepts)."""
+
+    matrix: tuple
+    distortion: tuple
+
+    def __post_init__(self) -> None:
+        try:
+            k = np.asarray(self.matrix, dtype=float)
+            d = np.asarray(self.distortion, dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise CalibrationError("camera.matrix must be 3 rows of 3 numbers and "
+                                   "camera.distortion a list of numbers") from None
+        if k.shape != (3, 3) or not np.all(np.isfinite(k)) or k[0, 0] <= 0 or k[1, 1] <= 0 \
+                or k[1, 0] != 0 or k[2, 0] != 0 or k[2, 1] != 0 or k[2, 2] != 1:
+            raise CalibrationError(
+                "camera.matrix must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (px) with "
+                f"fx, fy > 0, got {self.matrix!r}")
+        if d.size not in (4, 5, 8, 12, 14) or not np.all(np.isfinite(d)):
+            raise CalibrationError("camera.distortion must be [k1, k2, p1, p2, k3] (or the "
+                                   f"4, 8, 12, 14 coefficients OpenCV takes), got "
+                                   f"{self.distortion!r}")
+        object.__setattr__(self, "matrix", tuple(tuple(float(v) for v in r) for r in k))
+        object.__setattr__(self, "distortion", tuple(float(v) for v in d))
+
+    @property
+    def K(self) -> np.ndarray:
+        """The camera matrix as a (3, 3) array."""
+        return np.asarray(self.matrix, dtype=float)
+
+    @property
+    def D(self) -> np.ndarray:
+        """The distortion coefficients as an array."""
+        return np.asarray(self.distortion, dtype=float)
+
+    def undistort(self, xy) -> np.ndarray:
+        """Image pixels (..., 2) -> their positions in the undistorted image (same camera
+        matrix), iterated until they move less than 1e-10 px."""
+        import cv2
+
+        xy = np.asarray(xy, dtype=float)
+        if xy.size == 0:
+            return xy.copy()
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
+        out = cv2.undistortPoints(xy.reshape(-1, 1, 2), self.K, self.D, None, None, self.K, crit)
+        return out.reshape(xy.shape)
+
+    def distort(self, xy) -> np.ndarray:
+        """Undistorted pixels (..., 2) -> where the lens puts them (``cv2.projectPoints``)."""
+        import cv2
+
+        xy = np.asarray(xy, dtype=float)
+        if xy.size == 0:
+            return xy.copy()
+        p = xy.reshape(-1, 2)
+        K = self.K
+        y = (p[:, 1] - K[1, 2]) / K[1, 1]
+        x = (p[:, 0] - K[0, 2] - K[0, 1] * y) / K[0, 0]
+        obj = np.column_stack([x, y, np.ones_like(x)])
+        out, _ = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), K, self.D)
+        return out.reshape(xy.shape)
+
+    def shift_px(self, xy) -> np.ndarray:
+        """How far (px) the lens moves undistorted points ``xy`` (..., 2)."""
+        xy = np.asarray(xy, dtype=float)
+        return np.hypot(*(self.distort(xy) - xy).reshape(-1, 2).T).reshape(xy.shape[:-1])
+
+    def to_toml_dict(self) -> dict:
+        """The setup file's [camera] keys."""
+        return {"matrix": [list(r) for r in self.matrix], "distortion": list(self.distortion)}
+
+
+def calibration_from_dict(camera: dict, source: str = "setup") -> Calibration | None:
+    """The [camera] table's calibration (None when it has neither matrix nor distortion)."""
+    has_m, has_d = "matrix" in camera, "distortion" in camera
+    if not has_m and not has_d:
+        return None
+    if has_m != has_d:
+        raise CalibrationError(f"{source}: camera.matrix and camera.distortion go together "
+                               "(as cv2.calibrateCamera returns them)")
+    m, d = camera["matrix"], camera["distortion"]
+    if not isinstance(m, list) or not all(isinstance(r, list) for r in m) \
+            or not isinstance(d, list) \
+            or any(isinstance(v, bool) or not isinstance(v, (int, float))
+                   for v in [*(x for r in m for x in r), *d]):
+        raise CalibrationError(f"{source}: camera.matrix must be 3 rows of 3 numbers and "
+                               "camera.distortion a list of numbers")
+    try:
+        return Calibration(matrix=m, distortion=d)
+    except CalibrationError as exc:
+        raise CalibrationError(f"{source}: {exc}") from None
