@@ -16,7 +16,7 @@ import functools
 import importlib.metadata
 import sys
 
-from rollfric import cli_fit, cli_measure
+from rollfric import cli_calibrate, cli_fit, cli_measure
 from rollfric.errors import InputError
 
 COMMAND_GROUP = "rollfric.commands"
@@ -54,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     cli_fit.register(sub)
     cli_measure.register(sub)
+    cli_calibrate.register(sub)
     reasons = []
     for ep in command_entry_points():
         missing = missing_requirements(ep)

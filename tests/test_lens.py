@@ -126,7 +126,10 @@ def test_a_recording_through_a_lens_measured_with_and_without_its_calibration(tm
     r = e2e.run_case(d, recording=rec, render_workers=1)
     m = r.metrics
     assert m["undistorted"] and r.setup.calibration is not None
-    assert abs(m["trough_center_err_x_px"]) < 0.2 and abs(m["trough_center_err_y_px"]) < 0.3
+    # 0.4 mm pixels: the bore's edge level sits 0.45 px outside the bore in this render, which
+    # the circle fit on the contour's +-60 deg of arc turns into up to 0.8 px in y (measured
+    # 0.64 px on the clean background); without the calibration it is 3.9 px
+    assert abs(m["trough_center_err_x_px"]) < 0.2 and abs(m["trough_center_err_y_px"]) < 1.0
     assert m["theta_rms_rad"] < math.radians(0.03)  # 0.4 mm pixels: 1 px is 0.29 deg
     assert m["center_rms_px"] < 0.15  # located vs the distorted projection of the centre
     # the same recording, the lab without a calibration

@@ -1,0 +1,66 @@
+"""``rollfric calibrate``: chessboard images -> the setup file's [camera] matrix and distortion."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "the lens calibration (camera matrix, distortion) from chessboard images"
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "calibrate", help=HELP, description=(
+            "Fit OpenCV's camera model to views of a printed chessboard (cv2.findChessboardCorners"
+            " + cv2.calibrateCamera) and write the [camera] keys matrix and distortion that a "
+            "setup file takes; rollfric measure then undistorts located centres and the trough's"
+            " contour with them. Take 10-20 views of the board filling different parts of the "
+            "frame, tilted, with the recording's lens, focus and resolution. Nothing is written "
+            "when the input is bad (exit status 2)."),
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("images", nargs="+", metavar="IMAGE", help="chessboard images (any format "
+                   "rollfric reads: PNG, TIFF, ...)")
+    p.add_argument("--board", required=True, metavar="COLSxROWS",
+                   help="inner corners per row and per column, e.g. 9x6 for 10 x 7 squares")
+    p.add_argument("--square-mm", required=True, type=float, help="side of one square (mm)")
+    p.add_argument("--out", required=True, metavar="CAMERA.toml",
+                   help="where to write the [camera] table")
+    p.add_argument("--free-k3", action="store_true",
+                   help="fit k3 too (wide-angle lenses); by default k3 = 0")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from rollfric.atomic import write_text
+    from rollfric.calibrate import calibrate_chessboard
+    from rollfric.errors import InputError
+    from rollfric.io import read_image
+
+    try:
+        cols, rows = (int(v) for v in args.board.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--board must be COLSxROWS like 9x6, got {args.board!r}") from None
+    out = Path(args.out)
+    if out.exists() and not args.overwrite:
+        raise InputError(f"{out} exists (use --overwrite to replace it)")
+    images = [read_image(p) for p in args.images]
+    res = calibrate_chessboard(images, (cols, rows), args.square_mm * 1e-3, names=args.images,
+                               free_k3=args.free_k3)
+    cal = res.calibration
+    lines = [f"# rollfric calibrate: {cols} x {rows} inner corners, {args.square_mm:g} mm squares;"
+             f" board found in {len(res.used)} of {len(args.images)} images; rms reprojection "
+             f"error {res.rms_px:.3f} px; {res.image_size[0]} x {res.image_size[1]} px",
+             "[camera]",
+             "matrix = [" + ", ".join("[" + ", ".join(repr(float(v)) for v in r) + "]"
+                                     for r in cal.matrix) + "]",
+             "distortion = [" + ", ".join(repr(float(v)) for v in cal.distortion) + "]", ""]
+    write_text(out, "\n".join(lines))
+    for name in res.skipped:
+        print(f"rollfric calibrate: no board found in {name} (left out)")
+    print(f"fx {cal.matrix[0][0]:.1f} px, fy {cal.matrix[1][1]:.1f} px, centre "
+          f"({cal.matrix[0][2]:.1f}, {cal.matrix[1][2]:.1f}) px, k1 {cal.distortion[0]:+.4f}; "
+          f"rms {res.rms_px:.3f} px over {len(res.used)} views -> {out} (copy its [camera] keys"
+          " into the setup file)")
+    return 0
