@@ -39,8 +39,8 @@ METRICS = frozenset((
     "case_id", "name", "mu_true", "mu_recovered", "mu_stderr", "mu_bias", "mu_bias_rel",
     "mu_engine", "mu_engine_stderr", "mu_engine_bias_rel", "mu_pipeline_bias_rel",
     "mu_true_within_stderr", "mu_true_within_2stderr", "mu_engine_within_stderr", "mu_z",
-    "fit_rms_residual_rad", "fit_relative_error", "fit_method", "fit_quality",
-    "fit_quality_reasons", "locator", "engine", "surface",
+    "fit_rms_residual_rad", "fit_relative_error", "fit_offset_rad", "fit_quality",
+    "fit_quality_reasons", "fit_method", "locator", "engine", "surface",
     "residual_lag1_autocorr", "mu_stderr_ar1", "mu_true_within_stderr_ar1", "found_fraction",
     "n_found", "center_rms_px", "center_max_px", "center_p95_px", "center_median_px",
     "center_bias_x_px", "center_bias_y_px", "center_std_x_px", "center_std_y_px",
@@ -49,7 +49,8 @@ METRICS = frozenset((
     "frame_width_px", "frame_height_px", "render_fps",
     # mode_metrics
     "mode", "lab_center_measured", "lab_draw", "trough_center_x_px", "trough_center_y_px",
-    "trough_center_err_x_px", "trough_center_err_y_px",
+    "trough_center_err_x_px", "trough_center_err_y_px", "undistorted", "offset_fitted",
+    "camera_roll_deg",
     # budget_metrics
     "u_mu", "U_mu", "z_budget", "within_u", "within_U", "u_stat", "z_stat",
     "budget_top_source", "budget_n_sources"))
