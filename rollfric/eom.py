@@ -35,12 +35,46 @@ STANDARD_GRAVITY = 9.81
 
 
 def omega_squared(track_radius: float, gravity: float = STANDARD_GRAVITY) -> float:
-    """Small-angle gravity parameter omega^2 = 5 g / (7 (R - r)) in 1/s^2."""
+    """Small-angle gravity parameter omega^2 = 5 g / (7 (R - r)) in 1/s^2.
+
+    Parameters
+    ----------
+    track_radius : float
+        Radius L = R - r of the ball centre's circle, m.
+    gravity : float
+        Gravitational acceleration, m/s^2.
+
+    Returns
+    -------
+    float
+        omega^2, 1/s^2.
+    """
     return 5.0 * gravity / (7.0 * track_radius)
 
 
 def theta_ddot(theta, theta_dot, mu, track_radius, gravity=STANDARD_GRAVITY, mu1=0.0):
-    """Right-hand side of the equation of motion (vectorised; sign(0) = 0)."""
+    """Right-hand side of the equation of motion (vectorised; sign(0) = 0).
+
+    Parameters
+    ----------
+    theta : float or array_like
+        Angle of the ball centre from the bottom, rad.
+    theta_dot : float or array_like
+        Angular velocity, rad/s.
+    mu : float
+        Rolling-resistance coefficient (mu0 of the velocity-dependent model).
+    track_radius : float
+        L = R - r, m.
+    gravity : float
+        Gravitational acceleration, m/s^2.
+    mu1 : float
+        Velocity coefficient of mu(theta') = mu + mu1 |theta'|, s/rad.
+
+    Returns
+    -------
+    numpy.ndarray
+        theta'', rad/s^2, broadcast over the inputs.
+    """
     theta = np.asarray(theta, dtype=float)
     theta_dot = np.asarray(theta_dot, dtype=float)
     k = 5.0 / (7.0 * track_radius)
@@ -53,6 +87,22 @@ def energy(theta, theta_dot, track_radius, gravity=STANDARD_GRAVITY):
     """Mechanical energy per unit mass (J/kg) of the rolling ball, zero at rest at the bottom.
 
     Kinetic: (1/2) v^2 + (1/2) I w^2 / m = (7/10) L^2 theta'^2; potential g L (1 - cos theta).
+
+    Parameters
+    ----------
+    theta : float or array_like
+        Angle from the bottom, rad.
+    theta_dot : float or array_like
+        Angular velocity, rad/s.
+    track_radius : float
+        L = R - r, m.
+    gravity : float
+        Gravitational acceleration, m/s^2.
+
+    Returns
+    -------
+    numpy.ndarray
+        Energy per unit mass, J/kg.
     """
     theta = np.asarray(theta, dtype=float)
     theta_dot = np.asarray(theta_dot, dtype=float)
@@ -66,6 +116,18 @@ def sticks(theta: float, mu: float) -> bool:
     rest towards the bottom (against sin(theta)) when gravity's pull along the track beats
     the rolling resistance there, g |sin(theta)| > mu g cos(theta): above the axis it always
     does (and it rests only where sin(theta) = 0).
+
+    Parameters
+    ----------
+    theta : float
+        Angle of the ball at rest, rad.
+    mu : float
+        Static rolling-resistance coefficient.
+
+    Returns
+    -------
+    bool
+        Whether the ball stays at rest.
     """
     return abs(math.sin(theta)) <= mu * math.cos(theta) or math.sin(theta) == 0.0
 
@@ -98,6 +160,42 @@ def solve_reference(theta0: float, omega0: float, mu: float, t, *, track_radius:
 
     The state at ``t[0]`` is (theta0, omega0). Returns ``(theta, theta_dot, t_stop)`` sampled at
     ``t``; ``t_stop`` is the time the ball came to rest for good (inf if it never did).
+
+    Parameters
+    ----------
+    theta0 : float
+        Angle at ``t[0]``, rad.
+    omega0 : float
+        Angular velocity at ``t[0]``, rad/s.
+    mu : float
+        Rolling-resistance coefficient (mu0 when ``mu1 != 0``); also the sticking threshold.
+    t : array_like
+        Strictly increasing sample times, s.
+    track_radius : float
+        L = R - r, m.
+    gravity : float
+        Gravitational acceleration, m/s^2.
+    mu1 : float
+        Velocity coefficient of mu(theta') = mu + mu1 |theta'|, s/rad.
+    rtol, atol : float
+        Tolerances passed to :func:`scipy.integrate.solve_ivp`.
+
+    Returns
+    -------
+    theta : numpy.ndarray
+        Angle at ``t``, rad.
+    theta_dot : numpy.ndarray
+        Angular velocity at ``t``, rad/s.
+    t_stop : float
+        Time of coming to rest for good, s (inf if it never did within ``t``).
+
+    Raises
+    ------
+    ValueError
+        If ``t`` is empty, not 1-D or not strictly increasing, ``track_radius`` or ``gravity``
+        is not positive, or ``mu`` or ``mu1`` is negative.
+    RuntimeError
+        If the integrator fails.
     """
     t = _check_inputs(t, track_radius, gravity, mu, mu1)
     k = 5.0 / (7.0 * track_radius)
@@ -264,6 +362,40 @@ def solve(theta0: float, omega0: float, mu: float, t, *, track_radius: float,
     ``1 / (steps_per_radian * omega)`` with omega the small-angle frequency, so the local
     error per step is about (1/steps_per_radian)^5; the default agrees with the reference to
     about 1e-9 rad over 4 s.
+
+    Parameters
+    ----------
+    theta0 : float
+        Angle at ``t[0]``, rad.
+    omega0 : float
+        Angular velocity at ``t[0]``, rad/s.
+    mu : float
+        Rolling-resistance coefficient (mu0 when ``mu1 != 0``); also the sticking threshold.
+    t : array_like
+        Strictly increasing sample times, s.
+    track_radius : float
+        L = R - r, m.
+    gravity : float
+        Gravitational acceleration, m/s^2.
+    mu1 : float
+        Velocity coefficient of mu(theta') = mu + mu1 |theta'|, s/rad.
+    steps_per_radian : float
+        Integration steps per radian of small-angle phase (sets the largest step).
+
+    Returns
+    -------
+    theta : numpy.ndarray
+        Angle at ``t``, rad.
+    theta_dot : numpy.ndarray
+        Angular velocity at ``t``, rad/s.
+    t_stop : float
+        Time of coming to rest for good, s (inf if it never did within ``t``).
+
+    Raises
+    ------
+    ValueError
+        If ``t`` is empty, not 1-D or not strictly increasing, ``track_radius`` or ``gravity``
+        is not positive, or ``mu`` or ``mu1`` is negative.
     """
     t = _check_inputs(t, track_radius, gravity, mu, mu1)
     w = math.sqrt(omega_squared(track_radius, gravity))
