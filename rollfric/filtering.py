@@ -37,7 +37,25 @@ def _fill_gaps(x: np.ndarray) -> np.ndarray:
 
 
 def dominant_frequency(theta, fps: float) -> float:
-    """Frequency (Hz) of the strongest spectral peak of theta(t) above 0 Hz."""
+    """Frequency (Hz) of the strongest spectral peak of theta(t) above 0 Hz.
+
+    Parameters
+    ----------
+    theta : array_like
+        Uniformly sampled angle, rad; NaN samples are bridged by linear interpolation.
+    fps : float
+        Sampling rate, Hz.
+
+    Returns
+    -------
+    float
+        Peak frequency, Hz.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If ``theta`` has fewer than two finite samples.
+    """
     x = _fill_gaps(theta)
     x = signal.detrend(x, type="linear")
     n = x.size
@@ -55,6 +73,23 @@ def choose_cutoff(theta, fps: float) -> float:
     signal band ends at the highest frequency whose (smoothed) density exceeds ten times the
     floor. The result lies between 5 times the oscillation frequency and 0.4 x the sampling
     rate (noiseless data gets the upper bound, i.e. almost no filtering).
+
+    Parameters
+    ----------
+    theta : array_like
+        Uniformly sampled angle, rad; NaN samples are bridged by linear interpolation.
+    fps : float
+        Sampling rate, Hz.
+
+    Returns
+    -------
+    float
+        Cut-off frequency, Hz.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If ``theta`` has fewer than two finite samples or fewer than ``MIN_SAMPLES`` samples.
     """
     x = _fill_gaps(theta)
     if x.size < MIN_SAMPLES:
@@ -81,6 +116,30 @@ def lowpass(theta, fps: float, cutoff: float | None = None, *, order: int = DEFA
 
     NaN samples are bridged by linear interpolation before filtering and stay NaN in the
     output. ``cutoff`` in Hz; None chooses it from the data.
+
+    Parameters
+    ----------
+    theta : array_like
+        One-dimensional, uniformly sampled angle, rad.
+    fps : float
+        Sampling rate, Hz.
+    cutoff : float or None
+        Cut-off frequency, Hz; None chooses it with :func:`choose_cutoff`.
+    order : int
+        Filter order.
+    ripple_db : float
+        Pass-band ripple, dB.
+
+    Returns
+    -------
+    numpy.ndarray
+        The filtered angle, rad, NaN where ``theta`` is NaN.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If ``theta`` is not one-dimensional or has fewer than two finite samples, ``fps`` is
+        not positive, or the cut-off does not lie between 0 and the Nyquist frequency.
     """
     theta = np.asarray(theta, dtype=float)
     if theta.ndim != 1:
@@ -101,7 +160,29 @@ def lowpass(theta, fps: float, cutoff: float | None = None, *, order: int = DEFA
 
 
 def derivative(theta, fps: float, cutoff: float | None = None, **kw) -> np.ndarray:
-    """theta'(t) in rad/s: second-order central differences of the low-passed theta."""
+    """theta'(t) in rad/s: second-order central differences of the low-passed theta.
+
+    Parameters
+    ----------
+    theta : array_like
+        One-dimensional, uniformly sampled angle, rad.
+    fps : float
+        Sampling rate, Hz.
+    cutoff : float or None
+        Cut-off frequency, Hz; None chooses it from the data.
+    **kw
+        ``order`` and ``ripple_db``, passed to :func:`lowpass`.
+
+    Returns
+    -------
+    numpy.ndarray
+        Angular velocity, rad/s, at every sample (NaN gaps of ``theta`` are interpolated over).
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        As :func:`lowpass`.
+    """
     y = lowpass(theta, fps, cutoff, **kw)
     return np.gradient(_fill_gaps(y), 1.0 / fps)
 
@@ -117,6 +198,18 @@ def noise_sigma(theta, orders=(2, 3, 4)) -> float:
     estimate, so the smallest over ``orders`` is taken. Differences are taken only across
     consecutive finite samples (NaN gaps break them). Returns NaN when fewer than 8
     differences of any order exist.
+
+    Parameters
+    ----------
+    theta : array_like
+        Uniformly sampled series (NaN for missing samples).
+    orders : sequence of int
+        Difference orders to try.
+
+    Returns
+    -------
+    float
+        Noise standard deviation, in the units of ``theta``, or NaN.
     """
     x = np.asarray(theta, dtype=float)
     best = math.inf
@@ -133,7 +226,22 @@ def noise_sigma(theta, orders=(2, 3, 4)) -> float:
 
 
 def on_grid(t: np.ndarray, y: np.ndarray, fps: float) -> np.ndarray:
-    """``y`` placed on the uniform frame grid from t[0] (NaN where a frame has no sample)."""
+    """``y`` placed on the uniform frame grid from t[0] (NaN where a frame has no sample).
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Sample times, s, increasing.
+    y : numpy.ndarray
+        Values at ``t``.
+    fps : float
+        Frame rate of the grid, Hz; each time is rounded to the nearest frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        Values on frames 0 .. round((t[-1] - t[0]) fps).
+    """
     idx = np.rint((t - t[0]) * fps).astype(np.int64)
     out = np.full(int(idx[-1]) + 1 if idx.size else 0, np.nan)
     out[idx] = y
