@@ -85,7 +85,30 @@ class FitResult:
 
 
 def model_theta(t, mu, theta0, omega0, setup: Setup, *, offset=0.0, mu1=0.0):
-    """theta(t) of the equation of motion started at t[0] (fast integrator), plus offset."""
+    """theta(t) of the equation of motion started at t[0] (fast integrator), plus offset.
+
+    Parameters
+    ----------
+    t : array_like
+        Strictly increasing times, s.
+    mu : float
+        Rolling-resistance coefficient (mu0 of the velocity model).
+    theta0 : float
+        Angle at ``t[0]`` in the data's frame (offset included), rad.
+    omega0 : float
+        Angular velocity at ``t[0]``, rad/s.
+    setup : Setup
+        The trough and ball (``track_radius``, ``gravity``).
+    offset : float
+        Angle of the trough bottom in the data's frame, rad.
+    mu1 : float
+        Velocity coefficient of mu(theta') = mu + mu1 |theta'|, s/rad.
+
+    Returns
+    -------
+    numpy.ndarray
+        Model angle at ``t``, rad.
+    """
     th, _, _ = eom.solve(theta0 - offset, omega0, mu, t, track_radius=setup.track_radius,
                          gravity=setup.gravity, mu1=mu1)
     return th + offset
@@ -117,6 +140,18 @@ def turning_points(theta_smooth: np.ndarray, fps: float) -> np.ndarray:
 
     Extrema are peaks of |theta - centre| separated by at least a quarter of the dominant
     period, so locator noise near a turning point gives one extremum, not several.
+
+    Parameters
+    ----------
+    theta_smooth : numpy.ndarray
+        Low-passed, uniformly sampled angle, rad.
+    fps : float
+        Sampling rate, Hz.
+
+    Returns
+    -------
+    numpy.ndarray
+        Sample indices of alternating maxima and minima, increasing.
     """
     f0 = filtering.dominant_frequency(theta_smooth, fps)
     distance = max(1, int(0.25 * fps / max(f0, 1e-3)))
@@ -141,6 +176,24 @@ def mu_from_acceleration(t, theta, setup: Setup, *, offset: float = 0.0,
     friction: a cubic over the first ``span`` seconds (default 0.15 of the small-angle
     period, at least 10 samples) gives theta, theta' and theta'' at t[0]; clipped to [0, 0.5].
     ``offset``: the angle of the trough bottom in the data's frame. NaN samples are skipped.
+
+    Parameters
+    ----------
+    t : array_like
+        Times, s.
+    theta : array_like
+        Angles, rad.
+    setup : Setup
+        The trough and ball (``track_radius``, ``gravity``).
+    offset : float
+        Angle of the trough bottom in the data's frame, rad.
+    span : float or None
+        Length of the start used for the cubic, s; None: 0.15 of the small-angle period.
+
+    Returns
+    -------
+    float
+        mu in [0, 0.5]; 0 when fewer than 4 samples are finite or the estimate is undefined.
     """
     t = np.asarray(t, dtype=float)
     theta = np.asarray(theta, dtype=float)
@@ -169,6 +222,28 @@ def initial_guess(t, theta, setup: Setup) -> dict:
     offset cancels); in the small-angle limit each half-swing loses 2 mu. ``mu_acc`` is mu
     from the start's acceleration (:func:`mu_from_acceleration`), the only estimate a record
     without turning points has (it is then also ``mu``).
+
+    Parameters
+    ----------
+    t : array_like
+        Times, s, strictly increasing where finite.
+    theta : array_like
+        Angles, rad (NaN for frames without a ball).
+    setup : Setup
+        The trough and ball (``track_radius``, ``gravity``).
+
+    Returns
+    -------
+    dict
+        ``mu``, ``mu_acc``, ``theta0`` (rad), ``omega0`` (rad/s), ``offset`` (rad),
+        ``turning_points_s`` (s), ``turning_points_theta`` (rad), ``fps`` (Hz), ``t_rest``
+        (s, the start of the final rest, inf if none), ``period`` (small-angle period, s).
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If ``t`` and ``theta`` are not 1-D arrays of one length, fewer than ``MIN_SAMPLES``
+        samples are finite, or the finite times are not strictly increasing.
     """
     t, theta, good = _clean(t, theta)
     fps = _sample_rate(t[good])
@@ -278,6 +353,35 @@ def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulo
     is not enough where mu and other parameters are nearly interchangeable (a record without
     turning points with a free offset: the friction shifts the swing's centre as an offset
     does) and the least-squares path from mu = 0 stalls against the bound.
+
+    Parameters
+    ----------
+    t : array_like
+        Times, s, strictly increasing where finite.
+    theta : array_like
+        Angles, rad (NaN for frames without a ball).
+    setup : Setup
+        The trough and ball (``track_radius``, ``gravity``).
+    offset : bool
+        Also fit a constant angle offset of the trough bottom.
+    model : str
+        "coulomb" or "velocity".
+    guess : dict or None
+        A start as :func:`initial_guess` returns it; None computes it.
+    robust : bool
+        Find and leave out outliers as described above.
+
+    Returns
+    -------
+    FitResult
+        The fit, method "lsq"; samples after the final rest (less a quarter period) and
+        outliers are not used (``used``).
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If ``model`` is unknown, or fewer than ``MIN_SAMPLES`` samples of motion are usable;
+        also as :func:`initial_guess`.
     """
     if model not in ("coulomb", "velocity"):
         raise InputError(f"unknown friction model {model!r} (coulomb, velocity)")
@@ -416,6 +520,17 @@ def check_angles(theta) -> None:
     When most samples (the 90th percentile of |theta|) lie beyond +-pi/2 rad the series
     cannot be radians of a ball below the trough's axis: up to 90 in magnitude it is taken
     for degrees. A few stray samples beyond +-pi/2 are left to the fit's quality checks.
+
+    Parameters
+    ----------
+    theta : array_like
+        Angles that should be in rad; NaN samples are ignored.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If the 90th percentile of |theta| exceeds pi/2 (the message says whether the values
+        look like degrees).
     """
     theta = np.asarray(theta, dtype=float)
     a = np.abs(theta[np.isfinite(theta)])
