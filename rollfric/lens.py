@@ -63,7 +63,18 @@ class Calibration:
 
     def undistort(self, xy) -> np.ndarray:
         """Image pixels (..., 2) -> their positions in the undistorted image (same camera
-        matrix), iterated until they move less than 1e-10 px."""
+        matrix), iterated until they move less than 1e-10 px.
+
+        Parameters
+        ----------
+        xy : array_like
+            Pixel positions (x, y), shape (..., 2), px.
+
+        Returns
+        -------
+        numpy.ndarray
+            Undistorted positions, same shape, px.
+        """
         import cv2
 
         xy = np.asarray(xy, dtype=float)
@@ -74,7 +85,18 @@ class Calibration:
         return out.reshape(xy.shape)
 
     def distort(self, xy) -> np.ndarray:
-        """Undistorted pixels (..., 2) -> where the lens puts them (``cv2.projectPoints``)."""
+        """Undistorted pixels (..., 2) -> where the lens puts them (``cv2.projectPoints``).
+
+        Parameters
+        ----------
+        xy : array_like
+            Undistorted pixel positions (x, y), shape (..., 2), px.
+
+        Returns
+        -------
+        numpy.ndarray
+            Distorted (image) positions, same shape, px.
+        """
         import cv2
 
         xy = np.asarray(xy, dtype=float)
@@ -89,7 +111,18 @@ class Calibration:
         return out.reshape(xy.shape)
 
     def shift_px(self, xy) -> np.ndarray:
-        """How far (px) the lens moves undistorted points ``xy`` (..., 2)."""
+        """How far (px) the lens moves undistorted points ``xy`` (..., 2).
+
+        Parameters
+        ----------
+        xy : array_like
+            Undistorted pixel positions (x, y), shape (..., 2), px.
+
+        Returns
+        -------
+        numpy.ndarray
+            Distance between each point and its distorted position, shape (...), px.
+        """
         xy = np.asarray(xy, dtype=float)
         return np.hypot(*(self.distort(xy) - xy).reshape(-1, 2).T).reshape(xy.shape[:-1])
 
@@ -99,7 +132,26 @@ class Calibration:
 
 
 def calibration_from_dict(camera: dict, source: str = "setup") -> Calibration | None:
-    """The [camera] table's calibration (None when it has neither matrix nor distortion)."""
+    """The [camera] table's calibration (None when it has neither matrix nor distortion).
+
+    Parameters
+    ----------
+    camera : dict
+        The setup file's [camera] table (keys ``matrix``, px, and ``distortion``).
+    source : str
+        Name of the file or table, for messages.
+
+    Returns
+    -------
+    Calibration or None
+        The calibration, or None when the table has neither key.
+
+    Raises
+    ------
+    CalibrationError
+        If only one of the two keys is given, they are not lists of numbers, or OpenCV's
+        model cannot take them.
+    """
     has_m, has_d = "matrix" in camera, "distortion" in camera
     if not has_m and not has_d:
         return None
