@@ -63,6 +63,13 @@ class Row:
     note: str = ""
 
     def to_dict(self) -> dict:
+        """The row as a JSON object (``note`` only when it is not empty).
+
+        Returns
+        -------
+        dict
+            ``source``, ``value``, ``u``, ``sensitivity``, ``u_mu`` and perhaps ``note``.
+        """
         out = {"source": self.source, "value": self.value, "u": self.u,
                "sensitivity": self.sensitivity, "u_mu": self.u_mu}
         if self.note:
@@ -104,7 +111,18 @@ class Budget:
 # -- the statistical part -----------------------------------------------------------------
 
 def autocorrelation(x: np.ndarray) -> np.ndarray:
-    """Sample autocorrelation rho[k], k = 0 .. n-1, of ``x`` about its mean (FFT)."""
+    """Sample autocorrelation rho[k], k = 0 .. n-1, of ``x`` about its mean (FFT).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        A 1-D series.
+
+    Returns
+    -------
+    numpy.ndarray
+        rho[0 .. n-1], rho[0] = 1; all zeros for a constant series.
+    """
     x = np.asarray(x, dtype=float) - np.mean(x)
     n = x.size
     f = np.fft.rfft(x, 2 * n)
@@ -125,6 +143,31 @@ def hac_covariance(jac: np.ndarray, res: np.ndarray, *, lag: int | None = None,
     by 1/(1 - rho)^2. ``lag`` None picks m as three times the first lag where the whitened
     residuals' autocorrelation drops below 2/sqrt(n) (at most n/4). Both carry the n/dof
     correction.
+
+    Parameters
+    ----------
+    jac : numpy.ndarray
+        Jacobian of the residuals with respect to the p parameters, shape (n, p).
+    res : numpy.ndarray
+        Noise residuals, shape (n,).
+    lag : int or None
+        Bartlett lag window m; None chooses it from the data.
+    dof : int or None
+        Degrees of freedom of ``res``; None: n - p.
+    max_rho : float
+        Bound on |rho| of the prewhitening.
+
+    Returns
+    -------
+    ordinary : numpy.ndarray
+        Ordinary covariance, (p, p).
+    hac : numpy.ndarray
+        HAC covariance, (p, p).
+    lag : int
+        Lag window used.
+    rho : float
+        Lag-1 autocorrelation used for prewhitening (NaN, with NaN covariances and lag 0,
+        when J'J is singular).
     """
     jac = np.asarray(jac, dtype=float)
     res = np.asarray(res, dtype=float)
@@ -175,10 +218,24 @@ class Measurement:
 
     @property
     def from_centres(self) -> bool:
+        """True when the measurement holds located centres, False for given angles."""
         return self.x is not None
 
     def series(self, setup: Setup):
-        """(t, theta) of the measurement with ``setup`` in place of the nominal one."""
+        """(t, theta) of the measurement with ``setup`` in place of the nominal one.
+
+        Parameters
+        ----------
+        setup : Setup
+            The setup to evaluate with (centre, pixel size, radius, frame rate).
+
+        Returns
+        -------
+        t : numpy.ndarray
+            Times, s.
+        theta : numpy.ndarray
+            Angles, rad (NaN where no ball).
+        """
         if self.from_centres:
             from rollfric.track import angles
 
@@ -193,7 +250,23 @@ class Measurement:
 
 
 def measurement_from_track(track, setup: Setup) -> Measurement:
-    """A :class:`Measurement` from ``rollfric.track.measure``'s track DataFrame."""
+    """A :class:`Measurement` from ``rollfric.track.measure``'s track DataFrame.
+
+    Parameters
+    ----------
+    track : pandas.DataFrame
+        Columns ``frame``, ``found``, ``x_px``, ``y_px``, ``t_s``; attrs ``center_px`` and
+        optionally ``angle`` and ``times`` (the recording's timestamps unless it is
+        "frame / camera.fps").
+    setup : Setup
+        The nominal setup.
+
+    Returns
+    -------
+    Measurement
+        Centres (NaN where the ball was not found), with the track's times when they are the
+        recording's own timestamps.
+    """
     center = tuple(track.attrs["center_px"])
     found = track["found"].to_numpy() == 1
     x = np.where(found, track["x_px"].to_numpy(float), np.nan)
@@ -333,6 +406,31 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     ``fit_length``: fit L = R - r as well (self-calibration; mu and the budget then use the
     fitted L). ``monte_carlo``: that many draws of the uncertain inputs (normal, their u) each
     re-evaluated, plus a normal draw of the statistical part (JCGM 101), seeded by ``seed``.
+
+    Parameters
+    ----------
+    meas : Measurement
+        The measurement ``result`` was fitted to.
+    result : FitResult
+        Its least-squares fit (method "lsq").
+    fit_length : bool
+        Also fit L = R - r.
+    monte_carlo : int
+        Number of Monte-Carlo draws; 0 for none.
+    seed : int
+        Seed of the draws.
+    coverage_factor : float
+        k of the expanded uncertainty U = k u.
+
+    Returns
+    -------
+    Budget
+        Rows largest first, combined and expanded uncertainty of mu.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If ``result`` is not a least-squares ("lsq") fit.
     """
     if result.method != "lsq":
         raise InputError(f"the uncertainty budget needs the lsq fit, not {result.method!r}")
@@ -429,7 +527,18 @@ def _monte_carlo(refit: _Refitter, setup: Setup, mu, u_mu, u_stat, U, n, seed, m
 # -- reporting ------------------------------------------------------------------------------
 
 def format_budget(b: Budget) -> str:
-    """The budget as a small text table, largest first."""
+    """The budget as a small text table, largest first.
+
+    Parameters
+    ----------
+    b : Budget
+        The budget.
+
+    Returns
+    -------
+    str
+        The table, lines joined by newlines (no trailing newline).
+    """
     rel = (lambda v: f"{100 * v / b.mu:6.3f} %") if b.mu > 0 else (lambda v: "      -")
     lines = [f"uncertainty budget of mu = {b.mu:.6g} (GUM, first order):",
              f"  {'source':<26} {'value':>11} {'u':>10} {'sensitivity':>12} {'u(mu)':>10}"
@@ -467,7 +576,13 @@ def format_budget(b: Budget) -> str:
 
 
 def add_arguments(parser) -> None:
-    """The budget's options of ``rollfric fit`` and ``rollfric measure``."""
+    """The budget's options of ``rollfric fit`` and ``rollfric measure``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The command's parser; ``--fit-length``, ``--monte-carlo`` and ``--seed`` are added.
+    """
     parser.add_argument("--fit-length", action="store_true",
                         help="self-calibration: also fit L = R - r (the radius of the ball "
                              "centre's path); mu and its budget then use the fitted L")
@@ -480,7 +595,30 @@ def add_arguments(parser) -> None:
 def run_budget(meas: Measurement, result, args):
     """The budget of a command's result as (fit.json keys, Budget or None), its table printed
     on stdout (the command's output); a fit method without a Jacobian gets no budget (said so,
-    as a warning of the ``rollfric.uncertainty`` logger)."""
+    as a warning of the ``rollfric.uncertainty`` logger).
+
+    Parameters
+    ----------
+    meas : Measurement
+        The measurement ``result`` was fitted to.
+    result : FitResult
+        The command's fit.
+    args : argparse.Namespace
+        The parsed options of :func:`add_arguments`.
+
+    Returns
+    -------
+    keys : dict
+        The fit.json keys (``u_mu``, ``U_mu``, ``coverage_factor``, ``uncertainty_budget``,
+        ...; with ``--fit-length`` also ``mu`` of the fitted L).
+    budget : Budget or None
+        The budget, None for a fit method other than "lsq".
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If ``--monte-carlo`` is negative, or as :func:`budget`.
+    """
     if args.monte_carlo < 0:
         raise InputError(f"--monte-carlo must be >= 0, got {args.monte_carlo}")
     if result.method != "lsq":
