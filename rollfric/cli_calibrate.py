@@ -8,6 +8,13 @@ HELP = "the lens calibration (camera matrix, distortion) from chessboard images"
 
 
 def register(sub) -> None:
+    """Add the ``calibrate`` command to the CLI.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The subparsers of the ``rollfric`` parser; the command's handler is :func:`run`.
+    """
     p = sub.add_parser(
         "calibrate", help=HELP, description=(
             "Fit OpenCV's camera model to views of a printed chessboard (cv2.findChessboardCorners"
@@ -31,6 +38,25 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``rollfric calibrate``: find the board in the images, write the [camera] table.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options of :func:`register`'s parser (``--square-mm`` in mm, converted to
+        m for :func:`rollfric.calibrate.calibrate_chessboard`).
+
+    Returns
+    -------
+    int
+        Exit status 0.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If ``--board`` is not COLSxROWS, ``--out`` exists without ``--overwrite``, an image
+        cannot be read, or the calibration refuses the input.
+    """
     from pathlib import Path
 
     from rollfric.atomic import write_text

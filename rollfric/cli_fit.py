@@ -10,6 +10,13 @@ HELP = "fit mu to a track (t_s, theta_rad) with the equation of motion"
 
 
 def register(sub) -> None:
+    """Add the ``fit`` command to the CLI.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The subparsers of the ``rollfric`` parser; the command's handler is :func:`run`.
+    """
     p = sub.add_parser(
         "fit", help=HELP, description=(
             "Fit the rolling friction coefficient mu (M = mu r N) to an angle series theta(t). "
@@ -45,7 +52,26 @@ def register(sub) -> None:
 
 
 def read_track(path):
-    """t_s and theta_rad columns of a track CSV, as float arrays (empty cells -> NaN)."""
+    """t_s and theta_rad columns of a track CSV, as float arrays (empty cells -> NaN).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The CSV file.
+
+    Returns
+    -------
+    t : numpy.ndarray
+        Times, s.
+    theta : numpy.ndarray
+        Angles, rad (NaN for empty cells).
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If the file is missing, a folder or not a readable CSV, lacks a column, holds a
+        non-numeric value, or fails :func:`check_track`.
+    """
     import pandas as pd
 
     from rollfric.errors import InputError
@@ -78,6 +104,28 @@ def check_track(t, theta, path, fps: float | None = None):
     ball found) but a value must be finite and an angle in radians (|theta| <= pi); with the
     setup's ``fps``, the span of the times may not hold more than the sample limit
     (:data:`rollfric.limits.MAX_SAMPLES`).
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Times, s.
+    theta : numpy.ndarray
+        Angles, rad (NaN: no ball).
+    path : str or os.PathLike
+        The file they came from, for messages.
+    fps : float or None
+        The setup's frame rate, Hz; None skips the sample limit.
+
+    Returns
+    -------
+    t, theta : numpy.ndarray
+        The inputs, unchanged.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If a time is not finite, the times do not increase, an angle is infinite or beyond
+        pi in size, or the span exceeds the sample limit.
     """
     import math
 
@@ -107,7 +155,31 @@ def check_track(t, theta, path, fps: float | None = None):
 
 def check_outputs(out, *, plot: bool, overwrite: bool, inputs=()):
     """The paths ``rollfric fit`` writes (FIT.json; with ``plot`` FIT.png and FIT_budget.png),
-    checked before any work (:mod:`rollfric.outputs`); returns the three paths."""
+    checked before any work (:mod:`rollfric.outputs`); returns the three paths.
+
+    Parameters
+    ----------
+    out : str or os.PathLike
+        The ``--out`` path (FIT.json).
+    plot : bool
+        Whether the figures will be written.
+    overwrite : bool
+        Whether existing outputs may be replaced.
+    inputs : iterable of path
+        The command's input files, which no output may be.
+
+    Returns
+    -------
+    out, png, budget_png : pathlib.Path
+        FIT.json, FIT.png and FIT_budget.png.
+
+    Raises
+    ------
+    rollfric.outputs.OutputError
+        If two outputs are one path, an output is an input, or an output exists without
+        ``overwrite`` (the figures checked only with ``plot`` or ``overwrite``) or cannot be
+        written.
+    """
     from pathlib import Path
 
     from rollfric.outputs import check_distinct, check_file, check_not_input
@@ -126,6 +198,23 @@ def check_outputs(out, *, plot: bool, overwrite: bool, inputs=()):
 
 
 def run(args) -> int:
+    """Run ``rollfric fit``: read the track and setup, fit mu, write FIT.json (and figures).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options of :func:`register`'s parser.
+
+    Returns
+    -------
+    int
+        Exit status: 0 ok, 3 a suspect fit (written, reasons on stderr).
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        On bad input (the CLI turns it into exit status 2).
+    """
     from rollfric.messages import to_stderr
 
     with to_stderr("fit"):  # the library's info and warnings on stderr
@@ -165,7 +254,20 @@ def _run(args) -> int:
 
 
 def report_quality(command: str, result) -> int:
-    """Print a suspect result's reasons on stderr; the exit status: 0 ok, 3 suspect."""
+    """Print a suspect result's reasons on stderr; the exit status: 0 ok, 3 suspect.
+
+    Parameters
+    ----------
+    command : str
+        The command's name, for the message.
+    result : FitResult
+        The result; suspect when its ``quality_reasons`` are not empty.
+
+    Returns
+    -------
+    int
+        0 when ok, 3 when suspect.
+    """
     import sys
 
     if not result.quality_reasons:
