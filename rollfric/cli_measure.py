@@ -151,6 +151,8 @@ def _run(args) -> int:
                  "ball_radius_px_seen": track.attrs.get("ball_radius_px_seen"),
                  "ball_radius_px_seen_n": track.attrs.get("ball_radius_px_seen_n", 0),
                  "n_refitted": track.attrs.get("n_refitted", 0),
+                 # frames left out of the fit, by track.csv flag
+                 "frames_flagged": track.attrs.get("flags", {}),
                  "warnings": track.attrs.get("warnings", []),
                  "median_sigma_px": float(track["sigma_px"].median())
                  if track["sigma_px"].notna().any() else None,

@@ -271,8 +271,10 @@ def check_track(df, setup, center, *, warnings=(), flag_counts=None) -> list[Rea
     """
     reasons: list[Reason] = []
     found = df["found"].to_numpy() == 1
-    x = df["x_px"].to_numpy()[found]
-    y = df["y_px"].to_numpy()[found]
+    # the undistorted centres when a lens calibration was applied (the angles' own)
+    cx_col, cy_col = ("xu_px", "yu_px") if "xu_px" in df.columns else ("x_px", "y_px")
+    x = df[cx_col].to_numpy()[found]
+    y = df[cy_col].to_numpy()[found]
     L_px = setup.track_radius / setup.pixel_size
     if x.size >= 10:
         xc, yc, _ = circle_center(x, y, L_px, center)
@@ -296,9 +298,12 @@ def check_track(df, setup, center, *, warnings=(), flag_counts=None) -> list[Rea
                                   f"({100 * (dist / L_px - 1):+.1f} %): check center_px (its "
                                   "height), camera.pixel_size_mm, cylinder.radius_mm"))
     n = len(df)
-    flagged = sum((flag_counts or {}).values())
+    # the plausibility checks' rejections (frames without a ball are counted in n_found)
+    rejected = {k: v for k, v in (flag_counts or {}).items()
+                if k not in ("not_found", "off_track")}
+    flagged = sum(rejected.values())
     if n and flagged > FLAGGED_FRACTION_MAX * n:
-        kinds = ", ".join(f"{k} {v}" for k, v in sorted((flag_counts or {}).items()))
+        kinds = ", ".join(f"{k} {v}" for k, v in sorted(rejected.items()))
         reasons.append(Reason("flagged_frames", f"{flagged} of {n} frames were rejected "
                               f"({kinds}): check the recording"))
     for code, text in warnings:

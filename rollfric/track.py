@@ -22,7 +22,7 @@ import sys
 import numpy as np
 import pandas as pd
 
-from rollfric import io, locate, quality
+from rollfric import io, locate, plausibility, quality
 from rollfric.background import median_background
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
@@ -31,7 +31,7 @@ from rollfric.setup import Setup, SetupError, setup_from_dict
 
 logger = logging.getLogger(__name__)  # messages: info (what was done), warning (check this)
 
-TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found"]
+TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found", "flag"]
 ANGLES = ("atan2", "arcsin")
 TIMES = ("auto", "fps")
 # the recording's timestamps are checked against the setup's rate and for even spacing
@@ -285,6 +285,36 @@ class RadiusCalibration:
                 "camera.pixel_size_mm")
 
 
+def ring_gain(frame, background, x: float, y: float, r: float) -> float:
+    """Brightness of the frame against the background in a ring 2-6 px outside the ball at
+    (x, y) of radius r: sum(frame) / sum(background) over the ring (NaN when the ring is off
+    the frame or dark). A flash or a dropped exposure moves it; the ball does not."""
+    m = int(math.ceil(r + 7))
+    x0, y0 = int(math.floor(x)) - m, int(math.floor(y)) - m
+    fr, x0c, y0c = locate.regions._crop(frame, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
+    if fr is None:
+        return math.nan
+    bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
+    yy, xx = np.mgrid[0:fr.shape[0], 0:fr.shape[1]]
+    d = np.hypot(xx + x0c - x, yy + y0c - y)
+    ring = (d >= r + 2) & (d <= r + 6)
+    den = float(bg[ring].sum(dtype=np.float64))
+    if ring.sum() < 8 or den <= 0:
+        return math.nan
+    return float(fr[ring].sum(dtype=np.float64)) / den
+
+
+def same_pixels(frame, prev, x: float, y: float, r: float) -> bool:
+    """True when the ball's tile (the box of the ball at (x, y) of radius r, 4 px more a side)
+    holds the same pixels in ``frame`` and ``prev``: a repeated frame (two exposures always
+    differ by the sensor's noise)."""
+    m = int(math.ceil(r + 4))
+    x0, y0 = int(math.floor(x)) - m, int(math.floor(y)) - m
+    a, _, _ = locate.regions._crop(frame, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
+    b, _, _ = locate.regions._crop(prev, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
+    return a is not None and b is not None and a.shape == b.shape and np.array_equal(a, b)
+
+
 def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=None,
                  r_known=None, r_known_sigma=None):
     """One frame with the chosen locator.
@@ -416,11 +446,15 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     center_ud = center
     if lens is not None:
         center = tuple(float(v) for v in lens.distort(np.asarray(center, dtype=float)))
-    rows = np.full((n, 6), np.nan)
+    rows = np.full((n, 7), np.nan)  # x, y, r, sigma, inlier_frac, found, ring gain
+    lost = np.zeros(n, dtype=bool)  # a ball located, but off the trough's circle
+    identical = np.zeros(n, dtype=bool)  # the ball's tile equals the previous frame's
+    prev = None
     hist: list = []
     bar = tqdm(total=n, desc="locating ball", unit="frame", disable=not progress,
                file=sys.stderr, mininterval=0.5)
     pred_err = math.inf  # how far the last prediction was off (px)
+    gate = 0.25 * r_px + 2.0  # px: a tracked ball moves less than this from its prediction
     read = getattr(source, "read", None)
     cal = RadiusCalibration(r_px)
     # once calibrated, a free radius only on (nearly) the full rim: on a partial arc the free
@@ -467,13 +501,23 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                     revisit[i] = math.inf  # a free radius on a partial arc: always again
             else:
                 revisit[i] = r_px if r_kn is None else r_kn
-        if ok:
+        # a centre far from the prediction (a swapped frame, a ball found elsewhere by the
+        # full-frame search) does not predict the next frames: that is the plausibility
+        # checks' to judge, and one wrong centre would send the next searches astray
+        near = guess is None or math.hypot(loc.x - guess[0], loc.y - guess[1]) <= gate
+        if ok and near:
             hist.append((i, loc.x, loc.y))
             if len(hist) > 4:
                 hist.pop(0)
-            rows[i] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac, 1.0)
+        if ok:
+            r_loc = loc.r if math.isfinite(loc.r) else r_px  # thesis-small gives no radius
+            identical[i] = prev is not None and same_pixels(frame, prev, loc.x, loc.y, r_loc)
+            rows[i] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac, 1.0,
+                       ring_gain(frame, background, loc.x, loc.y, r_loc))
         else:
             rows[i, 5] = 0.0
+            lost[i] = bool(loc.found)
+        prev = frame
         bar.update(1)
     bar.close()
     cal.finish()
@@ -495,7 +539,24 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     warnings_radius = list(warnings)
     for msg in warnings:
         logger.warning(msg)
+    # per-frame plausibility: frames that fail leave the track with their flag
     found = rows[:, 5] == 1.0
+    flags = plausibility.flag_frames(
+        rows[:, 0], rows[:, 1], found, same_pixels=identical, sigma=rows[:, 3],
+        # the rim's share and the radius are the sub-pixel locator's own figures
+        inlier_frac=rows[:, 4] if method == "subpixel" else None,
+        gain=rows[:, 6], radius=rows[:, 2] if method == "subpixel" else None,
+        r_ref=r_cal, r_rel_sigma=cal.rel_sigma if r_cal is not None else None)
+    flags[~found] = np.where(lost[~found], "off_track", "not_found")
+    rejected = found & (flags != "")
+    rows[rejected, :5] = np.nan
+    rows[rejected, 5] = 0.0
+    found = rows[:, 5] == 1.0
+    counts = {f: int(np.sum(flags == f)) for f in plausibility.FLAGS if np.any(flags == f)}
+    if rejected.any():
+        logger.warning(f"{int(rejected.sum())} located frame(s) failed the plausibility checks "
+                       "and are left out: " + ", ".join(f"{k} {v}" for k, v in counts.items()
+                                     if k not in ("not_found", "off_track")))
     theta = np.full(n, np.nan)
     xy = rows[:, :2].copy()
     if lens is not None:
@@ -512,7 +573,9 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         "found": found.astype(int),
         "r_px": rows[:, 2],
         "sigma_px": rows[:, 3],
+        "flag": flags.astype(str),
         "inlier_frac": rows[:, 4],
+        "ring_gain": rows[:, 6],
     })
     if lens is not None:  # the undistorted centres the angles come from
         df["xu_px"], df["yu_px"] = xy[:, 0], xy[:, 1]
@@ -520,7 +583,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                      "undistorted": lens is not None, "locator": method,
                      "angle": angle, "ball_radius_px": r_px, "track_radius_px": L_px,
                      **cal.summary(), "n_refitted": len(redo) if r_cal is not None else 0,
-                     "warnings": warnings, "warnings_radius": warnings_radius})
+                     "warnings": warnings, "warnings_radius": warnings_radius,
+                     "flags": counts})
     return df
 
 

@@ -1,0 +1,211 @@
+"""Per-frame plausibility: which located frames may enter the fit, and why not.
+
+After the tracker has located the ball in every frame, each located frame is checked against
+what the recording itself says (no camera-specific threshold):
+
+- ``contrast``: the frame's brightness around the ball (its ratio to the background in a ring
+  just outside the ball) differs by more than ``CONTRAST_TOL`` from its neighbours' (a flash,
+  a dropped exposure);
+- ``residual``: the centre's standard error from the circle fit is far above the track's
+  typical one (the rim is spoiled: a band of corrupt rows, an object over the ball);
+- ``radius``: the ball's apparent radius is off the calibrated one;
+- ``occluded``: far less of the rim fits a circle than in the frames around it (a bar across
+  the ball);
+- ``jump``: the centre is far from where its neighbours on both sides (up to ``HALF_WINDOW``
+  frames each) put the ball at that frame's time, by a polynomial through them; a swapped
+  frame, or one located on something else, stands out;
+- ``duplicate``: a ``jump`` whose centre equals the previous frame's (a repeated frame).
+
+A frame that fails is reported not found with its flag; ``not_found`` (the locator found no
+ball) and ``off_track`` (a ball found off the trough's circle) are the tracker's own flags.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+FLAGS = ("not_found", "off_track", "contrast", "residual", "radius", "occluded", "jump",
+         "duplicate")
+
+# jump: the both-sided prediction's residual |e| of a frame, for Gaussian centre errors of
+# sigma per axis, is Rayleigh-distributed: P(|e| > k sigma_e) = exp(-k^2 / 2), so at 6 sigma
+# one good frame in 66 million is rejected; sigma_e is the track's own (the median |e| /
+# 1.1774), or the frame's own centre error when that is larger (partial arcs)
+JUMP_SIGMAS = 6.0
+JUMP_FLOOR_PX = 0.01  # below this the scatter is the locator's rounding, not noise
+HALF_WINDOW = 4  # neighbours on each side of the frame that predict it
+DEGREE = 2  # a quadratic over 8 frames: the ball's jerk over them is below 1e-4 px
+DUPLICATE_PX = 1e-4
+MAX_GAP = 12  # neighbours farther than this many frames away do not predict
+# contrast: lamp flicker moves the brightness by up to 10 % (measured in the flicker tests);
+# twice that is not the same exposure
+CONTRAST_TOL = 0.2
+CONTRAST_WINDOW = 5
+# residual: the centre error is robust-z > RESIDUAL_SIGMAS above the track's median and more
+# than RESIDUAL_RATIO x it (a spoiled rim, not the rim's ordinary variation along the path)
+RESIDUAL_SIGMAS = 8.0
+RESIDUAL_RATIO = 3.0
+# radius: the apparent radius more than RADIUS_TOL (relative) off the calibrated one, or
+# RADIUS_SIGMAS of its frame-to-frame scatter, whichever is larger
+RADIUS_TOL = 0.02
+RADIUS_SIGMAS = 8.0
+# occluded: a fitted share of the rim below OCCLUDED_RATIO x the median of the 3 frames just
+# before it or of the 3 just after it (an object entering or leaving the ball)
+OCCLUDED_RATIO = 0.7
+OCCLUDED_WINDOW = 3
+
+
+def _robust(v: np.ndarray) -> tuple[float, float]:
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return math.nan, math.nan
+    med = float(np.median(v))
+    return med, 1.4826 * float(np.median(np.abs(v - med)))
+
+
+def _neighbour_median(v: np.ndarray, ok: np.ndarray, half: int) -> np.ndarray:
+    """For each frame, the median of ``v`` over the ok frames within +-half, itself left out."""
+    n = v.size
+    out = np.full(n, np.nan)
+    idx = np.nonzero(ok & np.isfinite(v))[0]
+    for i in np.nonzero(ok)[0]:
+        lo, hi = np.searchsorted(idx, i - half), np.searchsorted(idx, i + half, side="right")
+        nb = idx[lo:hi]
+        nb = nb[nb != i]
+        if nb.size:
+            out[i] = float(np.median(v[nb]))
+    return out
+
+
+def _side_median(v: np.ndarray, ok: np.ndarray, k: int) -> np.ndarray:
+    """For each frame, the median of ``v`` over the |k| ok frames just before it (k < 0) or just
+    after it (k > 0), within MAX_GAP frames; NaN where there are none."""
+    n = v.size
+    out = np.full(n, np.nan)
+    step = 1 if k > 0 else -1
+    for i in np.nonzero(ok)[0]:
+        vals = [v[j] for j in range(i + step, i + step * (MAX_GAP + 1), step)
+                if 0 <= j < n and ok[j] and np.isfinite(v[j])][:abs(k)]
+        if vals:
+            out[i] = float(np.median(vals))
+    return out
+
+
+def _predict(i: int, x: np.ndarray, y: np.ndarray, ok: np.ndarray) -> tuple[float, float, float]:
+    """(x, y, model error) at frame i from up to HALF_WINDOW ok frames on each side (i left
+    out): a quadratic in the frame number, and how far a cubic's prediction differs from it
+    (the polynomial's own error where the neighbours are far or one-sided: near a gap, at a
+    low frame rate)."""
+    n = x.size
+    left = [j for j in range(i - 1, max(-1, i - MAX_GAP - 1), -1) if ok[j]][:HALF_WINDOW]
+    right = [j for j in range(i + 1, min(n, i + MAX_GAP + 1)) if ok[j]][:HALF_WINDOW]
+    nb = np.array(sorted(left + right))
+    if nb.size < DEGREE + 2:
+        return math.nan, math.nan, math.nan
+    u = (nb - i).astype(float)
+    px = np.polynomial.polynomial.polyfit(u, x[nb], DEGREE)
+    py = np.polynomial.polynomial.polyfit(u, y[nb], DEGREE)
+    model = 0.0
+    if nb.size >= DEGREE + 4:
+        qx = np.polynomial.polynomial.polyfit(u, x[nb], DEGREE + 1)
+        qy = np.polynomial.polynomial.polyfit(u, y[nb], DEGREE + 1)
+        model = math.hypot(qx[0] - px[0], qy[0] - py[0])
+    return float(px[0]), float(py[0]), model
+
+
+def innovations(x, y, ok) -> tuple[np.ndarray, np.ndarray]:
+    """(|centre - prediction|, the prediction's model error) in px for each ok frame, the
+    prediction from the neighbours on both sides (one-sided at the ends of a run; NaN where
+    too few neighbours)."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    e = np.full(x.size, np.nan)
+    m = np.full(x.size, np.nan)
+    for i in np.nonzero(ok)[0]:
+        px, py, m[i] = _predict(i, x, y, ok)
+        e[i] = math.hypot(x[i] - px, y[i] - py)
+    return e, m
+
+
+def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlier_frac=None,
+                gain=None, r_ref: float | None = None,
+                r_rel_sigma: float | None = None) -> np.ndarray:
+    """The flag of every frame ('' for a good one) from the located centres and the locator's
+    per-frame figures (any may be None: that check is skipped). ``found``: frames the tracker
+    located; ``same_pixels``: frames whose ball pixels equal the previous frame's; ``r_ref``:
+    the calibrated apparent radius (px) and ``r_rel_sigma`` its relative frame-to-frame
+    scatter. Frames already not found keep an empty flag here (the tracker
+    names them)."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    found = np.asarray(found, dtype=bool)
+    ok = found.copy()
+    n = x.size
+    flags = np.array([""] * n, dtype=object)
+
+    def reject(mask, name):
+        mask = mask & ok
+        flags[mask] = name
+        ok[mask] = False
+
+    if gain is not None:
+        g = np.asarray(gain, dtype=float)
+        ref = _neighbour_median(g, ok, CONTRAST_WINDOW)
+        reject(np.isfinite(g) & np.isfinite(ref) & (np.abs(g / ref - 1) > CONTRAST_TOL),
+               "contrast")
+    if sigma is not None:
+        s = np.asarray(sigma, dtype=float)
+        med, mad = _robust(s[ok])
+        if math.isfinite(med):
+            reject(np.isfinite(s) & (s > max(RESIDUAL_RATIO * med, med + RESIDUAL_SIGMAS * mad)),
+                   "residual")
+    if radius is not None and r_ref:
+        r = np.asarray(radius, dtype=float)
+        tol = max(RADIUS_TOL, RADIUS_SIGMAS * (r_rel_sigma or 0.0)) * r_ref
+        reject(np.isfinite(r) & (np.abs(r - r_ref) > tol), "radius")
+    if inlier_frac is not None:
+        f = np.asarray(inlier_frac, dtype=float)
+        # an abrupt loss of rim against the frames just before or just after it (a slow
+        # change, the ball rolling into a shadow or against the trough, is no occlusion)
+        before = _side_median(f, ok, -OCCLUDED_WINDOW)
+        after = _side_median(f, ok, OCCLUDED_WINDOW)
+        ref = np.fmax(before, after)
+        reject(np.isfinite(f) & np.isfinite(ref) & (f < OCCLUDED_RATIO * ref), "occluded")
+    # a repeated frame: the ball's pixels equal the frame before's (``same_pixels``; without
+    # it the same centre to 1e-4 px: a locator's answers for two exposures differ by its
+    # noise), while the ball moved between the frames around it (the frames of a resting ball
+    # drawn without noise may be alike)
+    for i in np.nonzero(ok)[0]:
+        if 0 < i < n - 1 and found[i - 1] and found[i + 1]:
+            same = bool(same_pixels[i]) if same_pixels is not None else \
+                math.hypot(x[i] - x[i - 1], y[i] - y[i - 1]) < DUPLICATE_PX
+            moved = math.hypot(x[i + 1] - x[i - 1], y[i + 1] - y[i - 1]) > 10 * DUPLICATE_PX
+            if same and moved:
+                flags[i] = "duplicate"
+                ok[i] = False
+    # jumps: the worst first, its neighbours' predictions again without it, until none is left
+    s_loc = np.asarray(sigma, dtype=float) if sigma is not None else np.zeros(n)
+    s_loc = np.where(np.isfinite(s_loc), s_loc, 0.0)
+    e, model = innovations(x, y, ok)
+    scale = max(float(np.nanmedian(e[ok])) / 1.1774 if np.any(ok & np.isfinite(e)) else 0.0,
+                JUMP_FLOOR_PX)
+    for _ in range(n):
+        # a frame's scale: the track's, or its own centre error, and the prediction's own
+        # model error (twice what the cubic says: the neglected terms' share is of its order)
+        z = np.where(ok & np.isfinite(e), e / np.hypot(np.maximum(scale, s_loc),
+                                                       2.0 * np.nan_to_num(model)), 0.0)
+        i = int(np.argmax(z))
+        if z[i] <= JUMP_SIGMAS:
+            break
+        prev = [j for j in range(i - 1, max(-1, i - 3), -1) if found[j]]
+        same = prev and math.hypot(x[i] - x[prev[0]], y[i] - y[prev[0]]) < 1e-3
+        flags[i] = "duplicate" if same else "jump"
+        ok[i] = False
+        e[i] = np.nan
+        for j in range(max(0, i - MAX_GAP), min(n, i + MAX_GAP + 1)):
+            if ok[j]:
+                px, py, model[j] = _predict(j, x, y, ok)
+                e[j] = math.hypot(x[j] - px, y[j] - py)
+    return flags
