@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from validation.bench_table import Row
+from validation.bench_table import fmt as _fmt
 
 
 def median_time(fn, repeats: int, warmup: bool = True) -> tuple[float, object]:
@@ -224,16 +225,6 @@ def machine() -> dict:
             "platform": platform.platform()}
 
 
-def _fmt(v: float) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return ""
-    if v == 0:
-        return "0"
-    if abs(v) >= 100:
-        return f"{v:.0f}"
-    if abs(v) >= 0.01:
-        return f"{v:.3g}"
-    return f"{v:.2e}"
 
 
 def to_markdown(rows: list[Row], meta: dict) -> str:

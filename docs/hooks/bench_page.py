@@ -9,26 +9,15 @@ for the recognition section, a matrix of centre errors (case x locator).
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
+
+from validation.bench_table import fmt  # the bench's own number format
 
 MARKER = "<!-- bench-tables -->"
 PAGE = "benchmarks.md"
 JSON = Path("data") / "bench.json"
 
 
-def fmt(v) -> str:
-    """A number as the bench's Markdown writes it (validation.bench._fmt): 3 significant
-    figures, no decimals from 100 up, exponent below 0.01; empty for None or NaN."""
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return ""
-    if v == 0:
-        return "0"
-    if abs(v) >= 100:
-        return f"{v:.0f}"
-    if abs(v) >= 0.01:
-        return f"{v:.3g}"
-    return f"{v:.2e}"
 
 
 def fmt_px(v) -> str:
