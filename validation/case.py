@@ -41,7 +41,7 @@ case of ``rollfric validate``)::
     offset = "auto"            # fit the trough bottom's angle: true, false, "auto" (rollfric's
                                # default: when the track has three turning points or more)
     oracle = false             # true: rollfric gets the exact geometry and center_px
-    budget = false             # true: also the uncertainty budget (u_mu, U_mu, z_budget, ...)
+    budget = true              # the uncertainty budget (u_mu, U_mu, z_budget, ...); false: off
 
 Blind mode (the default): rollfric gets only what a lab has: the [lab] setup file (nominal
 values; no center_px unless the lab measured it), the recording and its background. The

@@ -174,7 +174,7 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
         with _timer(timings, "metrics"):
             metrics = compute_metrics(case, traj, truth, track, fit, fit_truth, setup)
             metrics.update(mode_metrics(case, track, truth))
-            if case.data.get("measure", {}).get("budget", False):
+            if case.data.get("measure", {}).get("budget", True):
                 metrics.update(budget_metrics(case, track, fit, setup))
         timings["total"] = time.perf_counter() - t_start
         metrics.update({f"t_{k}_s": float(v) for k, v in timings.items()})

@@ -210,6 +210,10 @@ def summary_text(result, out: str | Path | None = None) -> str:
         f"                 residuals' lag-1 autocorrelation {m['residual_lag1_autocorr']:.2f}:"
         f" stderr x {m['mu_stderr_ar1'] / m['mu_stderr']:.2f} = {m['mu_stderr_ar1']:.2g},"
         f" truth within it: {'yes' if m['mu_true_within_stderr_ar1'] else 'no'}",
+        *([f"  uncertainty    u(mu) {m['u_mu']:.2g} ({100 * m['u_mu'] / m['mu_recovered']:.2g} %),"
+           f" U(mu) {m['U_mu']:.2g} (k = 2), truth within U: {'yes' if m['within_U'] else 'no'}"
+           f" (z = {m['z_budget']:+.2f}), largest source: {m['budget_top_source']}"]
+          if "u_mu" in m else []),
         f"  mu engine      {m['mu_engine']:.6f}"
         f"   (engine bias {100 * m['mu_engine_bias_rel']:+.4f} %,"
         f" pipeline bias {100 * m['mu_pipeline_bias_rel']:+.4f} %)",
