@@ -10,6 +10,13 @@ HELP = "locate the ball in a recording, write its track and fit mu"
 
 
 def register(sub) -> None:
+    """Add the ``measure`` subcommand and its options.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The subcommands of the ``rollfric`` parser.
+    """
     p = sub.add_parser(
         "measure", help=HELP, description=(
             "Measure rolling friction from a recording: locate the ball in every frame "
@@ -74,7 +81,18 @@ OUTPUTS = {"track.csv": "file", "fit.json": "file", "fit.png": "file", "budget.p
 def remove_legacy_leftovers(out) -> list:
     """Remove the hidden ``.DIR.XXXXXXXX`` folders that earlier versions of measure left beside
     DIR when killed (named by tempfile.mkdtemp, without a PID): only folders that hold nothing
-    but measure's own output names (or temporary files) are removed."""
+    but measure's own output names (or temporary files) are removed.
+
+    Parameters
+    ----------
+    out : str or path-like
+        The output folder DIR.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The folders removed (none when DIR's parent cannot be listed).
+    """
     import re
     import shutil
     from pathlib import Path
@@ -97,6 +115,24 @@ def remove_legacy_leftovers(out) -> list:
 
 
 def run(args) -> int:
+    """Run ``rollfric measure``: measure the recording, write track.csv and fit.json.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options (:func:`register`).
+
+    Returns
+    -------
+    int
+        The exit status: 0 a good result, 3 a measurement written with quality "suspect".
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        Bad input (a setup that does not fit the images included); nothing is written, and
+        ``rollfric.cli.main`` reports it and exits with status 2.
+    """
     from rollfric.messages import to_stderr
 
     with to_stderr("measure"):  # the library's info and warnings, as before

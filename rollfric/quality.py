@@ -72,18 +72,49 @@ class Reason:
     message: str
 
     def to_dict(self) -> dict:
+        """The reason as fit.json writes it.
+
+        Returns
+        -------
+        dict
+            ``{"code": code, "message": message}``.
+        """
         return {"code": self.code, "message": self.message}
 
 
 def summary(reasons) -> dict:
-    """The fit.json keys: ``quality`` ("ok" or "suspect") and ``quality_reasons``."""
+    """The fit.json keys: ``quality`` ("ok" or "suspect") and ``quality_reasons``.
+
+    Parameters
+    ----------
+    reasons : iterable of Reason
+        The quality reasons of a result; none means "ok".
+
+    Returns
+    -------
+    dict
+        ``quality``: "suspect" when there is a reason, else "ok"; ``quality_reasons``: the
+        reasons as dicts (:meth:`Reason.to_dict`).
+    """
     reasons = list(reasons)
     return {"quality": "suspect" if reasons else "ok",
             "quality_reasons": [r.to_dict() for r in reasons]}
 
 
 def lag1_autocorrelation(res: np.ndarray) -> float:
-    """Lag-1 autocorrelation of a series with NaN gaps (pairs across a gap are skipped)."""
+    """Lag-1 autocorrelation of a series with NaN gaps (pairs across a gap are skipped).
+
+    Parameters
+    ----------
+    res : array_like
+        The series (e.g. a fit's residuals, rad), NaN where there is no sample.
+
+    Returns
+    -------
+    float
+        The correlation of each sample with the next about the series' mean, in [-1, 1];
+        NaN with fewer than 8 pairs or a constant series.
+    """
     r = np.asarray(res, dtype=float)
     a, b = r[:-1], r[1:]
     ok = np.isfinite(a) & np.isfinite(b)
@@ -96,8 +127,24 @@ def lag1_autocorrelation(res: np.ndarray) -> float:
 
 
 def half_period_frictionless(amplitude: float, track_radius: float, gravity: float) -> float:
-    """Half-period (s) of the ball's swing of the given amplitude (rad) without friction:
-    (2 / omega) K(sin^2(A / 2)), omega^2 = 5 g / (7 L), K the complete elliptic integral."""
+    """Half-period of the ball's swing of the given amplitude without friction.
+
+    (2 / omega) K(sin^2(A / 2)), omega^2 = 5 g / (7 L), K the complete elliptic integral.
+
+    Parameters
+    ----------
+    amplitude : float
+        The swing's amplitude A (rad); its magnitude is used, capped at pi / 2.
+    track_radius : float
+        L = R - r, the radius of the path of the ball's centre (m).
+    gravity : float
+        g (m/s^2).
+
+    Returns
+    -------
+    float
+        The half-period (s).
+    """
     w = math.sqrt(eom.omega_squared(track_radius, gravity))
     m = math.sin(min(abs(amplitude), math.pi / 2) / 2) ** 2
     return 2.0 / w * float(special.ellipk(m))
@@ -157,7 +204,30 @@ def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "co
     ``guess``: the fitter's self-start of the data (:func:`rollfric.fit.initial_guess`: the
     turning points; None skips the swing checks); ``mu_max``: the fitter's upper bound of mu;
     ``noise_floor``: the smallest noise (rad) a residual is compared with.
-    An empty list means the fit passed every check.
+
+    Parameters
+    ----------
+    t, theta : array_like
+        The track: times (s) and angles (rad), NaN where the ball was not found.
+    result : rollfric.fit.FitResult
+        The fit of theta(t).
+    setup : rollfric.setup.Setup
+        The setup the fit used.
+    offset : bool
+        Whether the angle offset of the trough's bottom was fitted.
+    model : str
+        The friction model fitted ("coulomb", ...).
+    guess : dict or None
+        The fitter's self-start; None skips the swing checks.
+    mu_max : float
+        The fitter's upper bound of mu.
+    noise_floor : float
+        The smallest noise (rad) a residual is compared with.
+
+    Returns
+    -------
+    list of Reason
+        The checks that failed; an empty list means the fit passed every check.
     """
     from rollfric.filtering import on_grid
 
@@ -251,7 +321,22 @@ def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "co
 
 
 def circle_center(x, y, radius: float, start) -> tuple[float, float, float]:
-    """(xc, yc, rms px): the centre of the circle of the given radius nearest to the points."""
+    """The centre of the circle of the given radius nearest to the points (least squares).
+
+    Parameters
+    ----------
+    x, y : array_like
+        The points (px).
+    radius : float
+        The circle's radius (px).
+    start : sequence of 2 floats
+        The first guess of the centre (px).
+
+    Returns
+    -------
+    tuple of float
+        (xc, yc, rms): the centre (px) and the RMS distance of the points from the circle (px).
+    """
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
 
@@ -268,6 +353,27 @@ def check_track(df, setup, center, *, warnings=(), flag_counts=None) -> list[Rea
     ``center``: the trough centre (px) the angles were taken about; ``warnings``: the
     measurement's warnings with codes (``[(code, text), ...]``); ``flag_counts``: rejected frames
     by flag.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The track (columns found, x_px, y_px; xu_px, yu_px when a lens calibration was applied).
+    setup : rollfric.setup.Setup
+        The setup used.
+    center : sequence of 2 floats
+        The trough centre (px) the angles were taken about.
+    warnings : sequence of (str, str)
+        The measurement's warnings as (code, text); each becomes a reason.
+    flag_counts : dict or None
+        Frames by plausibility flag (rollfric.plausibility); not_found and off_track are not
+        counted as rejected.
+
+    Returns
+    -------
+    list of Reason
+        Centre off the ball's circle ("center"), track radius off L = R - r ("track_radius"),
+        more than FLAGGED_FRACTION_MAX of the frames rejected ("flagged_frames"), then the
+        warnings; empty when the track passed.
     """
     reasons: list[Reason] = []
     found = df["found"].to_numpy() == 1

@@ -431,7 +431,40 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     and partial arcs are fitted with it; the frames fitted with the known radius before the
     calibration settled (or with a value that moved since) are read once more at the end and
     fitted again with the final one (a second pass over just those frames). ``attrs`` get the
-    calibration (ball_radius_px_seen, ...) and ``warnings``, which also go to the logger."""
+    calibration (ball_radius_px_seen, ...) and ``warnings``, which also go to the logger.
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording (:func:`rollfric.io.open_recording`).
+    setup : Setup
+        The lab setup (ball radius, trough radius, pixel size, lens calibration).
+    background : numpy.ndarray
+        The background image without the ball.
+    method : str
+        The locator: "subpixel", "thesis-large" or "thesis-small".
+    angle : str
+        "atan2" or "arcsin" (:func:`angles`).
+    center : sequence of 2 floats
+        The trough centre (px) the angles are taken about.
+    progress : bool
+        Show a progress bar on stderr.
+    opts : dict or None
+        Options of the locator.
+    times : array_like or None
+        t_s of each frame (s); None: frame / setup.fps.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row a frame: TRACK_COLUMNS, r_px, sigma_px, inlier_frac, ring_gain (+ xu_px, yu_px
+        with a lens calibration).
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        An unknown locator.
+    """
     from tqdm import tqdm
 
     LOCATORS.check(method)
@@ -589,7 +622,22 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
 
 
 def check_track_fits(df: pd.DataFrame, setup: Setup) -> None:
-    """Refuse a track whose ball radius or distance from the axis contradicts the setup."""
+    """Refuse a track whose ball radius contradicts the setup, or without any ball found.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The track of :func:`track_recording`.
+    setup : Setup
+        The setup used.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        The ball was found in no frame.
+    rollfric.setup.SetupError
+        The ball's median fitted radius is more than 10 % off the setup's.
+    """
     found = df["found"] == 1
     if not found.any():
         raise InputError(
@@ -608,7 +656,20 @@ def fps_mismatch(recording_fps, setup_fps: float) -> str | None:
     """A note when the recording carries a frame rate other than the setup's, else None.
 
     The setup's rate is the one used: a high-speed camera's video export often carries a
-    playback rate (25, 30 fps), not the rate the frames were taken at."""
+    playback rate (25, 30 fps), not the rate the frames were taken at.
+
+    Parameters
+    ----------
+    recording_fps : float or None
+        The frame rate in the recording's header (Hz); None or 0 when it has none.
+    setup_fps : float
+        The setup's camera.fps (Hz).
+
+    Returns
+    -------
+    str or None
+        The note, or None when the rates agree to 1e-6 or the recording gives none.
+    """
     if not recording_fps or abs(recording_fps - setup_fps) <= 1e-6 * setup_fps:
         return None
     return (f"the recording says {recording_fps:g} frames/s, the setup {setup_fps:g} Hz: times "
@@ -623,7 +684,31 @@ def frame_times(source, setup_fps: float, times: str = "auto"):
     the nominal one shows), else frame / ``setup_fps``; ``"fps"``: always frame / ``setup_fps``.
     ``notes`` say where the timestamps disagree with the setup's rate (by more than
     TIMES_RATE_TOL) or are unevenly spaced (an interval more than TIMES_JITTER_TOL from the
-    median one)."""
+    median one).
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording; its ``timestamps`` (s) are used when it has them.
+    setup_fps : float
+        The setup's camera.fps (Hz).
+    times : str
+        "auto" or "fps".
+
+    Returns
+    -------
+    t : numpy.ndarray
+        The time of each frame (s), 0 at frame 0.
+    description : str
+        "the recording's timestamps" or "frame / camera.fps".
+    notes : list of str
+        What to check about the timestamps.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        An unknown ``times``.
+    """
     if times not in TIMES:
         raise InputError(f"unknown times {times!r} (known: {', '.join(TIMES)})")
     n = len(source)
@@ -675,6 +760,45 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     rolled about its axis (0.5 deg of roll: mu +0.67 % without the offset).
     The track has the columns TRACK_COLUMNS (+ r_px, sigma_px, inlier_frac); its ``attrs``
     hold the setup used, center_px, background, n_frames, n_found and the locator.
+
+    Parameters
+    ----------
+    recording : str, path-like or FrameSource
+        The recording.
+    setup : Setup, str, path-like or None
+        The setup, a setup TOML, or None: the recording's own.
+    background : str, path-like, numpy.ndarray or None
+        The background image without the ball.
+    method, angle, times : str
+        The locator, the angle formula and the frame times (above).
+    fit_method : str
+        How mu is fitted (:func:`rollfric.fit.fit_mu`).
+    offset : bool or "auto"
+        Fit the angle of the trough's bottom.
+    fit : bool
+        Fit mu; False returns the track only.
+    progress : bool
+        Show a progress bar on stderr.
+    median_frames : int
+        Frames in the median background when there is none.
+    fit_kwargs : dict or None
+        More keywords of :func:`rollfric.fit.fit_mu`.
+
+    Returns
+    -------
+    track : pandas.DataFrame
+        One row a frame (above), its metadata in ``attrs``.
+    result : rollfric.fit.FitResult or None
+        The fit, its quality reasons including the track's (:func:`rollfric.quality.check_track`);
+        None when ``fit=False``.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        Bad input: an unreadable recording, an unknown method, angle or offset, too few frames
+        or found frames to fit.
+    rollfric.setup.SetupError
+        A setup that does not fit the images (recording size, trough contour, ball radius).
     """
     from rollfric import fit as fitmod
     from rollfric.setup import load_setup
@@ -767,6 +891,20 @@ def offset_supported(t, theta, setup: Setup) -> tuple[bool, str]:
     half-swings to both sides (three turning points inside the track, the release not
     counted) separate the two. With two the fit's start is unreliable (measured: a 0.8 s
     record of an 8 deg swing ran to the offset's bound); with fewer the offset and mu are one.
+
+    Parameters
+    ----------
+    t, theta : array_like
+        The track: times (s) and angles (rad), NaN where the ball was not found.
+    setup : Setup
+        The setup (for the fitter's self-start).
+
+    Returns
+    -------
+    supported : bool
+        Whether there are at least OFFSET_MIN_TURNS turning points.
+    why : str
+        The reason, for the user.
     """
     from rollfric import fit as fitmod
 
@@ -781,7 +919,31 @@ def offset_supported(t, theta, setup: Setup) -> tuple[bool, str]:
 
 
 def resolve_offset(offset, t, theta, setup: Setup, fit_method: str = "lsq") -> tuple[bool, str]:
-    """``offset`` (True, False or "auto") -> (fit the offset?, why)."""
+    """Decide whether the angle offset of the trough's bottom is fitted.
+
+    Parameters
+    ----------
+    offset : bool or "auto"
+        What was asked for; "auto": where the data support it (:func:`offset_supported`).
+    t, theta : array_like
+        The track: times (s) and angles (rad).
+    setup : Setup
+        The setup.
+    fit_method : str
+        The fitting method; "paper1_eps" has no offset.
+
+    Returns
+    -------
+    fitted : bool
+        Whether the offset is fitted.
+    why : str
+        The reason, for the user.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        ``offset`` is neither True, False nor "auto".
+    """
     if offset is True or offset is False:
         return offset, "asked for" if offset else "not asked for"
     if offset != "auto":
