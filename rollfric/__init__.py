@@ -1,7 +1,8 @@
 
 
 def __getattr__(name):
-    # rollfric.measure(recording, setup, background=None, method="subpixel", ...) -> (track, fit)
+    # rollfric.measure(recording, setup, background=None, method="subpixel", ...)
+    #     -> (track, info, fit)
     # imported lazily so that `import rollfric` stays light
     if name == "measure":
         from rollfric.track import measure

@@ -162,37 +162,37 @@ def _run(args) -> int:
                              f"{args.overlay_frames!r}") from None
     if args.median_frames < 3:
         raise InputError(f"--median-frames must be at least 3, got {args.median_frames}")
-    track, result = measure(args.recording, args.setup, args.background, method=args.method,
+    track, info, result = measure(args.recording, args.setup, args.background, method=args.method,
                             angle=args.angle, fit_method=args.fit_method,
-                            offset={"on": True, "off": False}.get(args.offset, "auto"),
-                            progress=not args.no_progress, median_frames=args.median_frames,
-                            times=args.times)
-    keys, budget = run_budget(measurement_from_track(track, track.attrs["setup"]), result, args)
+                                  offset={"on": True, "off": False}.get(args.offset, "auto"),
+                                  progress=not args.no_progress,
+                                  median_frames=args.median_frames, times=args.times)
+    keys, budget = run_budget(measurement_from_track(track, info), result, args)
     remove_legacy_leftovers(out)
     with staged_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure") as tmp:
         csv = track[TRACK_COLUMNS].copy()
         csv.to_csv(tmp / "track.csv", index=False, float_format="%.6f", na_rep="")
-        extra = {"n_frames": int(track.attrs["n_frames"]), "n_found": int(track.attrs["n_found"]),
-                 "locator": track.attrs["locator"], "angle": track.attrs["angle"],
-                 "center_px": track.attrs["center_px"],
-                 "center_source": track.attrs["center_source"],
+        extra = {"n_frames": int(info.n_frames), "n_found": int(info.n_found),
+                 "locator": info.locator, "angle": info.angle,
+                 "center_px": list(info.center_px),
+                 "center_source": info.center_source,
                  # angles from lens-undistorted centres ([camera] matrix, distortion)
-                 "undistorted": bool(track.attrs.get("undistorted", False)),
-                 "offset_fitted": bool(track.attrs.get("offset_fitted", False)),
-                 "offset_reason": track.attrs.get("offset_reason"),
-                 "background": track.attrs["background"],
-                 "times": track.attrs["times"],
-                 "ball_radius_px": track.attrs["ball_radius_px"],
+                 "undistorted": bool(info.undistorted),
+                 "offset_fitted": bool(info.offset_fitted),
+                 "offset_reason": info.offset_reason,
+                 "background": info.background,
+                 "times": info.times,
+                 "ball_radius_px": info.ball_radius_px,
                  # the apparent radius calibrated from full-rim frames (None: too few)
-                 "ball_radius_px_seen": track.attrs.get("ball_radius_px_seen"),
-                 "ball_radius_px_seen_n": track.attrs.get("ball_radius_px_seen_n", 0),
-                 "n_refitted": track.attrs.get("n_refitted", 0),
+                 "ball_radius_px_seen": info.ball_radius_px_seen,
+                 "ball_radius_px_seen_n": info.ball_radius_px_seen_n,
+                 "n_refitted": info.n_refitted,
                  # frames left out of the fit, by track.csv flag
-                 "frames_flagged": track.attrs.get("flags", {}),
-                 "warnings": track.attrs.get("warnings", []),
+                 "frames_flagged": dict(info.flags),
+                 "warnings": list(info.warnings),
                  "median_sigma_px": float(track["sigma_px"].median())
                  if track["sigma_px"].notna().any() else None,
-                 "recording": track.attrs["recording"], **keys}
+                 "recording": info.recording, **keys}
         save_fit(result, tmp / "fit.json", **extra)
         if args.plot:
             from rollfric.io import open_recording
@@ -204,10 +204,10 @@ def _run(args) -> int:
             if budget is not None:
                 plot_budget(budget, tmp / "budget.png")
             plot_overlays(open_recording(args.recording), track, tmp / "overlays.png",
-                          frames=frames)
+                          frames=frames, info=info)
     unc = f"+- {result.mu_stderr:.2g} (standard error)" if budget is None else \
         f"+- {budget.u_mu:.2g} (u), U = {budget.U_mu:.2g} (k = 2)"
     mu = result.mu if budget is None else budget.mu
     print(f"mu = {mu:.6f} {unc} ({result.method}); ball found in "
-          f"{track.attrs['n_found']} of {track.attrs['n_frames']} frames -> {out}")
+          f"{info.n_found} of {info.n_frames} frames -> {out}")
     return report_quality("measure", result)

@@ -35,7 +35,7 @@ def choose_frames(track, k: int = 6) -> list[int]:
 
 
 def plot_overlays(source, track, path, *, frames: list[int] | None = None,
-                  r_px: float | None = None, zoom: float = 2.5) -> Path:
+                  r_px: float | None = None, zoom: float = 2.5, info=None) -> Path:
     """One PNG of chosen frames, each cropped around the ball.
 
     Each shows the fitted circle (radius from the track, else ``r_px``), the centre, and the
@@ -46,7 +46,7 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
     source : FrameSource
         The recording.
     track : pandas.DataFrame
-        Its track (with the measurement's attrs: ``center_px``, ``ball_radius_px``).
+        Its track.
     path : str or pathlib.Path
         The PNG to write (atomically).
     frames : list of int, optional
@@ -55,6 +55,10 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
         Radius drawn where the track has none.
     zoom : float, optional
         Crop half-size in ball radii.
+    info : rollfric.track.TrackInfo, optional
+        The track's :class:`~rollfric.track.TrackInfo`: the cylinder centre (``center_px``,
+        drawn as the direction to it) and the default radius (``ball_radius_px``); without it
+        no direction is drawn and the default radius is 10 px.
 
     Returns
     -------
@@ -74,8 +78,8 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
         raise InputError(f"overlay frame(s) {bad} outside the recording's 0..{len(track) - 1}")
     if not frames:
         frames = [0]
-    center = track.attrs.get("center_px")
-    r_default = r_px or track.attrs.get("ball_radius_px", 10.0)
+    center = info.center_px if info is not None else None
+    r_default = r_px or (info.ball_radius_px if info is not None else 10.0)
     ncol = min(3, len(frames))
     nrow = math.ceil(len(frames) / ncol)
     fig = Figure(figsize=(4 * ncol, 4 * nrow))  # no pyplot: no backend, no global state

@@ -37,6 +37,97 @@ TIMES = ("auto", "fps")
 # the recording's timestamps are checked against the setup's rate and for even spacing
 TIMES_RATE_TOL = 1e-3  # relative: a median interval further from 1 / camera.fps is reported
 TIMES_JITTER_TOL = 0.01  # relative: an interval further from the median one is reported
+TIMES_FPS = "frame / camera.fps"  # TrackInfo.times when the times are not the recording's
+
+
+@dataclasses.dataclass(frozen=True)
+class TrackInfo:
+    """What a measured track was measured with and how: returned beside the track DataFrame.
+
+    :func:`track_recording` fills what the locating knows; :func:`measure` adds the rest
+    (``setup``, ``recording``, ``center_source``, ``background``, ``times``, the warnings of the
+    background and the frame times, ``offset_fitted``, ``offset_reason``). ``rollfric measure``
+    writes most of it to fit.json under the same names (``flags`` as ``frames_flagged``).
+
+    Attributes
+    ----------
+    setup : Setup
+        The setup the track was measured with.
+    recording : str
+        The recording's name (its path, or the FrameSource's ``name``).
+    n_frames : int
+        Frames in the recording (rows of the track).
+    n_found : int
+        Frames where the ball was found and kept (``found == 1``).
+    locator : str
+        The locator used: "subpixel", "thesis-large" or "thesis-small".
+    angle : str
+        The angle formula: "atan2" or "arcsin" (:func:`angles`).
+    center_px : tuple of float
+        The trough centre (xc, yc) the angles were taken about (px; lens-undistorted when
+        ``undistorted``).
+    center_source : str
+        Where ``center_px`` came from ("setup center_px", or the background contour's fit).
+    undistorted : bool
+        Whether the angles come from lens-undistorted centres (the setup's [camera] matrix and
+        distortion).
+    background : str
+        Where the background image came from (given, stored in the recording, median of N
+        frames; "repaired" when a resting ball was removed from it).
+    times : str
+        Where t_s came from: "the recording's timestamps" or ``TIMES_FPS`` (frame /
+        camera.fps).
+    ball_radius_px : float
+        The ball's radius from the setup (px): ball.diameter_mm / 2 / camera.pixel_size_mm.
+    track_radius_px : float
+        L = R - r, the radius of the ball centre's path, from the setup (px).
+    ball_radius_px_seen : float or None
+        The ball's apparent radius calibrated from full-rim frames (px; :class:`RadiusCalibration`);
+        None when too few frames showed a full rim.
+    ball_radius_px_seen_n : int
+        Frames in that calibration.
+    ball_radius_px_seen_rel_sigma : float or None
+        Relative scatter of one frame's apparent radius (1); None when not calibrated.
+    ball_radius_px_seen_rel_dev : float or None
+        ball_radius_px_seen / ball_radius_px - 1 (1); None when not calibrated.
+    n_refitted : int
+        Frames fitted again with the calibrated radius in the second pass.
+    flags : dict of str to int
+        Frames by track.csv ``flag`` (:data:`rollfric.plausibility.FLAGS`), only the flags that
+        occur; the rejected ones are left out of the fit.
+    warnings : tuple of str
+        What to check about the measurement (also logged as warnings).
+    warnings_radius : tuple of str
+        The warnings of the radius calibration (a quality reason "ball_radius" of the fit).
+    offset_fitted : bool
+        Whether the angle offset of the trough's bottom was fitted (False without a fit).
+    offset_reason : str or None
+        Why (:func:`resolve_offset`); None without a fit.
+    """
+
+    setup: Setup
+    recording: str
+    n_frames: int
+    n_found: int
+    locator: str
+    angle: str
+    center_px: tuple[float, float]
+    center_source: str
+    undistorted: bool
+    background: str
+    times: str
+    ball_radius_px: float
+    track_radius_px: float
+    ball_radius_px_seen: float | None
+    ball_radius_px_seen_n: int
+    ball_radius_px_seen_rel_sigma: float | None
+    ball_radius_px_seen_rel_dev: float | None
+    n_refitted: int
+    flags: dict
+    warnings: tuple[str, ...]
+    warnings_radius: tuple[str, ...]
+    offset_fitted: bool = False
+    offset_reason: str | None = None
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -422,7 +513,8 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
 
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
                     angle: str = "atan2", center: tuple[float, float] | None = None,
-                    progress: bool = True, opts=None, times=None) -> pd.DataFrame:
+                    progress: bool = True, opts=None,
+                    times=None) -> tuple[pd.DataFrame, TrackInfo]:
     """Locate the ball in every frame of ``source``; one row a frame (see TRACK_COLUMNS), plus
     r_px, sigma_px (estimated centre error) and inlier_frac where the locator gives them.
     ``times``: t_s of each frame (default frame / setup.fps; see :func:`frame_times`).
@@ -430,8 +522,9 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     subpixel: the ball's apparent radius is calibrated on the way (:class:`RadiusCalibration`)
     and partial arcs are fitted with it; the frames fitted with the known radius before the
     calibration settled (or with a value that moved since) are read once more at the end and
-    fitted again with the final one (a second pass over just those frames). ``attrs`` get the
-    calibration (ball_radius_px_seen, ...) and ``warnings``, which also go to the logger.
+    fitted again with the final one (a second pass over just those frames). The
+    :class:`TrackInfo` gets the calibration (ball_radius_px_seen, ...) and ``warnings``, which
+    also go to the logger.
 
     Parameters
     ----------
@@ -456,9 +549,13 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
 
     Returns
     -------
-    pandas.DataFrame
+    track : pandas.DataFrame
         One row a frame: TRACK_COLUMNS, r_px, sigma_px, inlier_frac, ring_gain (+ xu_px, yu_px
         with a lens calibration).
+    info : TrackInfo
+        How it was measured; ``recording`` is the source's ``name`` (else ""), and
+        ``center_source``, ``background`` and ``times`` say "given" (:func:`measure` fills
+        them in).
 
     Raises
     ------
@@ -612,13 +709,17 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     })
     if lens is not None:  # the undistorted centres the angles come from
         df["xu_px"], df["yu_px"] = xy[:, 0], xy[:, 1]
-    df.attrs.update({"center_px": [float(center_ud[0]), float(center_ud[1])],
-                     "undistorted": lens is not None, "locator": method,
-                     "angle": angle, "ball_radius_px": r_px, "track_radius_px": L_px,
-                     **cal.summary(), "n_refitted": len(redo) if r_cal is not None else 0,
-                     "warnings": warnings, "warnings_radius": warnings_radius,
-                     "flags": counts})
-    return df
+    cal_keys = {"ball_radius_px_seen_rel_sigma": None, "ball_radius_px_seen_rel_dev": None,
+                **cal.summary()}
+    info = TrackInfo(setup=setup, recording=str(getattr(source, "name", "")), n_frames=n,
+                     n_found=int(found.sum()), locator=method, angle=angle,
+                     center_px=(float(center_ud[0]), float(center_ud[1])),
+                     center_source="given", undistorted=lens is not None, background="given",
+                     times=TIMES_FPS if times is None else "given",
+                     ball_radius_px=r_px, track_radius_px=L_px, **cal_keys,
+                     n_refitted=len(redo) if r_cal is not None else 0, flags=counts,
+                     warnings=tuple(warnings), warnings_radius=tuple(warnings_radius))
+    return df, info
 
 
 def check_track_fits(df: pd.DataFrame, setup: Setup) -> None:
@@ -642,10 +743,10 @@ def check_track_fits(df: pd.DataFrame, setup: Setup) -> None:
     if not found.any():
         raise InputError(
             f"the ball was found in none of the {len(df)} frames: is it in the recording, is the "
-            f"background right, and is its size right (setup: {df.attrs['ball_radius_px']:.1f}"
+            f"background right, and is its size right (setup: {ball_radius_px(setup):.1f}"
             " px radius)?")
     rfit = df.loc[found, "r_px"].dropna()
-    r_px = df.attrs["ball_radius_px"]
+    r_px = ball_radius_px(setup)
     if len(rfit) and abs(float(rfit.median()) - r_px) > 0.1 * r_px:
         raise SetupError(f"the setup does not fit the images: the ball measures "
                          f"{float(rfit.median()):.1f} px in radius, the setup says {r_px:.1f} px"
@@ -714,10 +815,10 @@ def frame_times(source, setup_fps: float, times: str = "auto"):
     n = len(source)
     stamps = getattr(source, "timestamps", None) if times == "auto" else None
     if stamps is None:
-        return np.arange(n) / setup_fps, "frame / camera.fps", []
+        return np.arange(n) / setup_fps, TIMES_FPS, []
     t = np.asarray(stamps, dtype=float)
     if t.shape != (n,) or not np.all(np.isfinite(t)) or (n > 1 and np.any(np.diff(t) <= 0)):
-        return np.arange(n) / setup_fps, "frame / camera.fps", [
+        return np.arange(n) / setup_fps, TIMES_FPS, [
             "the recording's timestamps are not one increasing time a frame: times use the "
             "setup's camera.fps"]
     t = t - t[0]
@@ -744,22 +845,23 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             offset: bool | str = "auto", fit: bool = True, progress: bool = False,
             median_frames: int = 41, fit_kwargs: dict | None = None,
             times: str = "auto"):
-    """Measure mu from a recording: (track DataFrame, FitResult or None when ``fit=False``).
+    """Measure mu from a recording: (track DataFrame, TrackInfo, FitResult or None).
 
     ``recording``: a path (see :func:`rollfric.io.open_recording`) or a FrameSource.
     ``setup``: a Setup, a path to a setup TOML, or None to take it from the recording's attrs.
     ``background``: an image path or array; None: the recording's own, else the per-pixel
-    median of ``median_frames`` frames (reported in ``track.attrs``).
+    median of ``median_frames`` frames (reported in ``info.background``).
     Messages go to the ``rollfric.track`` logger: info (what was chosen), warning (what to
-    check; the warnings are also in ``track.attrs["warnings"]``).
+    check; the warnings are also in ``info.warnings``).
     ``method``: "subpixel" (default), "thesis-large" or "thesis-small".
     ``times``: "auto" (the recording's per-frame timestamps when it has them, else frame /
     camera.fps) or "fps" (always frame / camera.fps); see :func:`frame_times`.
     ``offset``: fit the angle of the trough's bottom too (True), not (False), or "auto" (the
     default): where the data support it (:func:`offset_supported`), which corrects a camera
     rolled about its axis (0.5 deg of roll: mu +0.67 % without the offset).
-    The track has the columns TRACK_COLUMNS (+ r_px, sigma_px, inlier_frac); its ``attrs``
-    hold the setup used, center_px, background, n_frames, n_found and the locator.
+    The track has the columns TRACK_COLUMNS (+ r_px, sigma_px, inlier_frac); the
+    :class:`TrackInfo` beside it holds the setup used, center_px, background, n_frames, n_found,
+    the locator, the warnings and the rest.
 
     Parameters
     ----------
@@ -787,7 +889,9 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     Returns
     -------
     track : pandas.DataFrame
-        One row a frame (above), its metadata in ``attrs``.
+        One row a frame (above).
+    info : TrackInfo
+        How the track was measured (above).
     result : rollfric.fit.FitResult or None
         The fit, its quality reasons including the track's (:func:`rollfric.quality.check_track`);
         None when ``fit=False``.
@@ -817,7 +921,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     # a recording with its own per-frame times is checked against them (frame_times), one
     # without against the rate in its header
     fps_note = fps_mismatch(getattr(source, "fps", None), setup.fps) \
-        if times_desc == "frame / camera.fps" else None
+        if times_desc == TIMES_FPS else None
     time_notes = time_notes + ([fps_note] if fps_note else [])
     for msg in time_notes:
         logger.warning(msg)
@@ -842,15 +946,15 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         logger.info(f"cylinder centre from the background contour: ({center[0]:.2f}, "
                     f"{center[1]:.2f}) px")
         check_setup_fits(setup.replace(center_px=center), source.shape)
-    df = track_recording(source, setup, bg, method=method, angle=angle, center=center,
-                         progress=progress, times=t)
+    df, info = track_recording(source, setup, bg, method=method, angle=angle, center=center,
+                               progress=progress, times=t)
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
-    df.attrs.update({"setup": setup, "background": bg_desc, "center_source": center_desc,
-                     "n_frames": len(df), "n_found": n_found,
-                     "recording": str(getattr(source, "name", recording)),
-                     "times": times_desc,
-                     "warnings": list(df.attrs.get("warnings", [])) + bg_notes + time_notes})
+    info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,
+                               n_frames=len(df), n_found=n_found,
+                               recording=str(getattr(source, "name", recording)),
+                               times=times_desc,
+                               warnings=info.warnings + tuple(bg_notes) + tuple(time_notes))
     if n_found < len(df):
         logger.info(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of "
                     "the fit)")
@@ -864,7 +968,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                              f"least {fitmod.MIN_SAMPLES} are needed to fit mu")
         t_s, th = df["t_s"].to_numpy(), df["theta_rad"].to_numpy()
         use, why = resolve_offset(offset, t_s, th, setup, fit_method)
-        df.attrs.update({"offset_fitted": use, "offset_reason": why})
+        info = dataclasses.replace(info, offset_fitted=use, offset_reason=why)
         if offset == "auto":
             logger.info(f"angle offset of the trough bottom {'fitted' if use else 'not fitted'}: "
                         f"{why}")
@@ -872,12 +976,12 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                **(fit_kwargs or {}))
         coded = [("background_repaired", f"{msg}: a background image without the ball "
                   "(--background) rules out a trace of it") for msg in bg_notes]
-        coded += [("ball_radius", msg) for msg in df.attrs.get("warnings_radius", [])]
+        coded += [("ball_radius", msg) for msg in info.warnings_radius]
         track_reasons = quality.check_track(df, setup, center, warnings=coded,
-                                            flag_counts=df.attrs.get("flags"))
+                                            flag_counts=info.flags)
         result = dataclasses.replace(
             result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
-    return df, result
+    return df, info, result
 
 
 OFFSET_MIN_TURNS = 3  # turning points inside the track before the offset is fitted by default

@@ -249,17 +249,16 @@ class Measurement:
             np.asarray(self.theta, dtype=float)
 
 
-def measurement_from_track(track, setup: Setup) -> Measurement:
+def measurement_from_track(track, info) -> Measurement:
     """A :class:`Measurement` from ``rollfric.track.measure``'s track DataFrame.
 
     Parameters
     ----------
     track : pandas.DataFrame
-        Columns ``frame``, ``found``, ``x_px``, ``y_px``, ``t_s``; attrs ``center_px`` and
-        optionally ``angle`` and ``times`` (the recording's timestamps unless it is
-        "frame / camera.fps").
-    setup : Setup
-        The nominal setup.
+        Columns ``frame``, ``found``, ``x_px``, ``y_px``, ``t_s``.
+    info : rollfric.track.TrackInfo
+        How it was measured: ``setup`` (the nominal setup), ``center_px``, ``angle`` and
+        ``times`` (the recording's timestamps unless it is "frame / camera.fps").
 
     Returns
     -------
@@ -267,13 +266,13 @@ def measurement_from_track(track, setup: Setup) -> Measurement:
         Centres (NaN where the ball was not found), with the track's times when they are the
         recording's own timestamps.
     """
-    center = tuple(track.attrs["center_px"])
+    center = tuple(info.center_px)
     found = track["found"].to_numpy() == 1
     x = np.where(found, track["x_px"].to_numpy(float), np.nan)
     y = np.where(found, track["y_px"].to_numpy(float), np.nan)
-    stamped = track.attrs.get("times", "frame / camera.fps") != "frame / camera.fps"
-    return Measurement(setup=setup, frames=track["frame"].to_numpy(float), x=x, y=y,
-                       center=center, angle=track.attrs.get("angle", "atan2"),
+    stamped = info.times != "frame / camera.fps"
+    return Measurement(setup=info.setup, frames=track["frame"].to_numpy(float), x=x, y=y,
+                       center=center, angle=info.angle,
                        t=track["t_s"].to_numpy(float) if stamped else None)
 
 

@@ -58,8 +58,8 @@ def test_glitched_recording_gives_the_clean_mu(seed):
     stack = np.stack(rec.frames)
     bad, glitches = glitch_frames(stack, seed=seed, rate=0.015, centers=rec.centers,
                                   r_px=rec.scene.r_px)
-    df0, clean = measure(_Plain(list(stack)), rec.setup, rec.background)
-    df1, fit = measure(_Plain(list(bad)), rec.setup, rec.background)
+    df0, _, clean = measure(_Plain(list(stack)), rec.setup, rec.background)
+    df1, info1, fit = measure(_Plain(list(bad)), rec.setup, rec.background)
     assert clean.quality == "ok" and (df0["flag"] == "").all()
     assert fit.mu == pytest.approx(clean.mu, rel=5e-4)
     err0 = np.hypot(df0["x_px"] - rec.centers[:, 0], df0["y_px"] - rec.centers[:, 1])
@@ -80,4 +80,4 @@ def test_glitched_recording_gives_the_clean_mu(seed):
     good = np.array([i not in glitched for i in range(len(df1))])
     assert (flags[good] != "").mean() <= 0.02
     counts = collections.Counter(flags[flags != ""])
-    assert df1.attrs["flags"] == dict(counts)
+    assert info1.flags == dict(counts)

@@ -30,13 +30,13 @@ def test_a_ball_resting_in_most_frames_is_taken_out_of_the_median(caplog):
     disc = np.hypot(xx - xr, yy - yr) < 0.8 * rec.scene.r_px
     assert np.abs(plain - rec.background.astype(int))[disc].mean() > 20
     with caplog.at_level(logging.INFO, logger="rollfric"):
-        df, _ = measure(src, rec.setup, None, fit=False)
+        df, info, _ = measure(src, rec.setup, None, fit=False)
     logs = messages(caplog)
     found, err = _errors(df, rec)
     assert found.all()
     assert np.sqrt(np.mean(err ** 2)) < 0.05 and err.max() < 0.1
-    assert "repaired" in df.attrs["background"]
-    assert any("resting ball" in m for m in df.attrs["warnings"])
+    assert "repaired" in info.background
+    assert any("resting ball" in m for m in info.warnings)
     assert any(m.startswith("warning: the median background held a resting ball") for m in logs)
     # the repaired disc is the backdrop again (noise aside)
     bg, _ = median_background(src, rec.scene.r_px)

@@ -90,15 +90,15 @@ def test_track_calibrates_and_refits_the_early_partial_arcs():
                      math.asin((x_shadow + 1.6 * R - 200) / L), 40)
     centres = [(200 + L * math.sin(t), 100 - L + L * math.cos(t)) for t in th]
     src = _Frames(centres, x_shadow)
-    df = track_recording(src, setup, src.background, progress=False)
-    assert abs(df.attrs["ball_radius_px_seen"] - R_SEEN) < 0.03, df.attrs
-    assert df.attrs["n_refitted"] >= 3, df.attrs
-    assert df.attrs["warnings"] == []
+    df, info = track_recording(src, setup, src.background, progress=False)
+    assert abs(info.ball_radius_px_seen - R_SEEN) < 0.03, info
+    assert info.n_refitted >= 3, info
+    assert info.warnings == ()
     # the second pass read only the refitted frames again
-    assert len(src.reads) == len(src) + df.attrs["n_refitted"]
+    assert len(src.reads) == len(src) + info.n_refitted
     # every partial arc (below 90 % of the rim) fitted with the calibrated radius
     known = (df["found"] == 1) & (df["inlier_frac"] < 0.9)
-    assert known.sum() >= 15 and df.attrs["n_refitted"] >= known.sum()
+    assert known.sum() >= 15 and info.n_refitted >= known.sum()
     cx = np.array([c[0] for c in centres])
     cy = np.array([c[1] for c in centres])
     err = np.hypot(df["x_px"] - cx, df["y_px"] - cy)

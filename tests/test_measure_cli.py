@@ -82,7 +82,7 @@ def test_measure_api_median_background_missing_frames_and_16bit(tmp_path, caplog
     rec = make_recording(160, bit_depth=16, noise=2.0, missing=missing)
     path = _write(rec, tmp_path)
     with caplog.at_level(logging.INFO, logger="rollfric"):
-        df, fit = measure(path, tmp_path / "setup.toml", None)
+        df, _, fit = measure(path, tmp_path / "setup.toml", None)
     logs = messages(caplog)
     assert any("median" in m for m in logs)
     assert any("not found in 7 of 160" in m for m in logs)
@@ -101,8 +101,8 @@ def test_measure_with_thesis_locators(tmp_path, method):
     # a 16 mm ball (19 px radius) for the large-ball method, to a pixel or so
     rec = make_recording(80, ball_mm=16.0 if method == "thesis-large" else 6.0)
     path = _write(rec, tmp_path)
-    df, fit = measure(path, tmp_path / "setup.toml", tmp_path / "bg.tif", method=method,
-                      fit=False)
+    df, _, fit = measure(path, tmp_path / "setup.toml", tmp_path / "bg.tif", method=method,
+                         fit=False)
     assert fit is None and df["found"].all()
     err = np.hypot(df["x_px"] - rec.centers[:, 0], df["y_px"] - rec.centers[:, 1])
     # the large-ball method finds the centre; the small-ball one the brightest spot
@@ -144,9 +144,9 @@ def test_center_outside_frame_with_center_px(tmp_path):
     assert not out2.exists()
     # with the contour visible, the centre (above the frame) comes from its lower arc
     rec = make_recording(120, center=(180.0, -60.0), height=200)
-    df, _ = measure(_write(rec, tmp_path), tmp_path / "setup.toml", tmp_path / "bg.tif",
-                    fit=False)
-    xc, yc = df.attrs["center_px"]
+    _, info, _ = measure(_write(rec, tmp_path), tmp_path / "setup.toml", tmp_path / "bg.tif",
+                         fit=False)
+    xc, yc = info.center_px
     assert math.hypot(xc - 180.0, yc + 60.0) < 0.2
 
 

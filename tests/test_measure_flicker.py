@@ -16,8 +16,8 @@ def test_ten_percent_lamp_flicker_keeps_every_frame(given_background):
     for i, f in enumerate(rec.frames):
         gain = 1.0 + 0.10 * np.sin(2 * np.pi * 100.0 * i / 1000.0)
         frames.append(np.clip(np.rint(np.asarray(f, float) * gain), 0, 255).astype(np.uint8))
-    df, _ = measure(_Plain(frames), rec.setup, rec.background if given_background else None,
-                    fit=False)
+    df, _, _ = measure(_Plain(frames), rec.setup, rec.background if given_background else None,
+                       fit=False)
     found = df["found"].to_numpy() == 1
     err = np.hypot(df["x_px"] - rec.centers[:, 0], df["y_px"] - rec.centers[:, 1])[found]
     assert found.all()

@@ -179,8 +179,8 @@ def test_measure_reading_rois_gives_the_same_track(method):
                          ball_mm=16.0 if method == "thesis-large" else 6.0)
     frames = [np.asarray(f) for f in rec.frames]
     plain, roi = _Plain(frames), _WithRead(frames)
-    df_full, _ = measure(plain, rec.setup, rec.background, method=method, fit=False)
-    df_roi, _ = measure(roi, rec.setup, rec.background, method=method, fit=False)
+    df_full, _, _ = measure(plain, rec.setup, rec.background, method=method, fit=False)
+    df_roi, _, _ = measure(roi, rec.setup, rec.background, method=method, fit=False)
     pd.testing.assert_frame_equal(df_roi, df_full, check_exact=True)
     assert df_full["found"].sum() >= 70 - len(missing) - 2
     # tracked frames were read as regions, far smaller than the frame
@@ -216,12 +216,12 @@ def test_a_recording_frame_rate_other_than_the_setup_is_reported(caplog):
     src = _Plain(frames)
     src.fps = 30.0  # a video export's playback rate
     with caplog.at_level(logging.INFO, logger="rollfric"):
-        df, _ = measure(src, rec.setup, rec.background, fit=False)
+        df, info, _ = measure(src, rec.setup, rec.background, fit=False)
     logs = messages(caplog)
-    assert any("30 frames/s" in m and "setup" in m for m in df.attrs["warnings"])
+    assert any("30 frames/s" in m and "setup" in m for m in info.warnings)
     assert any(m.startswith("warning: the recording says 30") for m in logs)
     # times still come from the setup's rate
     np.testing.assert_allclose(df["t_s"].to_numpy(), np.arange(12) / rec.setup.fps)
     src.fps = rec.setup.fps
-    df, _ = measure(src, rec.setup, rec.background, fit=False)
-    assert not any("frames/s" in m for m in df.attrs["warnings"])
+    _, info, _ = measure(src, rec.setup, rec.background, fit=False)
+    assert not any("frames/s" in m for m in info.warnings)

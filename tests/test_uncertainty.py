@@ -220,8 +220,8 @@ def test_lab_setup_on_a_drawn_recording(tmp_path):
     assert abs(fit["mu"] - 0.0079) < fit["U_mu"] < 0.02 * fit["mu"]
     assert sum(r["u_mu"] > 0 for r in fit["uncertainty_budget"]) >= 3
     # the same through the API: the budget re-uses the located centres
-    df, result = measure(tmp_path / "rec.tif", lab, bg)
-    b = budget(measurement_from_track(df, lab), result)
+    df, info, result = measure(tmp_path / "rec.tif", lab, bg)
+    b = budget(measurement_from_track(df, info), result)
     assert b.u_mu == pytest.approx(fit["u_mu"], rel=1e-6)
 
 

@@ -102,7 +102,7 @@ def test_blind_case_finds_the_trough_centre_from_the_contour(tmp_path):
     m = r.metrics
     assert m["mode"] == "blind" and not m["lab_center_measured"]
     assert r.setup.center_px is None and "center_px" not in r.setup_dict["cylinder"]
-    assert "contour" in r.track.attrs["center_source"]
+    assert "contour" in r.track_info.center_source
     # the contour's centre: a fraction of a 0.4 mm pixel off the axis
     assert abs(m["trough_center_err_x_px"]) < 0.2 and abs(m["trough_center_err_y_px"]) < 0.3
     assert m["found_fraction"] == 1.0 and m["center_rms_px"] < 0.1

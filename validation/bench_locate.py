@@ -247,7 +247,7 @@ def throughput(ball: str = "10mm", n: int = 300, method: str = "subpixel") -> fl
         track_recording(Mem(), setup, bg, method=method, progress=False)  # warm-up
         # CPU time of this process: the machine may be shared, wall time would count the others
         t0 = time.process_time()
-        df = track_recording(Mem(), setup, bg, method=method, progress=False)
+        df, _ = track_recording(Mem(), setup, bg, method=method, progress=False)
         dt = time.process_time() - t0
     finally:
         cv2.setNumThreads(threads)

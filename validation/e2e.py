@@ -86,6 +86,7 @@ class CaseResult:
     trajectory: object  # sim.Trajectory
     truth: object  # pandas.DataFrame, one row per frame (synth's truth)
     track: object  # pandas.DataFrame: frame, t_s, x_px, y_px, theta_rad, found, ...
+    track_info: object  # rollfric.track.TrackInfo: how the track was measured
     fit: object  # rollfric.fit.FitResult from the measured track
     fit_truth: object  # the same fitter on the engine's theta(t)
     setup: object  # rollfric.setup.Setup used by the measurement
@@ -169,13 +170,13 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
         rec = synth.open_recording(rec_path)
         truth = rec.truth
         with _timer(timings, "measure"):
-            track, fit, setup, setup_dict = measure_recording(rec_path, case,
-                                                              progress=progress)
+            track, info, fit, setup, setup_dict = measure_recording(rec_path, case,
+                                                                    progress=progress)
         with _timer(timings, "metrics"):
             metrics = compute_metrics(case, traj, truth, track, fit, fit_truth, setup)
-            metrics.update(mode_metrics(case, track, truth))
+            metrics.update(mode_metrics(case, info, truth))
             if case.data.get("measure", {}).get("budget", True):
-                metrics.update(budget_metrics(case, track, fit, setup))
+                metrics.update(budget_metrics(case, track, info, fit))
         timings["total"] = time.perf_counter() - t_start
         metrics.update({f"t_{k}_s": float(v) for k, v in timings.items()})
         metrics["n_frames"] = int(len(truth))
@@ -184,8 +185,9 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
         metrics["render_fps"] = (len(truth) / timings["render"]) if timings["render"] > 0 \
             else math.nan
         result = CaseResult(case=case, metrics=metrics, timings=dict(timings), trajectory=traj,
-                            truth=truth, track=track, fit=fit, fit_truth=fit_truth, setup=setup,
-                            setup_dict=setup_dict, recording=rec_path)
+                            truth=truth, track=track, track_info=info, fit=fit,
+                            fit_truth=fit_truth, setup=setup, setup_dict=setup_dict,
+                            recording=rec_path)
         if report_tmp is not None:
             from validation.report import write_report
 
@@ -201,7 +203,8 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
 # -- the measurement (rollfric) ---------------------------------------------------------------
 
 def measure_recording(path: Path, case: Case, *, progress: bool = False):
-    """rollfric's measurement of a recording: (track DataFrame, FitResult, Setup, setup dict).
+    """rollfric's measurement of a recording: (track DataFrame, TrackInfo, FitResult, Setup,
+    setup dict).
 
     Exactly what ``rollfric measure REC.zarr --setup SETUP.toml`` does: the recording opened
     through rollfric's reader (synth's Zarr entry point) with its background, the case's
@@ -220,9 +223,9 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
     else:
         setup_dict = case.lab_setup_dict()
         setup = setup_from_dict(setup_dict, source="the lab's setup")
-    track, fit = track_mod.measure(src, setup, method=case.locator, fit_method=case.fit,
-                                   offset=case.offset, progress=progress)
-    return track, fit, setup, setup_dict
+    track, info, fit = track_mod.measure(src, setup, method=case.locator, fit_method=case.fit,
+                                         offset=case.offset, progress=progress)
+    return track, info, fit, setup, setup_dict
 
 
 def _offset(case: Case, t, theta, setup) -> bool:
@@ -232,20 +235,20 @@ def _offset(case: Case, t, theta, setup) -> bool:
     return resolve_offset(case.offset, t, theta, setup, case.fit)[0]
 
 
-def mode_metrics(case: Case, track, truth) -> dict:
+def mode_metrics(case: Case, info, truth) -> dict:
     """Blind or oracle, the lab's errors and the trough centre rollfric used against the true
     one (px, in the image rollfric measured in)."""
     cx = float(np.asarray(truth["cx_px"], float)[0])
     cy = float(np.asarray(truth["cy_px"], float)[0])
-    if not track.attrs.get("undistorted", False):  # rollfric worked in the recorded image
+    if not info.undistorted:  # rollfric worked in the recorded image
         cx, cy = (float(v) for v in case.scene.camera.recorded(np.array([cx, cy])))
-    used = track.attrs.get("center_px", [math.nan, math.nan])
+    used = info.center_px
     m = {"mode": case.mode,
          "lab_center_measured": bool(not case.oracle
                                      and case.lab.center_error_px is not None),
          "lab_draw": bool(case.lab.draw),
-         "undistorted": bool(track.attrs.get("undistorted", False)),
-         "offset_fitted": bool(track.attrs.get("offset_fitted", False)),
+         "undistorted": bool(info.undistorted),
+         "offset_fitted": bool(info.offset_fitted),
          "camera_roll_deg": math.degrees(case.scene.camera.roll),
          "trough_center_x_px": float(used[0]), "trough_center_y_px": float(used[1]),
          "trough_center_err_x_px": float(used[0]) - cx,
@@ -258,7 +261,7 @@ def mode_metrics(case: Case, track, truth) -> dict:
     return m
 
 
-def budget_metrics(case: Case, track, fit, setup) -> dict:
+def budget_metrics(case: Case, track, info, fit) -> dict:
     """rollfric's uncertainty budget of the measured mu (:mod:`rollfric.uncertainty`) against
     the truth: u_mu, U_mu (k = 2), z_budget = (mu - truth) / u_mu, within_u / within_U (1 or
     0), the statistical part alone (u_stat, z_stat), the largest source and the budget's time.
@@ -267,7 +270,7 @@ def budget_metrics(case: Case, track, fit, setup) -> dict:
 
     if fit.method != "lsq":
         return {}
-    b = budget(measurement_from_track(track, setup), fit)
+    b = budget(measurement_from_track(track, info), fit)
     mu_true = float(case.scenario.mu)
     u_stat = next(r.u_mu for r in b.rows if r.source == "statistical")
     return {"u_mu": b.u_mu, "U_mu": b.U_mu, "z_budget": (b.mu - mu_true) / b.u_mu,
