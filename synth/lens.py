@@ -13,6 +13,10 @@ point (x, y, 1) with no rotation and translation. The distorted frame is made fr
 render by sampling it, at every output pixel, at that pixel's undistorted position (bilinear):
 the ideal render covers the frame's undistorted footprint (a margin around it for a barrel
 lens). The ground truth is the distorted position of the ideal projection.
+
+Written apart from :mod:`rollfric.lens` (which calls OpenCV) on purpose: the truth must not share
+the measurement's code, so an error in either shows up; the tests hold both to
+``cv2.projectPoints``.
 """
 
 from __future__ import annotations
@@ -54,13 +58,22 @@ class Lens:
     def is_identity(self) -> bool:
         return not any(self.distortion)
 
+    @property
+    def _intrinsics(self) -> tuple[float, float, float, float, float]:
+        K = self.K
+        return K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2]
+
+    def _normalised(self, uv) -> tuple[np.ndarray, np.ndarray]:
+        """Pixels (..., 2) -> normalised coordinates x, y (K^-1 applied)."""
+        uv = np.asarray(uv, dtype=float)
+        fx, s, cx, fy, cy = self._intrinsics
+        y = (uv[..., 1] - cy) / fy
+        return (uv[..., 0] - cx - s * y) / fx, y
+
     def distort(self, uv) -> np.ndarray:
         """Ideal pixels (..., 2) -> where the lens puts them (..., 2)."""
-        uv = np.asarray(uv, dtype=float)
-        K = self.K
-        fx, s, cx, fy, cy = K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2]
-        y = (uv[..., 1] - cy) / fy
-        x = (uv[..., 0] - cx - s * y) / fx
+        x, y = self._normalised(uv)
+        fx, s, cx, fy, cy = self._intrinsics
         k1, k2, p1, p2, k3 = self.distortion
         r2 = x * x + y * y
         radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
@@ -72,11 +85,8 @@ class Lens:
         """Recorded pixels (..., 2) -> their ideal positions: the inverse of :meth:`distort`,
         by fixed-point iteration on the normalised coordinates until they move less than
         1e-13 (1e-9 px at fx = 10000 px)."""
-        uv = np.asarray(uv, dtype=float)
-        K = self.K
-        fx, s, cx, fy, cy = K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2]
-        yd = (uv[..., 1] - cy) / fy
-        xd = (uv[..., 0] - cx - s * yd) / fx
+        xd, yd = self._normalised(uv)
+        fx, s, cx, fy, cy = self._intrinsics
         k1, k2, p1, p2, k3 = self.distortion
         x, y = xd.copy(), yd.copy()
         for _ in range(200):

@@ -53,3 +53,20 @@ def messages(caplog) -> list[str]:
     """rollfric's log records as the command prints them: warnings prefixed "warning: "."""
     return [("warning: " if r.levelno >= logging.WARNING else "") + r.getMessage()
             for r in caplog.records if r.name.startswith("rollfric")]
+
+
+def write_lab(folder, n=60, noise=1.0):
+    """A lab's files in ``folder``: ``rec.tif`` (``n`` drawn frames), ``bg.tif``,
+    ``setup.toml`` and the exact angles as ``track.csv``; returns ``folder``."""
+    import tifffile
+
+    from rollfric.setup import save_setup
+
+    rec = make_recording(n, noise=noise)
+    tifffile.imwrite(folder / "rec.tif", np.stack(rec.frames))
+    tifffile.imwrite(folder / "bg.tif", rec.background)
+    save_setup(rec.setup, folder / "setup.toml")
+    lines = ["t_s,theta_rad"] + [f"{a:.17g},{b:.17g}" for a, b in zip(rec.t, rec.theta,
+                                                                        strict=True)]
+    (folder / "track.csv").write_text("\n".join(lines) + "\n")
+    return folder

@@ -7,23 +7,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import tifffile
-from measure_data import make_recording
+from measure_data import write_lab
 
 from rollfric import limits
 from rollfric.cli import main
-from rollfric.setup import dumps_setup, save_setup, thesis_setup
+from rollfric.setup import dumps_setup, thesis_setup
 
 
 @pytest.fixture
 def lab(tmp_path):
-    rec = make_recording(60, noise=1.0)
-    tifffile.imwrite(tmp_path / "rec.tif", np.stack(rec.frames))
-    tifffile.imwrite(tmp_path / "bg.tif", rec.background)
-    save_setup(rec.setup, tmp_path / "setup.toml")
-    lines = ["t_s,theta_rad"] + [f"{a:.17g},{b:.17g}" for a, b in zip(rec.t, rec.theta,
-                                                                        strict=True)]
-    (tmp_path / "track.csv").write_text("\n".join(lines) + "\n")
-    return tmp_path
+    """A setup, a track CSV and a small TIFF recording with its background."""
+    return write_lab(tmp_path)
 
 
 def _refused(argv, capsys, *words) -> str:

@@ -11,16 +11,13 @@ import sys
 import textwrap
 from pathlib import Path
 
-import numpy as np
 import pytest
-import tifffile
-from measure_data import make_recording
+from measure_data import write_lab
 
 from rollfric import atomic
 from rollfric.cli import main
 from rollfric.errors import InputError
 from rollfric.outputs import OutputError, check_file, check_folder, staged_folder
-from rollfric.setup import save_setup
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -153,14 +150,7 @@ def test_staged_folder_replaces_own_names_only_and_nothing_on_error(tmp_path):
 @pytest.fixture
 def lab(tmp_path):
     """A setup, a track CSV and a small TIFF recording with its background."""
-    rec = make_recording(60, noise=1.0)
-    tifffile.imwrite(tmp_path / "rec.tif", np.stack(rec.frames))
-    tifffile.imwrite(tmp_path / "bg.tif", rec.background)
-    save_setup(rec.setup, tmp_path / "setup.toml")
-    lines = ["t_s,theta_rad"] + [f"{a:.17g},{b:.17g}" for a, b in zip(rec.t, rec.theta,
-                                                                        strict=True)]
-    (tmp_path / "track.csv").write_text("\n".join(lines) + "\n")
-    return tmp_path
+    return write_lab(tmp_path)
 
 
 def _fit(lab, out, *extra):
