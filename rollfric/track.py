@@ -690,7 +690,9 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     theta = np.full(n, np.nan)
     xy = rows[:, :2].copy()
     if lens is not None:
-        xy[found] = lens.undistort(rows[found, :2])
+        # the lens bends the round outline: the fitted circle's centre is not the bent
+        # image of the ball's centre (rollfric.lens.Calibration.undistort_ball)
+        xy[found] = lens.undistort_ball(rows[found, :2], r_px)
     theta[found] = angles(xy[found, 0], xy[found, 1], center_ud, method=angle,
                           track_radius_px=L_px)
     frame_idx = np.arange(n)
