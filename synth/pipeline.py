@@ -14,7 +14,7 @@ from rollfric.atomic import replacing
 from synth.camera import CameraModel
 from synth.config import SceneConfig, SensorConfig, SynthError
 from synth.sensor import NOISE
-from synth.store import FORMAT, TRUTH_COLUMNS
+from synth.store import CHUNK, FORMAT, TRUTH_COLUMNS
 
 BATCH = 16  # frames per task (progress granularity)
 
@@ -111,8 +111,10 @@ def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads):
     lens = cfg.camera.lens
     _W["renderer"] = SceneRenderer(cfg.replace(camera=cfg.camera.ideal()), ball_radius,
                                    cylinder_radius)
+    from synth.store import chunk_writer
+
     g = zarr.open_group(store_path, mode="r+")
-    _W["diff"] = g["clean_diff"]
+    _W["write"] = chunk_writer(g, g["clean_diff"])
     _W["lens"] = None
     if lens is not None:
         from synth.lens import cached_window
@@ -126,27 +128,26 @@ def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads):
 
 def _worker_batch(indices, centres):
     sr = _W["renderer"]
-    diff_arr = _W["diff"]
+    write = _W["write"]
     bg = _W["bg"]
     k = centres.shape[1]
-    dtype = diff_arr.dtype
     lens = _W.get("lens")
     for n, i in enumerate(indices):
         poses = [sr.ball_pose(c) for c in centres[n]]
         tiles = sr.tiles_for(centres[n])
-        out = np.zeros(bg.shape if lens is None else lens[2], dtype=dtype)
+        patches = []
         if tiles and lens is None:
             rendered = sr.render_tiles(poses, tiles)
-            for (x0, y0, w, h), img in zip(tiles, rendered, strict=True):
-                out[y0:y0 + h, x0:x0 + w] = img.astype(np.int64) - k * bg[y0:y0 + h, x0:x0 + w]
+            patches = [((x0, y0, w, h), img.astype(np.int64) - k * bg[y0:y0 + h, x0:x0 + w])
+                       for (x0, y0, w, h), img in zip(tiles, rendered, strict=True)]
         elif tiles:
-            _through_lens(out, tiles, sr.render_tiles(poses, tiles), bg, k, lens)
-        diff_arr[int(i)] = out
+            patches = _through_lens(tiles, sr.render_tiles(poses, tiles), bg, k, lens)
+        write(int(i), patches)
     return len(indices)
 
 
-def _through_lens(out, tiles, rendered, bg, k, lens) -> None:
-    """The ideal tiles' difference from the background, bent by the lens into ``out``."""
+def _through_lens(tiles, rendered, bg, k, lens) -> list:
+    """The ideal tiles' difference from the background, bent by the lens: [(box, values)]."""
     from synth.lens import distort_tile
 
     lens_, win, shape = lens
@@ -159,9 +160,10 @@ def _through_lens(out, tiles, rendered, bg, k, lens) -> None:
         canvas[ty - y0:ty - y0 + h, tx - x0:tx - x0 + w] = \
             img.astype(np.int64) - k * bg[ty:ty + h, tx:tx + w]
     bent = distort_tile(canvas, (x0, y0, x1 - x0, y1 - y0), win, lens_, shape)
-    if bent is not None:
-        (fx, fy, w, h), vals = bent
-        out[fy:fy + h, fx:fx + w] = np.rint(vals).astype(out.dtype)
+    if bent is None:
+        return []
+    box, vals = bent
+    return [(box, np.rint(vals).astype(np.int64))]
 
 
 MAX_POOL_RESTARTS = 3
@@ -268,14 +270,14 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             g.create_array("background_ideal_clean", data=bg_ideal.astype(bg_dtype),
                            chunks=bg_ideal.shape)
         diff_dtype = "int16" if frame_scale <= 32767 else "int32"
-        # flat chunk names (0.0.0, 1.0.0, ...): no two directories per frame on disk. One chunk
-        # a frame: a region read decodes the whole chunk (mostly zeros: ~1 ms with zarr 3.1),
-        # which measured faster than partial reads of 128 x 128 inner chunks of a per-frame
-        # shard (~1.5 ms, zarr's per-chunk overhead) and keeps the store smaller
-        # zstd level 1: writing a frame's chunk took 2.6 ms instead of 3.8 ms at zarr's default
-        # level, for 2 % more bytes
-        g.create_array("clean_diff", shape=(n, H, W), dtype=diff_dtype, chunks=(1, H, W),
-                       fill_value=0, chunk_key_encoding={"name": "v2", "separator": "."},
+        # chunks of CHUNK x CHUNK px of one frame, flat names (i.cy.cx: no directories per
+        # frame on disk), written by the workers only where the ball and its shadows change
+        # the frame (synth.store.chunk_writer); a region read decodes the 1-4 chunks it
+        # touches. zstd level 1: writing took 2.6 ms a frame instead of 3.8 ms at zarr's
+        # default level (one 2.6 MB chunk a frame, then), for 2 % more bytes
+        g.create_array("clean_diff", shape=(n, H, W), dtype=diff_dtype,
+                       chunks=(1, min(CHUNK, H), min(CHUNK, W)), fill_value=0,
+                       chunk_key_encoding={"name": "v2", "separator": "."},
                        compressors=[ZstdCodec(level=1)])
         tg = g.create_group("truth")
         for name, values in truth_table(traj, cam, r_ball).items():

@@ -6,9 +6,11 @@ Layout (a directory ``REC.zarr``)::
                                                 and supersamples (white = attrs background_scale)
     clean_diff        (T, H, W)  int16/int32    clean frame minus background, in the same units
                                                 summed over the motion-blur sub-frames
-                                                (white = attrs frame_scale); one chunk per frame,
-                                                zero outside the ball's region, so it compresses
-                                                to a few kB a frame and decodes in ~1 ms
+                                                (white = attrs frame_scale); chunks of one
+                                                frame's CHUNK x CHUNK px, only those the ball
+                                                and its shadows change written (the rest is
+                                                fill 0); stores rendered before: one chunk a
+                                                frame
     truth/<column>    (T,)       float64        exact ground truth, see TRUTH_COLUMNS
     background_ideal_clean (H', W')             with a lens only: the ideal render the lens
                                                 bends into the frames (synth.lens)
@@ -22,12 +24,14 @@ bytes on every read. ``frames.read(i, (y0, y1, x0, x1))`` makes only that region
 (the sensor model applied to it alone): the same bytes as ``frames[i][y0:y1, x0:x1]``. rollfric
 reads it through the entry point ``rollfric.zarr_readers`` -> ``synth.store:open_frames``.
 
-Reading a frame's ``clean_diff`` chunk: a store on disk laid out as the pipeline writes it (one
-chunk a frame, bytes little-endian + zstd, no sharding) has the chunk's file read and decoded
-here (numcodecs' Zstd), synchronously; any other store goes through zarr. zarr 3 hands every
-read to its asyncio event-loop thread and back: 1.55 ms of CPU per region read against 0.16 ms
-here (measured side by side on a loaded machine), and on a loaded machine the thread switches
-cost more wall time still - more than locating the ball. The bytes are the same (tested).
+Reading and writing ``clean_diff``: a store on disk laid out as the pipeline writes it (chunks of
+one frame, bytes little-endian + zstd, no sharding) has its chunk files read, decoded and
+written here (numcodecs' Zstd, the codec zarr's ZstdCodec calls), synchronously; any other
+store goes through zarr. zarr 3 hands every read to its asyncio event-loop thread and back:
+1.55 ms of CPU per region read against 0.16 ms here (measured side by side on a loaded
+machine). A region read decodes only the CHUNK x CHUNK chunks it touches (a tracker's region:
+1 to 4 chunks of 32 kB, instead of the whole 2.6 MB frame of the one-chunk-a-frame layout),
+and a render worker encodes only the chunks its tiles touch. The bytes are the same (tested).
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from synth.config import SensorConfig, SynthError
 from synth.sensor import Sensor
 
 FORMAT = "rollfric-synth-recording/1"
+CHUNK = 128  # px: clean_diff chunk side (a chunk of int16 is 32 kB; 80 cover 1280 x 1024)
 
 TRUTH_COLUMNS = {
     "t_s": "time of the exposure centre (s)",
@@ -95,11 +100,8 @@ class SynthFrames:
     def _diff_region(self, i: int, roi) -> np.ndarray:
         """clean_diff of frame i (or its region) as int32."""
         if self._chunk_file is not None:
-            chunk = self._chunk_file(i)
-            if roi is not None:
-                y0, y1, x0, x1 = roi
-                chunk = chunk[y0:y1, x0:x1]
-            return chunk.astype(np.int32)
+            h, w = self.shape[1:]
+            return self._chunk_file(i, (0, h, 0, w) if roi is None else roi)
         if roi is None:
             return np.asarray(self._diff[i], dtype=np.int32)
         y0, y1, x0, x1 = roi
@@ -155,9 +157,11 @@ class SynthFrames:
             yield self[i]
 
 
-def _chunk_files(group, arr):
-    """A function i -> frame i's ``clean_diff`` chunk (H, W) read from its file, or None when
-    the store is not a local directory laid out as the pipeline writes it (then zarr reads)."""
+def _layout(group, arr):
+    """(folder, chunk key function, little-endian dtype, chunk shape, frame shape, zstd level)
+    of ``clean_diff`` when it is laid out as the pipeline writes it (a local directory, chunks
+    of one frame, bytes little-endian + zstd without checksum, fill 0, no sharding); None
+    otherwise."""
     import zarr
     from zarr.codecs import BytesCodec, ZstdCodec
 
@@ -165,38 +169,106 @@ def _chunk_files(group, arr):
         root = group.store.root if isinstance(group.store, zarr.storage.LocalStore) else None
         meta = arr.metadata
         codecs = tuple(meta.codecs)
-        ok = (root is not None and arr.ndim == 3 and tuple(arr.chunks) == (1,) + arr.shape[1:]
+        ok = (root is not None and arr.ndim == 3 and arr.chunks[0] == 1
               and len(codecs) == 2 and isinstance(codecs[0], BytesCodec)
               and str(getattr(codecs[0].endian, "value", codecs[0].endian)) == "little"
-              and isinstance(codecs[1], ZstdCodec) and not meta.storage_transformers
+              and isinstance(codecs[1], ZstdCodec) and not codecs[1].checksum
+              and not meta.storage_transformers
               and np.dtype(arr.dtype) in (np.int16, np.int32) and meta.fill_value == 0)
     except Exception:  # another zarr layout or version: let zarr read it
         return None
     if not ok:
         return None
+    return (Path(root) / arr.path, meta.chunk_key_encoding.encode_chunk_key,
+            np.dtype(arr.dtype).newbyteorder("<"), tuple(arr.chunks[1:]), tuple(arr.shape[1:]),
+            codecs[1].level)
+
+
+def _chunk_files(group, arr):
+    """A function (i, (y0, y1, x0, x1)) -> that region of frame i's ``clean_diff`` (int32),
+    decoded from the chunk files it touches, or None when the store is not laid out as the
+    pipeline writes it (then zarr reads)."""
+    layout = _layout(group, arr)
+    if layout is None:
+        return None
     from numcodecs import Zstd
 
-    folder = Path(root) / arr.path
-    encode = meta.chunk_key_encoding.encode_chunk_key
-    dtype = np.dtype(arr.dtype).newbyteorder("<")
-    shape = arr.shape[1:]
+    folder, encode, dtype, (ch, cw), _, _ = layout
     zstd = Zstd()
-    zeros = np.zeros(shape, dtype=dtype)
-    zeros.flags.writeable = False
 
-    def read(i: int) -> np.ndarray:
-        try:
-            data = (folder / encode((i, 0, 0))).read_bytes()
-        except FileNotFoundError:  # a chunk never written: all fill value
-            return zeros
-        except OSError as exc:
-            raise SynthError(f"{folder}: cannot read frame {i}'s chunk ({exc})") from None
-        try:
-            return np.frombuffer(zstd.decode(data), dtype=dtype).reshape(shape)
-        except Exception as exc:
-            raise SynthError(f"{folder}: frame {i}'s chunk is corrupt ({exc})") from None
+    def read(i: int, roi) -> np.ndarray:
+        y0, y1, x0, x1 = roi
+        out = np.zeros((y1 - y0, x1 - x0), dtype=np.int32)
+        for cy in range(y0 // ch, (y1 - 1) // ch + 1):
+            for cx in range(x0 // cw, (x1 - 1) // cw + 1):
+                try:
+                    data = (folder / encode((i, cy, cx))).read_bytes()
+                except FileNotFoundError:  # a chunk never written: all fill value
+                    continue
+                except OSError as exc:
+                    raise SynthError(f"{folder}: cannot read frame {i}'s chunk ({exc})") from None
+                try:
+                    chunk = np.frombuffer(zstd.decode(data), dtype=dtype).reshape(ch, cw)
+                except Exception as exc:
+                    raise SynthError(f"{folder}: frame {i}'s chunk is corrupt ({exc})") from None
+                ya, yb = max(y0, cy * ch), min(y1, (cy + 1) * ch)
+                xa, xb = max(x0, cx * cw), min(x1, (cx + 1) * cw)
+                out[ya - y0:yb - y0, xa - x0:xb - x0] = chunk[ya - cy * ch:yb - cy * ch,
+                                                              xa - cx * cw:xb - cx * cw]
+        return out
 
     return read
+
+
+def chunk_writer(group, arr):
+    """A function (i, patches) writing frame i of ``clean_diff`` (a pipeline-made array) from
+    ``patches`` [((x0, y0, w, h), values), ...] (the frame is zero elsewhere): only the chunks
+    the patches touch are encoded and written, and those left all zero are not (as zarr's
+    ``write_empty_chunks=False``). The files are those zarr writes (tested).
+
+    Parameters
+    ----------
+    group : zarr.Group
+        The recording's group (a local directory store).
+    arr : zarr.Array
+        Its ``clean_diff`` array, as :func:`synth.pipeline.render` creates it.
+
+    Returns
+    -------
+    callable
+        ``write(i, patches)``.
+
+    Raises
+    ------
+    SynthError
+        When the array is not laid out as the pipeline writes it.
+    """
+    layout = _layout(group, arr)
+    if layout is None:
+        raise SynthError("clean_diff is not laid out as synth's pipeline writes it")
+    from numcodecs import Zstd
+
+    folder, encode, dtype, (ch, cw), (H, W), level = layout
+    zstd = Zstd(level=level)
+
+    def write(i: int, patches) -> None:
+        chunks: dict = {}
+        for (x0, y0, w, h), values in patches:
+            x1, y1 = min(x0 + w, W), min(y0 + h, H)
+            for cy in range(y0 // ch, (y1 - 1) // ch + 1):
+                for cx in range(x0 // cw, (x1 - 1) // cw + 1):
+                    chunk = chunks.get((cy, cx))
+                    if chunk is None:
+                        chunk = chunks[(cy, cx)] = np.zeros((ch, cw), dtype=dtype)
+                    ya, yb = max(y0, cy * ch), min(y1, (cy + 1) * ch)
+                    xa, xb = max(x0, cx * cw), min(x1, (cx + 1) * cw)
+                    chunk[ya - cy * ch:yb - cy * ch, xa - cx * cw:xb - cx * cw] = \
+                        values[ya - y0:yb - y0, xa - x0:xb - x0]
+        for (cy, cx), chunk in chunks.items():
+            if chunk.any():
+                (folder / encode((i, cy, cx))).write_bytes(zstd.encode(chunk.tobytes()))
+
+    return write
 
 
 def open_frames(group) -> SynthFrames | None:

@@ -270,3 +270,42 @@ def test_rollfric_reads_the_recording_through_its_io(rec_path):
     assert len(src) == len(rec)
     assert src[2].tobytes() == rec.frames[2].tobytes()
     assert src.attrs["setup"] == rec.attrs["setup"]
+
+
+def test_chunk_writer_writes_the_files_zarr_writes(tmp_path):
+    """Frames written chunk by chunk from patches (the render workers' way) are the files zarr
+    writes for the same frames (empty chunks absent in both), and read back the same."""
+    import zarr
+    from zarr.codecs import ZstdCodec
+
+    from synth.store import _chunk_files, chunk_writer
+
+    g = zarr.open_group(str(tmp_path / "w.zarr"), mode="w")
+    kw = dict(shape=(3, 300, 260), dtype="int16", chunks=(1, 128, 128), fill_value=0,
+              chunk_key_encoding={"name": "v2", "separator": "."},
+              compressors=[ZstdCodec(level=1)])
+    ours, theirs = g.create_array("ours", **kw), g.create_array("theirs", **kw)
+    write = chunk_writer(g, ours)
+    rng = np.random.default_rng(1)
+    # across chunk borders, on the frame's ragged edge, overlapping, and an all-zero patch
+    boxes = [(130, 120, 60, 20), (200, 250, 60, 50), (140, 125, 30, 10), (5, 5, 20, 20)]
+    for i in range(3):
+        full = np.zeros((300, 260), np.int16)
+        patches = []
+        for k, (x0, y0, w, h) in enumerate(boxes):
+            v = rng.integers(-900, 900, (h, w)) * (k != 3)
+            patches.append(((x0, y0, w, h), v))
+            full[y0:y0 + h, x0:x0 + w] = v[:300 - y0, :260 - x0]
+        write(i, patches)
+        theirs[i] = full
+        np.testing.assert_array_equal(ours[i], full)
+        read = _chunk_files(g, ours)
+        np.testing.assert_array_equal(read(i, (100, 290, 90, 259)), full[100:290, 90:259])
+    names = sorted(p.name for p in (tmp_path / "w.zarr" / "ours").iterdir()
+                   if p.name != "zarr.json")
+    assert names == sorted(p.name for p in (tmp_path / "w.zarr" / "theirs").iterdir()
+                           if p.name != "zarr.json")
+    assert "0.0.0" not in names and "0.0.1" in names  # the all-zero chunk is not written
+    for name in names:
+        assert (tmp_path / "w.zarr" / "ours" / name).read_bytes() == \
+            (tmp_path / "w.zarr" / "theirs" / name).read_bytes()
