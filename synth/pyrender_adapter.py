@@ -21,6 +21,8 @@ import importlib.metadata
 import os
 import warnings
 
+import numpy as np
+
 #: The pyrender-maintained releases synth was written and tested for: [low, high).
 SUPPORTED = ((1, 0, 1), (1, 1))
 DISTRIBUTION = "pyrender-maintained"
@@ -106,9 +108,10 @@ INTERNALS = {
                  "_get_camera_matrices", "_sorted_mesh_nodes", "_get_primitive_program",
                  "_bind_lighting", "_bind_and_draw_primitive", "_reset_active_textures",
                  "_shadow_mapping_pass", "_configure_shadow_mapping_viewport",
-                 "_get_light_cam_matrices", "_main_fb", "_main_fb_ms"),
+                 "_get_light_cam_matrices", "_main_fb", "_main_fb_ms", "_shadow_fb"),
     "Texture": ("_texid", "_add_to_context", "_remove_from_context"),
-    "ShaderProgram": ("_bind", "_unbind"),
+    "ShaderProgram": ("_bind", "_unbind", "_program_id"),
+    "Primitive": ("_vaid",),
     "ShaderProgramCache": ("_program_cache",),
 }
 
@@ -124,7 +127,8 @@ def check_internals(renderer) -> None:
     pyrender = load()
     have = {"OffscreenRenderer": renderer, "Renderer": inner(renderer),
             "Texture": pyrender.texture.Texture(width=1, height=1),  # no GL until added
-            "ShaderProgram": pyrender.shader_program.ShaderProgram,
+            "ShaderProgram": pyrender.shader_program.ShaderProgram("v", "f"),  # no GL yet
+            "Primitive": pyrender.Primitive(positions=np.zeros((3, 3))),  # no GL yet
             "ShaderProgramCache": program_cache(renderer)}
     missing = [f"{kind}.{name}" for kind, names in INTERNALS.items() for name in names
                if not hasattr(have[kind], name)]
@@ -263,3 +267,18 @@ def add_to_context(texture) -> None:
 def remove_from_context(texture) -> None:
     """Delete the texture from the current GL context."""
     texture._remove_from_context()
+
+
+def program_id(program) -> int:
+    """The GL id of a compiled pyrender ShaderProgram (synth.leandraw)."""
+    return program._program_id
+
+
+def vertex_array(primitive) -> int:
+    """The GL id of a pyrender Primitive's vertex array (synth.leandraw)."""
+    return primitive._vaid
+
+
+def shadow_framebuffer(inner_renderer) -> int:
+    """The GL id of the framebuffer pyrender renders the shadow maps with (synth.leandraw)."""
+    return inner_renderer._shadow_fb

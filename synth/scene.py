@@ -242,6 +242,7 @@ class SceneRenderer:
         self._programs: dict = {}  # "stock" or light counts -> pyrender program cache
         self._shadow_cache = None
         self._shadow_prev: dict = {}  # lamp -> texel box the ball covered last
+        self._lean = None  # synth.leandraw.LeanDraw, once pyrender has drawn a tile frame
 
     def silhouette_mode(self) -> None:
         """Switch to an unlit white ball on black (no trough, no backdrop, no shadows): the
@@ -253,6 +254,7 @@ class SceneRenderer:
         for prim in self._ball_mesh.primitives:
             prim.material = pr.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0])
         self.flags = pr.RenderFlags.FLAT
+        self._lean = None  # the lean path does not draw the flat mode
         self.config = self.config.replace(shadows=False)
 
     # -- low level -------------------------------------------------------------------------
@@ -319,6 +321,8 @@ class SceneRenderer:
         """Plain pyrender render of full-frame pixels [x0, x0+w) x [y0, y0+h); with
         ``stock_shaders`` pyrender's own shaders (the benchmark's baseline)."""
         self._shadow_prev = {}  # pyrender rewrites the whole shadow maps
+        if self._lean is not None:
+            self._lean.ready = False  # pyrender sets the programs' uniforms its own way
         r = self._ensure_renderer(w, h, stock_shaders)
         self._cam.P = self.camera.tile_projection(x0, y0, w, h)
         color, _ = r.render(self.scene, self.flags)
@@ -340,7 +344,7 @@ class SceneRenderer:
         return self.render_region(0, 0, self.camera.width, self.camera.height,
                                   stock_shaders=stock_shaders)
 
-    def render_tiles(self, poses, tiles) -> list[np.ndarray]:
+    def render_tiles(self, poses, tiles, *, draw: str = "lean") -> list[np.ndarray]:
         """Render regions ``tiles`` [(x0, y0, w, h), ...] of the scene with the ball at each of
         ``poses`` (sub-frames) and return, per tile, the sum over the sub-frames.
 
@@ -350,7 +354,33 @@ class SceneRenderer:
         rounds vertex positions differently and flips MSAA samples on the silhouette). Per
         sub-frame the lamps' shadow maps are rendered once (ball over the cached trough) and
         reused by every tile.
+
+        ``draw``: "lean" (default) draws with synth's own list of GL calls
+        (:mod:`synth.leandraw`: the same programs, uniforms and order, less Python) once
+        pyrender has drawn a first tile frame, and with pyrender's path when the scene has
+        what the lean path does not draw (:func:`synth.leandraw.unsupported`); "pyrender"
+        always draws through pyrender's renderer functions.
         """
+        if draw not in ("lean", "pyrender"):
+            raise ValueError(f"draw must be 'lean' or 'pyrender', got {draw!r}")
+        if draw == "lean" and self._lean is not None:
+            return self._lean.render(poses, tiles)
+        out = self._render_tiles_pyrender(poses, tiles)
+        if draw == "lean":
+            from synth.leandraw import LeanDraw, unsupported
+
+            if unsupported(self) is None:
+                pyrender_adapter.make_current(self._offscreen)
+                try:
+                    self._lean = LeanDraw(self)
+                finally:
+                    pyrender_adapter.make_uncurrent(self._offscreen)
+        elif self._lean is not None:
+            self._lean.ready = False
+        return out
+
+    def _render_tiles_pyrender(self, poses, tiles) -> list[np.ndarray]:
+        """:meth:`render_tiles` through pyrender's renderer functions."""
         pr = self._pyrender
         W, H, s = self.camera.width, self.camera.height, self.ss
         r = self._ensure_renderer(W, H)
@@ -539,6 +569,7 @@ class SceneRenderer:
 
     def close(self) -> None:
         """Free the renderer's OpenGL resources (cached shadow maps, offscreen context)."""
+        self._lean = None
         if self._offscreen is not None:
             if self._shadow_cache:
                 pyrender_adapter.make_current(self._offscreen)

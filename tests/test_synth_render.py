@@ -165,3 +165,50 @@ def test_view_sphere_is_a_closed_sphere_with_a_fine_silhouette():
         # the silhouette ring: 512 vertices at the polar angle the camera sees as the edge
         z = mesh.vertices[:, 2] / R_BALL
         assert np.sum(np.abs(z - math.cos(sil)) < 1e-12) == 512
+
+
+@pytest.mark.parametrize("projection", ["orthographic", "perspective"])
+def test_lean_draw_path_equals_pyrenders(projection):
+    """synth.leandraw's tiles are pyrender's path's tiles bit for bit: over consecutive frames
+    (incremental shadow maps), with sub-frames, alternating with pyrender's path frame by frame
+    and after pyrender drew a full frame with the same programs (the lean path sets its
+    uniforms again)."""
+    cam = CameraModel(width=256, height=192, projection=projection, working_distance=0.6,
+                      center_px=(128.0, -470.0))
+    sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
+    try:
+        frames = []
+        for theta in np.linspace(-0.04, 0.04, 7):
+            cs = np.array([_centre(theta), _centre(theta + 0.003)])
+            frames.append(([sr.ball_pose(c) for c in cs], sr.tiles_for(cs)))
+        ref = [sr.render_tiles(poses, tiles, draw="pyrender") for poses, tiles in frames]
+        assert sr._lean is None
+        sr.render_tiles(*frames[0])  # pyrender's path, then the lean path is built
+        assert sr._lean is not None
+        for k, (poses, tiles) in enumerate(frames):
+            for x, y in zip(sr.render_tiles(poses, tiles), ref[k], strict=True):
+                np.testing.assert_array_equal(x, y)
+            if k == 3:
+                sr.render_full()
+        for k in (5, 2, 6):  # alternating with pyrender's path
+            for x, y in zip(sr.render_tiles(*frames[k]), ref[k], strict=True):
+                np.testing.assert_array_equal(x, y)
+            for x, y in zip(sr.render_tiles(*frames[k], draw="pyrender"), ref[k], strict=True):
+                np.testing.assert_array_equal(x, y)
+    finally:
+        sr.close()
+
+
+def test_lean_draw_falls_back_to_pyrender_for_what_it_does_not_draw():
+    from synth.leandraw import unsupported
+
+    cam = CameraModel(width=96, height=80, center_px=(48.0, -560.0))
+    sr = _silhouette_renderer(cam, ss=1)
+    try:
+        assert "flags" in unsupported(sr)
+        c = _centre(0.0)
+        tiles = sr.tiles_for(c[None])
+        img = sr.render_tiles([sr.ball_pose(c)], tiles)[0]
+        assert sr._lean is None and img.max() == sr.scale  # drawn, by pyrender's path
+    finally:
+        sr.close()
