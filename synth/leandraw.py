@@ -96,16 +96,60 @@ def _drawing(prim) -> dict:
             "count": prim.indices.size if indexed else len(prim.positions)}
 
 
-def _draw(d) -> None:
-    """Draw a primitive as pyrender's _bind_and_draw_primitive does (one instance)."""
+def _draw(d, runs=None) -> None:
+    """Draw a primitive as pyrender's _bind_and_draw_primitive does (one instance), or only
+    its triangles in ``runs`` [(first, count), ...]."""
     from OpenGL import GL
 
     GL.glBindVertexArray(d["vao"])
-    if d["indexed"]:
-        GL.glDrawElementsInstanced(d["mode"], d["count"], GL.GL_UNSIGNED_INT,
-                                   ctypes.c_void_p(0), 1)
+    if runs is None:
+        runs = [(0, d["count"] // 3)] if d["mode"] == 4 else None
+    if runs is None:
+        first_counts = [(0, d["count"])]
     else:
-        GL.glDrawArraysInstanced(d["mode"], 0, d["count"], 1)
+        first_counts = [(3 * a, 3 * n) for a, n in runs]
+    for first, count in first_counts:
+        if d["indexed"]:
+            GL.glDrawElementsInstanced(d["mode"], count, GL.GL_UNSIGNED_INT,
+                                       ctypes.c_void_p(4 * first), 1)
+        else:
+            GL.glDrawArraysInstanced(d["mode"], first, count, 1)
+
+
+def read_region(inner, x: int, y: int, w: int, h: int) -> np.ndarray:
+    """Resolve a box of the multisampled main framebuffer and read it.
+
+    Parameters
+    ----------
+    inner : pyrender.Renderer
+        The renderer whose main framebuffers hold the drawing (its context current).
+    x, y, w, h : int
+        The box in GL window coordinates (origin bottom left).
+
+    Returns
+    -------
+    numpy.ndarray
+        (h, w, 3) uint8 RGB, top row first.
+    """
+    from OpenGL.GL import (
+        GL_COLOR_BUFFER_BIT,
+        GL_DRAW_FRAMEBUFFER,
+        GL_NEAREST,
+        GL_READ_FRAMEBUFFER,
+        GL_RGBA,
+        GL_UNSIGNED_BYTE,
+        glBindFramebuffer,
+        glBlitFramebuffer,
+        glReadPixels,
+    )
+
+    fb_ms, fb = pa.main_framebuffers(inner)
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, fb_ms)
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb)
+    glBlitFramebuffer(x, y, x + w, y + h, x, y, x + w, y + h, GL_COLOR_BUFFER_BIT, GL_NEAREST)
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, fb)
+    buf = glReadPixels(x, y, w, h, GL_RGBA, GL_UNSIGNED_BYTE)
+    return np.frombuffer(buf, dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]
 
 
 class LeanDraw:
@@ -159,6 +203,7 @@ class LeanDraw:
                     "M": GL.glGetUniformLocation(pid, "M"),
                     "material": [u for u in material if u is not None],
                     "cull": not m.doubleSided,
+                    "boxes": None if node is self.ball else self._triangle_boxes(node, prim),
                     **_drawing(prim)})
         self.depth = []
         if self.shadows:
@@ -172,6 +217,43 @@ class LeanDraw:
                                    "P": GL.glGetUniformLocation(pid, "P"),
                                    **_drawing(prim)})
         self.ready = False
+
+    def _triangle_boxes(self, node, prim):
+        """(n, 4) pixel boxes [x0, y0, x1, y1] of a static primitive's triangles in the frame
+        (exact projections, 2 px wider), or None when it is not a triangle list or a vertex is
+        not in front of the camera (then it is always drawn whole)."""
+        if prim.mode != 4:  # GL_TRIANGLES
+            return None
+        cam = self.sr.camera
+        pose = self.sr.scene.get_pose(node)
+        v = np.asarray(prim.positions, float) @ pose[:3, :3].T + pose[:3, 3]
+        if cam.projection == "perspective" and np.any(v[:, 2] > cam.camera_z - cam.znear):
+            return None
+        if prim.indices is not None:
+            tri = np.asarray(prim.indices, dtype=np.int64).reshape(-1, 3)
+        else:
+            tri = np.arange(len(v)).reshape(-1, 3)
+        q = cam.project(v)[tri]  # (n, 3, 2)
+        return np.concatenate([q.min(axis=1) - 2.0, q.max(axis=1) + 2.0], axis=1)
+
+    def _runs(self, d, tile) -> list:
+        """(first triangle, count) runs of draw ``d``'s triangles that can touch ``tile``
+        (x0, y0, w, h): the others have no pixel in the scissor box, so leaving them out
+        changes no pixel (the drawn ones keep their order). Runs closer than 64 triangles
+        are drawn as one."""
+        boxes = d["boxes"]
+        n = d["count"] // 3
+        if boxes is None:
+            return [(0, n)]
+        x0, y0, w, h = tile
+        hit = np.flatnonzero((boxes[:, 0] <= x0 + w) & (boxes[:, 2] >= x0)
+                             & (boxes[:, 1] <= y0 + h) & (boxes[:, 3] >= y0))
+        if hit.size == 0:
+            return []
+        cut = np.flatnonzero(np.diff(hit) > 64)
+        starts = np.concatenate([[hit[0]], hit[cut + 1]])
+        ends = np.concatenate([hit[cut], [hit[-1]]]) + 1
+        return list(zip(starts.tolist(), (ends - starts).tolist(), strict=True))
 
     # -- uniforms that stay ----------------------------------------------------------------
 
@@ -236,7 +318,7 @@ class LeanDraw:
                 if self.shadows:
                     self._shadow_pass(M, mats)
                 for k in range(len(tiles)):
-                    c = sr._reduce(self._forward(M, gl_box[k]))
+                    c = sr._reduce(self._forward(M, gl_box[k], tiles[k]))
                     out[k] = c if out[k] is None else out[k] + c
             GL.glUseProgram(0)
         finally:
@@ -249,9 +331,8 @@ class LeanDraw:
         static meshes hidden, see SceneRenderer._ball_shadow_pass)."""
         from OpenGL import GL
 
-        from synth.scene import SHADOW_TEX_SZ
-
         sr, inner = self.sr, self.inner
+        size = sr._pyrender.constants.SHADOW_TEX_SZ
         if sr._shadow_cache is None:
             raise RuntimeError("the trough's shadow maps are not cached yet")
         fb = pa.shadow_framebuffer(inner)
@@ -262,7 +343,7 @@ class LeanDraw:
                 now = sr._shadow_box(inner, ln, self.flags)
                 prev = sr._shadow_prev.get(ln.name)
                 if prev is None:
-                    box = (0, 0, SHADOW_TEX_SZ, SHADOW_TEX_SZ)
+                    box = (0, 0, size, size)
                 else:
                     x0, y0 = min(now[0], prev[0]), min(now[1], prev[1])
                     x1 = max(now[0] + now[2], prev[0] + prev[2])
@@ -283,7 +364,7 @@ class LeanDraw:
                 GL.glCopyImageSubData(pa.texture_id(cache), GL.GL_TEXTURE_2D, 0, box[0], box[1],
                                       0, tex, GL.GL_TEXTURE_2D, 0, box[0], box[1], 0, box[2],
                                       box[3], 1)
-                GL.glViewport(0, 0, SHADOW_TEX_SZ, SHADOW_TEX_SZ)
+                GL.glViewport(0, 0, size, size)
                 GL.glEnable(GL.GL_DEPTH_TEST)
                 GL.glDepthMask(GL.GL_TRUE)
                 GL.glDepthFunc(GL.GL_LESS)
@@ -306,11 +387,10 @@ class LeanDraw:
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)
 
-    def _forward(self, M, box) -> np.ndarray:
-        """The forward pass scissored to ``box`` (GL window coordinates), read back."""
+    def _forward(self, M, box, tile) -> np.ndarray:
+        """The forward pass scissored to ``box`` (GL window coordinates) of ``tile`` (frame
+        pixels), read back."""
         from OpenGL import GL
-
-        from synth.scene import _read_region
 
         inner, scene = self.inner, self.sr.scene
         fb_ms, _ = pa.main_framebuffers(inner)
@@ -347,10 +427,10 @@ class LeanDraw:
                     GL.glCullFace(GL.GL_BACK)
                 else:
                     GL.glDisable(GL.GL_CULL_FACE)
-                _draw(d)
+                _draw(d, self._runs(d, tile) if d["mode"] == 4 else None)
             GL.glBindVertexArray(0)
             GL.glFlush()
             GL.glDisable(GL.GL_SCISSOR_TEST)
-            return _read_region(inner, *box)
+            return read_region(inner, *box)
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)

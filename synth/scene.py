@@ -25,6 +25,7 @@ import numpy as np
 from synth import pyrender_adapter
 from synth.camera import CameraModel
 from synth.config import SceneConfig
+from synth.leandraw import read_region
 
 SHADOW_TEX_SZ = 2048  # pyrender.constants.SHADOW_TEX_SZ
 # two tiles are drawn as one when that shades at most this many extra pixels (a forward pass
@@ -465,7 +466,7 @@ class SceneRenderer:
                 pa.unbind_program(program)
             glFlush()
             glDisable(GL_SCISSOR_TEST)
-            return _read_region(inner, *box)
+            return read_region(inner, *box)
         finally:
             glDisable(GL_SCISSOR_TEST)
 
@@ -736,30 +737,6 @@ def _cache_light_matrices(inner) -> None:
         return cache[light_node]
 
     pyrender_adapter.set_light_cam_matrices(inner, cached)
-
-
-def _read_region(inner, x: int, y: int, w: int, h: int) -> np.ndarray:
-    """Resolve the multisampled box (GL window coordinates) and read it as (h, w, 3) uint8,
-    top row first."""
-    from OpenGL.GL import (
-        GL_COLOR_BUFFER_BIT,
-        GL_DRAW_FRAMEBUFFER,
-        GL_NEAREST,
-        GL_READ_FRAMEBUFFER,
-        GL_RGBA,
-        GL_UNSIGNED_BYTE,
-        glBindFramebuffer,
-        glBlitFramebuffer,
-        glReadPixels,
-    )
-
-    fb_ms, fb = pyrender_adapter.main_framebuffers(inner)
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, fb_ms)
-    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb)
-    glBlitFramebuffer(x, y, x + w, y + h, x, y, x + w, y + h, GL_COLOR_BUFFER_BIT, GL_NEAREST)
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, fb)
-    buf = glReadPixels(x, y, w, h, GL_RGBA, GL_UNSIGNED_BYTE)
-    return np.frombuffer(buf, dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]
 
 
 def _box(pts: np.ndarray):
