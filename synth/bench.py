@@ -2,10 +2,12 @@
 
 Compares, side by side in one run on the same scene: the plain pyrender full-frame render (the
 "stock" way: one OffscreenRenderer.render of the whole 1280 x 1024 frame with the ball, with
-pyrender's own shaders) and synth's renderer (static background once, then only the ball's and
-shadows' tiles, shadow maps once per frame, the shadow filter read with gathers); the largest
-difference between the two in 8-bit DN; the throughput of a whole recording with both cores;
-the size of the store.
+pyrender's own shaders) and synth's tile frames (static background once, then only the ball's
+and shadows' tiles, shadow maps once per frame, the shadow filter read with gathers) drawn by
+synth's lean path (:mod:`synth.leandraw`) and by pyrender's renderer functions (the path before
+it); the largest difference from stock pyrender in 8-bit DN; where a lean tile frame's time
+goes; the throughput of a whole recording with both cores; the size of the store and the cost
+of reading it.
 
 Stock pyrender 0.1.45 cannot be installed beside the fork (both are the ``pyrender`` module, and
 0.1.45 breaks under NumPy 2), so the baseline is the same library's plain full-frame render.
@@ -33,11 +35,88 @@ def _disk_usage(path: Path) -> int:
     return sum(p.stat().st_blocks * 512 for p in paths)
 
 
+_STOCK: dict = {}  # scene repr -> seconds of a stock full frame measured in this process
+
+
+def stock_frame_seconds(scene=None, repeats: int = 3) -> float:
+    """Median seconds of stock pyrender's full frame of ``scene`` with the ball (pyrender's own
+    shaders, one OffscreenRenderer.render), measured once a process and kept: the baseline the
+    bench's other rows divide by.
+
+    Parameters
+    ----------
+    scene : synth.SceneConfig, optional
+        The scene (default: the default scene).
+    repeats : int
+        Renders timed (after one warm-up).
+
+    Returns
+    -------
+    float
+        Seconds per frame.
+    """
+    import sim
+    import synth
+    from synth.scene import SceneRenderer
+
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    scene = scene or synth.SceneConfig()
+    key = repr(scene)
+    if key not in _STOCK:
+        traj = sim.simulate(sim.Scenario(duration=0.01))
+        setup = traj.setup()
+        sr = SceneRenderer(scene, setup.ball_radius, setup.cylinder_radius)
+        try:
+            sr.set_ball(sr.ball_pose(traj.position[0]))
+            sr.render_full(stock_shaders=True)
+            times = []
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                sr.render_full(stock_shaders=True)
+                times.append(time.perf_counter() - t0)
+        finally:
+            sr.close()
+        _STOCK[key] = float(np.median(times))
+    return _STOCK[key]
+
+
+def _tile_frames(sr, traj, indices, bg, draw, fulls, timings=None):
+    """Render the frames ``indices`` as a recording does (tiles over the background, the
+    previous frame's tiles put back first): (seconds per frame, tile pixels per frame, largest
+    difference from the stock full frames ``fulls`` in DN)."""
+    comp = bg.copy()
+    prev: list = []
+    times, px, worst = [], [], 0.0
+    dn = sr.scale / 255.0
+    for i in indices:
+        pose = sr.ball_pose(traj.position[i])
+        t0 = time.perf_counter()
+        tiles = sr.tiles_for(traj.position[i:i + 1])
+        t1 = time.perf_counter()
+        if timings is not None:
+            timings["footprint (tiles_for)"] = timings.get("footprint (tiles_for)", 0.0) \
+                + t1 - t0
+        imgs = sr.render_tiles([pose], tiles, draw=draw, timings=timings)
+        for x0, y0, w, h in prev:
+            comp[y0:y0 + h, x0:x0 + w] = bg[y0:y0 + h, x0:x0 + w]
+        for (x0, y0, w, h), img in zip(tiles, imgs, strict=True):
+            comp[y0:y0 + h, x0:x0 + w] = img
+        prev = tiles
+        times.append(time.perf_counter() - t0)
+        px.append(sum(w * h for _, _, w, h in tiles))
+        if i in fulls:
+            d = np.abs(comp.astype(np.int64) - fulls[i].astype(np.int64)).max() / dn
+            worst = max(worst, float(d))
+    return times, px, worst
+
+
 def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | None = None,
                      scene=None) -> dict:
-    """Measure ms/frame (plain full frame vs synth tiles), max DN difference, sequence fps with
-    ``workers`` processes, and the recording size. quick: 3 full frames, 30 tile frames and a
-    300-frame sequence (size extrapolated to 4000 frames); otherwise 6, 100 and 4000."""
+    """Measure ms/frame (stock full frame vs synth's tiles by the lean path and by pyrender's
+    path), the largest DN difference of each from stock pyrender, where a lean tile frame's
+    time goes, sequence fps with ``workers`` processes, the recording's size and read costs.
+    quick: 3 full frames, 30 tile frames a path and a 300-frame sequence (size extrapolated to
+    4000 frames); otherwise 6, 100 and 4000."""
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     import sim
     import synth
@@ -56,44 +135,43 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         t_bg = time.perf_counter() - t0
         idx_full = np.linspace(0, len(traj) - 1, n_full).round().astype(int)
         idx_tile = np.linspace(0, len(traj) - 1, n_tile).round().astype(int)
-        dn = sr.scale / 255.0
-        # warm up both paths (shader compilation, buffers)
+        idx_all = sorted(set(idx_tile) | set(idx_full))
+        # warm up every path (shader compilation, buffers; the lean path is built)
         sr.set_ball(sr.ball_pose(traj.position[0]))
         sr.render_full(stock_shaders=True)
         pose0 = sr.ball_pose(traj.position[0])
         sr.render_tiles([pose0], sr.tiles_for(traj.position[:1]))
-        full_times, tile_times, max_dn, tile_px = [], [], 0.0, []
+        sr.render_tiles([pose0], sr.tiles_for(traj.position[:1]), draw="pyrender")
+        full_times = []
         fulls = {}
         for i in idx_full:
             sr.set_ball(sr.ball_pose(traj.position[i]))
             t0 = time.perf_counter()
             fulls[i] = sr.render_full(stock_shaders=True)
             full_times.append(time.perf_counter() - t0)
-        # synth's full frame: the background with the tiles pasted in; the previous frame's
-        # tiles are put back to background first (a video is made frame after frame)
-        comp = bg.copy()
-        prev: list = []
-        for i in sorted(set(idx_tile) | set(idx_full)):
-            pose = sr.ball_pose(traj.position[i])
-            t0 = time.perf_counter()
-            tiles = sr.tiles_for(traj.position[i:i + 1])
-            imgs = sr.render_tiles([pose], tiles)
-            for x0, y0, w, h in prev:
-                comp[y0:y0 + h, x0:x0 + w] = bg[y0:y0 + h, x0:x0 + w]
-            for (x0, y0, w, h), img in zip(tiles, imgs, strict=True):
-                comp[y0:y0 + h, x0:x0 + w] = img
-            prev = tiles
-            dt = time.perf_counter() - t0
-            if i in idx_tile:
-                tile_times.append(dt)
-                tile_px.append(sum(w * h for _, _, w, h in tiles))
-            if i in fulls:
-                d = np.abs(comp.astype(np.int64) - fulls[i].astype(np.int64)).max() / dn
-                max_dn = max(max_dn, float(d))
+        _STOCK.setdefault(repr(scene), float(np.median(full_times)))
+        # both tile paths over the same frames, in alternating blocks of 10 frames (a shared
+        # machine's load falls on both alike)
+        res = {"lean": ([], [], 0.0), "pyrender": ([], [], 0.0)}
+        for start in range(0, len(idx_all), 10):
+            block = idx_all[start:start + 10]
+            for draw in ("pyrender", "lean"):
+                times, px, worst = _tile_frames(sr, traj, block, bg, draw, fulls)
+                t, p, w = res[draw]
+                res[draw] = (t + [x for i, x in zip(block, times, strict=True)
+                                  if i in set(idx_tile)],
+                             p + [x for i, x in zip(block, px, strict=True)
+                                  if i in set(idx_tile)], max(w, worst))
+        # where a lean frame's time goes (each stage waited for: a little slower in all)
+        stages: dict = {}
+        n_stage = min(len(idx_tile), 30)
+        _tile_frames(sr, traj, idx_tile[:n_stage], bg, "lean", {}, timings=stages)
     finally:
         sr.close()
     full_ms = 1e3 * float(np.median(full_times))
-    tile_ms = 1e3 * float(np.median(tile_times))
+    tile_ms = 1e3 * float(np.median(res["lean"][0]))
+    tile_py_ms = 1e3 * float(np.median(res["pyrender"][0]))
+    tile_px = res["lean"][1]
     # a whole recording, both cores
     tmp = Path(tempfile.mkdtemp(prefix="synth-bench-"))
     try:
@@ -125,8 +203,13 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         for i in range(k):
             rec.frames.read(i, rois[i])
         roi_ms = 1e3 * (time.perf_counter() - t0) / k
+        t0 = time.perf_counter()
+        for i in range(k):
+            rec.frames.clean_counts(i, rois[i])
+        roi_clean_ms = 1e3 * (time.perf_counter() - t0) / k
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    stage_ms = {name: round(1e3 * v / n_stage, 2) for name, v in stages.items()}
     return {
         "frame": f"{scene.camera.width}x{scene.camera.height}",
         "projection": scene.camera.projection,
@@ -136,15 +219,20 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "lamps": len(scene.lighting.lamps),
         "background_render_s": round(t_bg, 3),
         "full_frame_ms": round(full_ms, 1),
-        "synth_tile_ms": round(tile_ms, 1),
+        "synth_tile_ms": round(tile_ms, 2),
+        "synth_tile_pyrender_path_ms": round(tile_py_ms, 2),
         "speedup_single_process": round(full_ms / tile_ms, 1),
+        "speedup_single_process_pyrender_path": round(full_ms / tile_py_ms, 1),
+        "lean_over_pyrender_path": round(tile_py_ms / tile_ms, 2),
         "tile_pixels_median": int(np.median(tile_px)),
-        "max_diff_dn": max_dn,
+        "max_diff_dn": res["lean"][2],
+        "max_diff_dn_pyrender_path": res["pyrender"][2],
+        "lean_frame_stages_ms": stage_ms,
         "sequence_frames": n_done,
         "sequence_workers": workers,
         "sequence_s": round(t_seq, 1),
         "sequence_fps": round(n_done / t_seq, 1),
-        "sequence_ms_per_frame": round(1e3 * t_seq / n_done, 1),
+        "sequence_ms_per_frame": round(1e3 * t_seq / n_done, 2),
         "speedup_sequence": round(full_ms / (1e3 * t_seq / n_done), 1),
         "est_4000_frames_s": round(4000 * t_seq / n_done, 1),
         "store_mb": round(size / 1e6, 2),
@@ -152,6 +240,7 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "store_disk_mb": round(disk / 1e6, 2),
         "read_ms_per_frame": round(read_ms, 1),
         "read_roi_ms_per_frame": round(roi_ms, 3),
+        "read_roi_clean_ms_per_frame": round(roi_clean_ms, 3),
         "sensor_noise": rec.frames.noise,
         "roi_px": int(np.median([(r[1] - r[0]) * (r[3] - r[2]) for r in rois])),
         "versions": _versions(),

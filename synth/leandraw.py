@@ -282,10 +282,25 @@ class LeanDraw:
 
     # -- a frame -----------------------------------------------------------------------------
 
-    def render(self, poses, tiles) -> list[np.ndarray]:
+    def render(self, poses, tiles, timings: dict | None = None) -> list[np.ndarray]:
         """Tiles [(x0, y0, w, h), ...] of the frame with the ball at each of ``poses``, summed
-        over the poses (as :meth:`synth.scene.SceneRenderer.render_tiles`)."""
+        over the poses (as :meth:`synth.scene.SceneRenderer.render_tiles`).
+
+        ``timings`` (the benchmark's): a dict to which the wall seconds of each stage are
+        added ("set-up", "shadow maps", "draw", "read back"), the GL work finished
+        (glFinish) at the end of each, which costs a little more than not waiting.
+        """
+        import time
+
         from OpenGL import GL
+
+        def lap(stage, t0):
+            if timings is None:
+                return t0
+            GL.glFinish()
+            t1 = time.perf_counter()
+            timings[stage] = timings.get(stage, 0.0) + t1 - t0
+            return t1
 
         sr = self.sr
         W, H, s = sr.camera.width, sr.camera.height, sr.ss
@@ -296,6 +311,7 @@ class LeanDraw:
         try:
             inner.viewport_width, inner.viewport_height = W * s, H * s
             for pose in poses:
+                t0 = time.perf_counter()
                 sr.set_ball(pose)
                 if not self.ready or sr._ball_node is not self.ball:
                     # pyrender drew meanwhile (it may have dropped and re-uploaded meshes) or
@@ -315,10 +331,15 @@ class LeanDraw:
                     self._set_static()
                     self._light_mats = mats
                 M = np.asarray(pose, dtype=float)
+                t0 = lap("set-up", t0)
                 if self.shadows:
                     self._shadow_pass(M, mats)
+                    t0 = lap("shadow maps", t0)
                 for k in range(len(tiles)):
-                    c = sr._reduce(self._forward(M, gl_box[k], tiles[k]))
+                    self._forward(M, gl_box[k], tiles[k])
+                    t0 = lap("draw", t0)
+                    c = sr._reduce(read_region(inner, *gl_box[k]))
+                    t0 = lap("read back", t0)
                     out[k] = c if out[k] is None else out[k] + c
             GL.glUseProgram(0)
         finally:
@@ -387,9 +408,9 @@ class LeanDraw:
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)
 
-    def _forward(self, M, box, tile) -> np.ndarray:
+    def _forward(self, M, box, tile) -> None:
         """The forward pass scissored to ``box`` (GL window coordinates) of ``tile`` (frame
-        pixels), read back."""
+        pixels), into the multisampled framebuffer (:func:`read_region` reads it)."""
         from OpenGL import GL
 
         inner, scene = self.inner, self.sr.scene
@@ -430,7 +451,5 @@ class LeanDraw:
                 _draw(d, self._runs(d, tile) if d["mode"] == 4 else None)
             GL.glBindVertexArray(0)
             GL.glFlush()
-            GL.glDisable(GL.GL_SCISSOR_TEST)
-            return read_region(inner, *box)
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)

@@ -345,7 +345,8 @@ class SceneRenderer:
         return self.render_region(0, 0, self.camera.width, self.camera.height,
                                   stock_shaders=stock_shaders)
 
-    def render_tiles(self, poses, tiles, *, draw: str = "lean") -> list[np.ndarray]:
+    def render_tiles(self, poses, tiles, *, draw: str = "lean",
+                     timings: dict | None = None) -> list[np.ndarray]:
         """Render regions ``tiles`` [(x0, y0, w, h), ...] of the scene with the ball at each of
         ``poses`` (sub-frames) and return, per tile, the sum over the sub-frames.
 
@@ -360,12 +361,13 @@ class SceneRenderer:
         (:mod:`synth.leandraw`: the same programs, uniforms and order, less Python) once
         pyrender has drawn a first tile frame, and with pyrender's path when the scene has
         what the lean path does not draw (:func:`synth.leandraw.unsupported`); "pyrender"
-        always draws through pyrender's renderer functions.
+        always draws through pyrender's renderer functions. ``timings``: a dict the lean
+        path adds its stages' wall seconds to (:meth:`synth.leandraw.LeanDraw.render`).
         """
         if draw not in ("lean", "pyrender"):
             raise ValueError(f"draw must be 'lean' or 'pyrender', got {draw!r}")
         if draw == "lean" and self._lean is not None:
-            return self._lean.render(poses, tiles)
+            return self._lean.render(poses, tiles, timings)
         out = self._render_tiles_pyrender(poses, tiles)
         if draw == "lean":
             from synth.leandraw import LeanDraw, unsupported

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-SECTION_NAMES = ("fitting", "simulation", "rendering", "recognition", "end-to-end")
+SECTION_NAMES = ("fitting", "simulation", "rendering", "recognition", "end-to-end",
+                 "sweeps")
 
 
 def register(sub) -> None:
@@ -15,9 +16,10 @@ def register(sub) -> None:
             "pick instead: the least-squares fit vs the thesis's grid search; each physics "
             "engine's exact tangent contact vs a naive triangle mesh; the tile renderer vs "
             "plain full-frame pyrender; the default locator vs the thesis's locators, OpenCV "
-            "HoughCircles and scikit-image RANSAC beside the Cramer-Rao bound; and the default "
-            "validate case end to end. Writes OUT/bench.md (a Markdown table) and "
-            "OUT/bench.json. Times are medians of repeats; ratios are the headline."),
+            "HoughCircles and scikit-image RANSAC beside the Cramer-Rao bound; the default "
+            "validate case end to end; and a sweep's cases/hour on a local 2-worker cluster and "
+            "on a dask scheduler with workers started apart. Writes OUT/bench.md (a Markdown "
+            "table) and OUT/bench.json. Times are medians of repeats; ratios are the headline."),
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--out", default="bench-out", metavar="DIR", help="output directory")
     p.add_argument("--quick", action="store_true",

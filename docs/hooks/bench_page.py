@@ -74,6 +74,22 @@ def recognition_matrix(rows: list[dict]) -> list[str]:
     return out
 
 
+STAGE = "lean tile frame: "
+
+
+def stage_table(rows: list[dict]) -> list[str]:
+    """Where a lean tile frame's time goes: one line per stage row, its ms and share."""
+    stages = [r for r in rows if r["item"].startswith(STAGE)]
+    total = sum(float(r["value"]) for r in stages)
+    if not stages or total <= 0:
+        return []
+    out = ["| a lean tile frame's stage | ms | share |", "|---|---|---|"]
+    for r in stages:
+        out.append(f"| {_cell(r['item'][len(STAGE):])} | {fmt(r['value'])} | "
+                   f"{100 * float(r['value']) / total:.0f} % |")
+    return out + [f"| all stages | {fmt(total)} | 100 % |"]
+
+
 def render(data: dict) -> str:
     """The Markdown that replaces the marker."""
     meta = data.get("meta", {})
@@ -92,7 +108,11 @@ def render(data: dict) -> str:
         by_section.setdefault(r["section"], []).append(r)
     for name, rows in by_section.items():
         lines += ["", f"## {name.capitalize()}", ""]
-        if name == "recognition":
+        if name == "rendering" and stage_table(rows):
+            lines += section_table([r for r in rows if not r["item"].startswith(STAGE)])
+            lines += ["", "Where a tile frame's time goes (lean path, each stage waited for):",
+                      ""] + stage_table(rows)
+        elif name == "recognition":
             matrix = recognition_matrix(rows)
             if matrix:
                 lines += matrix + [""]
