@@ -176,6 +176,8 @@ def _run(args) -> int:
                  "locator": info.locator, "angle": info.angle,
                  "center_px": list(info.center_px),
                  "center_source": info.center_source,
+                 # standard uncertainty of a contour-found centre (null: from the setup)
+                 "center_u_px": None if info.center_u_px is None else list(info.center_u_px),
                  # angles from lens-undistorted centres ([camera] matrix, distortion)
                  "undistorted": bool(info.undistorted),
                  "offset_fitted": bool(info.offset_fitted),

@@ -29,6 +29,13 @@ class ContourError(InputError):
     """The cylinder contour cannot be found in the background image."""
 
 
+EDGE_HALF_PX = 4.0  # the transition window either side of an edge point, along the normal
+PLATEAU_PX = 4.0  # beyond it, each side: the levels' straight-line fit
+_STEP = 0.25  # px between samples of a profile
+EDGE_LEVELS = (0.25, 0.75)  # the other edge definitions: crossings of these fractions
+MAX_RECENTRE = 30  # re-centrings of the profiles' windows
+
+
 @dataclasses.dataclass(frozen=True)
 class CylinderContour:
     """The trough's contour circle found in a background image.
@@ -40,14 +47,89 @@ class CylinderContour:
     radius : float
         Radius of the contour circle (px).
     n_points : int
-        Contour points used.
+        Edge points used.
     arc_deg : float
-        Angular extent of the contour points seen (deg).
+        Angular extent of the edge points (deg).
+    center_u : tuple of float
+        Standard uncertainty of (xc, yc) in px: the root sum of squares of ``center_u_fit``
+        and ``center_u_edge``.
+    center_u_fit : tuple of float
+        Type A: the circle fit's standard errors of (xc, yc) from the edge points' scatter
+        (a HAC covariance over the points in their order along the contour, which neighbouring
+        profiles' shared pixels correlate).
+    center_u_edge : tuple of float
+        Type B: what the fit cannot see, the edge's definition. The centres from the
+        crossings of 25 % and 75 % of the step (:data:`EDGE_LEVELS`) instead of its
+        area-centre; the largest difference taken as the half-width of a rectangular
+        distribution (u = max |difference| / sqrt 3). Zero for a symmetric edge profile.
+    rms_px : float
+        Rms distance of the edge points from the circle (px).
     """
-    center: tuple[float, float]  # (xc, yc) px
-    radius: float  # px, of the contour circle
-    n_points: int  # contour points used
-    arc_deg: float  # angular extent of the contour points seen
+    center: tuple[float, float]
+    radius: float
+    n_points: int
+    arc_deg: float
+    center_u: tuple[float, float] = (0.0, 0.0)
+    center_u_fit: tuple[float, float] = (0.0, 0.0)
+    center_u_edge: tuple[float, float] = (0.0, 0.0)
+    rms_px: float = 0.0
+
+
+def _profiles(img, px, py, nx, ny, s):
+    """Bilinear samples of ``img`` at (px + s nx, py + s ny): (N, len(s)); NaN off the image."""
+    h, w = img.shape
+    X = px[:, None] + s[None, :] * nx[:, None]
+    Y = py[:, None] + s[None, :] * ny[:, None]
+    out = cv2.remap(img, X.astype(np.float32), Y.astype(np.float32), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
+    off = (X < 0) | (X > w - 1) | (Y < 0) | (Y > h - 1)
+    return np.where(off, np.nan, out.astype(float))
+
+
+def _line_fit(s, v):
+    """Row-wise straight lines v = a + b s (s shared): (a, b)."""
+    sm = s.mean()
+    ds = s - sm
+    b = (v - v.mean(axis=1, keepdims=True)) @ ds / (ds @ ds)
+    a = v.mean(axis=1) - b * sm
+    return a, b
+
+
+def _edges(img, px, py, nx, ny, levels=()):
+    """Sub-pixel edge offsets along the normals (nx, ny) from (px, py), each profile's window
+    centred on (px, py): the area-centre of the normalised step (exact for any symmetric
+    blur of a straight step, and for a pixel's area coverage) and, for each of ``levels``, the
+    crossing of that fraction of the step nearest to it. Returns (offset, {level: offset},
+    contrast, valid)."""
+    a, p = EDGE_HALF_PX, PLATEAU_PX
+    s = np.arange(-a - p, a + p + _STEP / 2, _STEP)
+    prof = _profiles(img, px, py, nx, ny, s)
+    valid = np.isfinite(prof).all(axis=1)
+    prof = np.where(valid[:, None], prof, 0.0)
+    inner, outer, mid = s <= -a + 1e-9, s >= a - 1e-9, np.abs(s) <= a + 1e-9
+    ai, bi = _line_fit(s[inner], prof[:, inner])
+    ao, bo = _line_fit(s[outer], prof[:, outer])
+    sm = s[mid]
+    lin = ai[:, None] + bi[:, None] * sm[None]
+    lout = ao[:, None] + bo[:, None] * sm[None]
+    contrast = ai - ao
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = (prof[:, mid] - lout) / (lin - lout)
+    area = -a + (0.5 * (q[:, 1:] + q[:, :-1])).sum(axis=1) * _STEP
+    out = {}
+    for lev in levels:
+        sgn = np.sign(q - lev)
+        cross = (sgn[:, :-1] != sgn[:, 1:]) & np.isfinite(q[:, :-1]) & np.isfinite(q[:, 1:])
+        # the crossing nearest the area-centre
+        k = np.argmin(np.where(cross, np.abs(sm[None, :-1] + 0.5 * _STEP - area[:, None]),
+                               np.inf), axis=1)
+        r = np.arange(len(k))
+        q0, q1 = q[r, k], q[r, k + 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            off = sm[k] + _STEP * (lev - q0) / (q1 - q0)
+        out[lev] = np.where(cross[r, k], off, np.nan)
+    valid &= np.isfinite(area) & (np.abs(area) < a)
+    return area, out, contrast, valid
 
 
 def _ransac_circle(xs, ys, r_expected, rng, iters=400, tol=2.0):
@@ -157,51 +239,87 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     if not (uy + ur <= h - 0.5 + 2.0 and np.any(np.abs(ang) < 5.0)):
         raise ContourError("the lowest point of the cylinder contour is outside the frame or "
                            "hidden; give [cylinder] center_px in the setup")
-    # sub-pixel chords: in each row crossed by the contour steeply enough (tangent more than
-    # 25 deg from horizontal), the left and right contour x where the smoothed intensity
-    # crosses the mean of the levels 4 px either side
-    chords = []
+    # sub-pixel edge points along the contour's normal, one per px of arc where the edges lie
     smooth = cv2.GaussianBlur(background.astype(np.float32), (0, 0), 1.0)
-    for y in np.unique(py.astype(int)):
-        dy = y - uy
-        if abs(dy) > ur * math.cos(math.radians(25)) or not 0 <= y < h:
-            continue
-        dx = math.sqrt(max(ur * ur - dy * dy, 0.0))
-        xs_sub = []
-        for x_guess in (ux - dx, ux + dx):
-            xi = int(round(x_guess))
-            if xi - 6 < 0 or xi + 6 >= w:
-                break
-            row = smooth[y, xi - 6:xi + 7].astype(float)
-            level = 0.5 * (row[:3].mean() + row[-3:].mean())
-            if abs(row[:3].mean() - row[-3:].mean()) < 4.0:
-                break
-            sgn = np.sign(row - level)
-            k = np.flatnonzero(sgn[:-1] != sgn[1:])
-            if len(k) == 0:
-                break
-            k = k[np.argmin(np.abs(k - 5.5))]
-            xs_sub.append(xi - 6 + k + (level - row[k]) / (row[k + 1] - row[k]))
-        if len(xs_sub) == 2:
-            chords.append((y, xs_sub[0], xs_sub[1]))
-    if len(chords) < 10:
-        raise ContourError("too few horizontal chords of the cylinder contour; give "
+    step = 1.0 / ur
+    k = np.unique(np.round(np.arctan2(py - uy, px - ux) / step).astype(int))
+    phi = k * step
+    nx, ny = np.cos(phi), np.sin(phi)
+    bx, by = ux + ur * nx, uy + ur * ny
+    off = np.zeros_like(phi)
+    # each profile's window re-centred on its own edge until it sits on it (a window off
+    # centre sees the blurred step's tails unequally and finds only part of the offset)
+    for _ in range(MAX_RECENTRE):
+        area, _, _, ok = _edges(smooth, bx + off * nx, by + off * ny, nx, ny)
+        off = np.where(ok, off + area, off)
+        if not ok.any() or np.max(np.abs(area[ok])) < 1e-4:
+            break
+    area, level_off, contrast, ok = _edges(smooth, bx + off * nx, by + off * ny, nx, ny,
+                                           EDGE_LEVELS)
+    sign = np.sign(np.median(contrast[ok])) if ok.any() else 1.0
+    ok &= sign * contrast >= 0.3 * np.median(np.abs(contrast[ok])) if ok.any() else ok
+    if ok.sum() < 30:
+        raise ContourError("too few sub-pixel edge points of the cylinder contour; give "
                            "[cylinder] center_px in the setup")
-    ch = np.array(chords, dtype=float)
-    if undistort is not None:
-        ends = np.concatenate([ch[:, [1, 0]], ch[:, [2, 0]]])
-        (xc, yc), radius = fit_circle(np.asarray(undistort(ends), dtype=float))
-        return CylinderContour(center=(xc, yc), radius=radius, n_points=int(len(px)),
-                               arc_deg=arc)
-    cy_rows, half, mid = ch[:, 0], 0.5 * (ch[:, 2] - ch[:, 1]), 0.5 * (ch[:, 1] + ch[:, 2])
-    # widest chord: (half-width)^2 + y^2 = (R^2 - yc^2) + 2 yc y
-    a = np.stack([np.ones_like(cy_rows), 2 * cy_rows], axis=1)
-    sol, *_ = np.linalg.lstsq(a, half ** 2 + cy_rows ** 2, rcond=None)
-    yc = float(sol[1])
-    radius = math.sqrt(max(sol[0] + yc * yc, 0.0))
-    # the vertical line through the lowest point: the chords' common midpoint
-    xc = float(np.median(mid))
-    return CylinderContour(center=(xc, yc), radius=radius, n_points=int(len(px)), arc_deg=arc)
+
+    def points(o):
+        pts = np.stack([bx + o * nx, by + o * ny], axis=1)
+        return np.asarray(undistort(pts), dtype=float) if undistort is not None else pts
+
+    pts = points(off + area)
+    fit = _robust_circle(pts, ok)
+    if fit is None:
+        raise ContourError("the sub-pixel edge points of the cylinder contour do not lie on a "
+                           "circle; give [cylinder] center_px in the setup")
+    (xc, yc), radius, keep, res = fit
+    arc_used = float(np.degrees(np.ptp(np.arctan2(nx[keep], ny[keep]))))  # 0 at the bottom
+    # Type A: the fit's covariance from the points' scatter, correlated along the contour
+    from rollfric.uncertainty import hac_covariance
+
+    d = np.hypot(pts[keep, 0] - xc, pts[keep, 1] - yc)
+    jac = np.stack([-(pts[keep, 0] - xc) / d, -(pts[keep, 1] - yc) / d,
+                    -np.ones_like(d)], axis=1)
+    ordinary, hac, _, _ = hac_covariance(jac, res[keep])
+    var = np.maximum(np.diag(hac)[:2], np.diag(ordinary)[:2])
+    u_fit = tuple(float(math.sqrt(v)) if math.isfinite(v) else math.inf for v in var)
+    # Type B: the centre with the edge defined by other crossings of the step
+    diffs = []
+    for lev in EDGE_LEVELS:
+        o = level_off[lev]
+        use = keep & np.isfinite(o)
+        if use.sum() < 30:
+            continue
+        (xl, yl), _ = fit_circle(points(off + np.where(np.isfinite(o), o, 0.0))[use])
+        diffs.append((xl - xc, yl - yc))
+    dmax = np.max(np.abs(diffs), axis=0) if diffs else np.zeros(2)
+    u_edge = tuple(float(v / math.sqrt(3.0)) for v in dmax)
+    u = tuple(float(math.hypot(a, b)) for a, b in zip(u_fit, u_edge, strict=True))
+    return CylinderContour(center=(float(xc), float(yc)), radius=float(radius),
+                           n_points=int(keep.sum()), arc_deg=arc_used, center_u=u,
+                           center_u_fit=u_fit, center_u_edge=u_edge,
+                           rms_px=float(np.sqrt(np.mean(res[keep] ** 2))))
+
+
+def _robust_circle(pts, ok):
+    """The circle through ``pts[ok]`` with outliers (beyond 5 robust sigmas of the distances,
+    at least 0.05 px) left out: ((xc, yc), radius, kept mask, residuals) or None."""
+    keep = ok.copy()
+    for _ in range(4):
+        if keep.sum() < 30:
+            return None
+        (xc, yc), r = fit_circle(pts[keep])
+        res = np.hypot(pts[:, 0] - xc, pts[:, 1] - yc) - r
+        res = np.where(ok, res, np.inf)
+        mad = 1.4826 * np.median(np.abs(res[keep] - np.median(res[keep])))
+        new = ok & (np.abs(res) < max(5.0 * mad, 0.05))
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    if keep.sum() < 30:
+        return None
+    (xc, yc), r = fit_circle(pts[keep])
+    res = np.hypot(pts[:, 0] - xc, pts[:, 1] - yc) - r
+    return (xc, yc), r, keep, res
 
 
 def fit_circle(points: np.ndarray) -> tuple[tuple[float, float], float]:

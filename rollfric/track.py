@@ -103,6 +103,11 @@ class TrackInfo:
         Whether the angle offset of the trough's bottom was fitted (False without a fit).
     offset_reason : str or None
         Why (:func:`resolve_offset`); None without a fit.
+    center_u_px : tuple of float or None
+        Standard uncertainty (ux, uy) of a ``center_px`` found from the background's contour
+        (px; :class:`rollfric.cylinder.CylinderContour` ``center_u``: the circle fit's and the
+        edge definition's); None when the centre came from the setup (its ``center_px_u``, if
+        any, is in ``setup``).
     """
 
     setup: Setup
@@ -128,6 +133,7 @@ class TrackInfo:
     warnings_radius: tuple[str, ...]
     offset_fitted: bool = False
     offset_reason: str | None = None
+    center_u_px: tuple[float, float] | None = None
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -929,6 +935,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         logger.warning(msg)
     bg, bg_desc, bg_notes = resolve_background(source, background, median_frames=median_frames,
                                                r_px=ball_radius_px(setup))
+    center_u = None
     if setup.center_px is not None:
         center, center_desc = setup.center_px, "setup center_px"
     else:
@@ -942,9 +949,10 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                 f"radius of {contour.radius:.1f} px, the setup says {R_px:.1f} px "
                 "(cylinder.radius_mm / camera.pixel_size_mm); fix those or give "
                 "[cylinder] center_px")
-        center, center_desc = contour.center, (
+        center, center_u, center_desc = contour.center, contour.center_u, (
             f"contour in the background ({contour.n_points} points over "
-            f"{contour.arc_deg:.0f} deg, radius {contour.radius:.1f} px)")
+            f"{contour.arc_deg:.0f} deg, radius {contour.radius:.1f} px, u = "
+            f"({contour.center_u[0]:.2g}, {contour.center_u[1]:.2g}) px)")
         logger.info(f"cylinder centre from the background contour: ({center[0]:.2f}, "
                     f"{center[1]:.2f}) px")
         check_setup_fits(setup.replace(center_px=center), source.shape)
@@ -953,6 +961,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,
+                               center_u_px=center_u,
                                n_frames=len(df), n_found=n_found,
                                recording=str(getattr(source, "name", recording)),
                                times=times_desc,

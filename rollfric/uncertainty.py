@@ -205,7 +205,9 @@ class Measurement:
     ``center`` with ``angle`` ("atan2" or "arcsin"), or the given angles ``theta`` at times
     ``t`` (a track CSV: no centres; its t_s taken as frame / camera.fps). Centres with ``t``:
     the recording's own timestamps (the frame rate then does not act). NaN entries are frames
-    without a ball."""
+    without a ball. ``center_u``: the standard uncertainty (px, x and y) of a ``center`` found
+    from the background's contour (the setup then has no center_px); it makes the centre a
+    source of the budget as a setup's ``center_px_u`` does."""
 
     setup: Setup
     frames: np.ndarray | None = None
@@ -215,6 +217,7 @@ class Measurement:
     angle: str = "atan2"
     t: np.ndarray | None = None
     theta: np.ndarray | None = None
+    center_u: tuple[float, float] | None = None
 
     @property
     def from_centres(self) -> bool:
@@ -264,16 +267,20 @@ def measurement_from_track(track, info) -> Measurement:
     -------
     Measurement
         Centres (NaN where the ball was not found), with the track's times when they are the
-        recording's own timestamps.
+        recording's own timestamps, and the contour-found centre's uncertainty
+        (``info.center_u_px``) when the setup gave no centre.
     """
     center = tuple(info.center_px)
+    center_u = getattr(info, "center_u_px", None)
     found = track["found"].to_numpy() == 1
     x = np.where(found, track["x_px"].to_numpy(float), np.nan)
     y = np.where(found, track["y_px"].to_numpy(float), np.nan)
     stamped = info.times != "frame / camera.fps"
     return Measurement(setup=info.setup, frames=track["frame"].to_numpy(float), x=x, y=y,
                        center=center, angle=info.angle,
-                       t=track["t_s"].to_numpy(float) if stamped else None)
+                       t=track["t_s"].to_numpy(float) if stamped else None,
+                       center_u=None if center_u is None or info.setup.center_px is not None
+                       else tuple(float(v) for v in center_u))
 
 
 def _fitted_mask(t, theta, n_samples):
@@ -434,6 +441,7 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     if result.method != "lsq":
         raise InputError(f"the uncertainty budget needs the lsq fit, not {result.method!r}")
     start = time.perf_counter()
+    meas, contour = _contour_centre_as_input(meas)
     setup = meas.setup
     refit = _Refitter(meas, result, fit_length=fit_length)
     params, jac, res = refit.fit(setup, jacobian=True)
@@ -476,7 +484,8 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
         hi = refit.fit(_moved(setup, field, comp, u, factor))[0]
         lo = refit.fit(_moved(setup, field, comp, -u, factor))[0]
         c = (hi["mu"] - lo["mu"]) / (2 * u)
-        rows.append(Row(source, value, u, c, abs(c) * u))
+        rows.append(Row(source, value, u, c, abs(c) * u,
+                        CONTOUR_NOTE if contour and field == "center_px" else ""))
         if fit_length:
             u_l2 += (0.5 * (hi["length"] - lo["length"])) ** 2
     if fit_length:
@@ -499,6 +508,22 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
                   coverage_factor=coverage_factor, rows=tuple(rows), statistical=statistical,
                   exact=tuple(exact), length=length, monte_carlo=mc,
                   seconds=time.perf_counter() - start, n_refits=refit.count)
+
+
+CONTOUR_NOTE = "found from the background's contour; u: its circle fit and edge definition"
+
+
+def _contour_centre_as_input(meas: Measurement):
+    """(measurement, True) with a contour-found centre and its u moved into the setup as
+    ``center_px`` with ``center_px_u`` (then a source like a lab's measured centre), else
+    (``meas``, False)."""
+    s = meas.setup
+    if not meas.from_centres or s.center_px is not None or meas.center_u is None:
+        return meas, False
+    setup = s.replace(center_px=tuple(meas.center),
+                      uncertainty=tuple(s.uncertainty) + (("center_px",
+                                                             tuple(meas.center_u)),))
+    return dataclasses.replace(meas, setup=setup), True
 
 
 def _monte_carlo(refit: _Refitter, setup: Setup, mu, u_mu, u_stat, U, n, seed, meas) -> dict:
@@ -547,7 +572,8 @@ def format_budget(b: Budget) -> str:
         sens = "" if r.sensitivity is None or r.source == "statistical" else \
             f"{r.sensitivity:+.3e}"
         lines.append(f"  {r.source:<26} {value:>11} {r.u:>10.3g} {sens:>12} {r.u_mu:>10.3g}"
-                     f" {rel(r.u_mu):>8}" + (f"  ({r.note})" if r.u_mu == 0 and r.note else ""))
+                     f" {rel(r.u_mu):>8}" + (f"  ({r.note})" if r.note and (
+                         r.u_mu == 0 or r.note == CONTOUR_NOTE) else ""))
     lines.append(f"  combined u(mu) = {b.u_mu:.3g} ({rel(b.u_mu).strip()}), expanded U(mu) = "
                  f"{b.U_mu:.3g} ({rel(b.U_mu).strip()}, k = {b.coverage_factor:g})")
     st = b.statistical
