@@ -64,6 +64,11 @@ class CylinderContour:
         distribution (u = max |difference| / sqrt 3). Zero for a symmetric edge profile.
     rms_px : float
         Rms distance of the edge points from the circle (px).
+    saturated_fraction : float
+        Fraction of the edge points with a saturated pixel (the image type's largest value)
+        within their profile: a clipped step is not a linear image of the edge, and its edge
+        points move with the local contrast (by up to the blur's width); the uncertainty
+        above does not cover that.
     """
     center: tuple[float, float]
     radius: float
@@ -73,6 +78,7 @@ class CylinderContour:
     center_u_fit: tuple[float, float] = (0.0, 0.0)
     center_u_edge: tuple[float, float] = (0.0, 0.0)
     rms_px: float = 0.0
+    saturated_fraction: float = 0.0
 
 
 def _profiles(img, px, py, nx, ny, s):
@@ -294,10 +300,19 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     dmax = np.max(np.abs(diffs), axis=0) if diffs else np.zeros(2)
     u_edge = tuple(float(v / math.sqrt(3.0)) for v in dmax)
     u = tuple(float(math.hypot(a, b)) for a, b in zip(u_fit, u_edge, strict=True))
+    saturated = 0.0
+    if np.issubdtype(background.dtype, np.integer):
+        top = (background >= np.iinfo(background.dtype).max).astype(np.float32)
+        if top.any():
+            a = EDGE_HALF_PX + PLATEAU_PX
+            prof = _profiles(top, (bx + off * nx)[keep], (by + off * ny)[keep], nx[keep],
+                             ny[keep], np.arange(-a, a + 0.5, 1.0))
+            saturated = float(np.mean(np.nan_to_num(prof).max(axis=1) > 0))
     return CylinderContour(center=(float(xc), float(yc)), radius=float(radius),
                            n_points=int(keep.sum()), arc_deg=arc_used, center_u=u,
                            center_u_fit=u_fit, center_u_edge=u_edge,
-                           rms_px=float(np.sqrt(np.mean(res[keep] ** 2))))
+                           rms_px=float(np.sqrt(np.mean(res[keep] ** 2))),
+                           saturated_fraction=saturated)
 
 
 def _robust_circle(pts, ok):

@@ -935,7 +935,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         logger.warning(msg)
     bg, bg_desc, bg_notes = resolve_background(source, background, median_frames=median_frames,
                                                r_px=ball_radius_px(setup))
-    center_u = None
+    center_u, contour_notes = None, []
     if setup.center_px is not None:
         center, center_desc = setup.center_px, "setup center_px"
     else:
@@ -956,6 +956,13 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         logger.info(f"cylinder centre from the background contour: ({center[0]:.2f}, "
                     f"{center[1]:.2f}) px")
         check_setup_fits(setup.replace(center_px=center), source.shape)
+        if contour.saturated_fraction > 0.1:
+            note = (f"the trough contour is saturated at {100 * contour.saturated_fraction:.0f} "
+                    "% of its edge points: a clipped edge moves with the local contrast, the "
+                    "contour centre may be off by a few tenths of a px beyond its uncertainty; "
+                    "expose the background less or give [cylinder] center_px")
+            logger.warning(note)
+            contour_notes.append(note)
     df, info = track_recording(source, setup, bg, method=method, angle=angle, center=center,
                                progress=progress, times=t)
     check_track_fits(df, setup)
@@ -965,7 +972,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                n_frames=len(df), n_found=n_found,
                                recording=str(getattr(source, "name", recording)),
                                times=times_desc,
-                               warnings=info.warnings + tuple(bg_notes) + tuple(time_notes))
+                               warnings=info.warnings + tuple(bg_notes) + tuple(contour_notes)
+                               + tuple(time_notes))
     if n_found < len(df):
         logger.info(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of "
                     "the fit)")

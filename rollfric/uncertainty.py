@@ -258,7 +258,8 @@ def measurement_from_track(track, info) -> Measurement:
     Parameters
     ----------
     track : pandas.DataFrame
-        Columns ``frame``, ``found``, ``x_px``, ``y_px``, ``t_s``.
+        Columns ``frame``, ``found``, ``x_px``, ``y_px``, ``t_s`` (and ``xu_px``, ``yu_px``,
+        the undistorted centres, with a lens calibration: those are used).
     info : rollfric.track.TrackInfo
         How it was measured: ``setup`` (the nominal setup), ``center_px``, ``angle`` and
         ``times`` (the recording's timestamps unless it is "frame / camera.fps").
@@ -273,8 +274,10 @@ def measurement_from_track(track, info) -> Measurement:
     center = tuple(info.center_px)
     center_u = getattr(info, "center_u_px", None)
     found = track["found"].to_numpy() == 1
-    x = np.where(found, track["x_px"].to_numpy(float), np.nan)
-    y = np.where(found, track["y_px"].to_numpy(float), np.nan)
+    # with a lens calibration the angles come from the undistorted centres (xu_px, yu_px)
+    xcol, ycol = ("xu_px", "yu_px") if "xu_px" in track else ("x_px", "y_px")
+    x = np.where(found, track[xcol].to_numpy(float), np.nan)
+    y = np.where(found, track[ycol].to_numpy(float), np.nan)
     stamped = info.times != "frame / camera.fps"
     return Measurement(setup=info.setup, frames=track["frame"].to_numpy(float), x=x, y=y,
                        center=center, angle=info.angle,

@@ -277,3 +277,35 @@ def test_coverage_report_matches_oracle_cases_by_their_parameters():
     assert s["blind_within_u"] == 1.0 and s["oracle_within_u_stat"] == 0.75
     # without an oracle run the blind run's statistical part stands in
     assert from_sweep(rows(False, [0, 1]))["z_oracle"].tolist() == pytest.approx([-2.0, 0.0])
+
+
+def test_contour_centre_is_a_source_and_its_sensitivity_is_the_finite_difference():
+    """A trough centre found from the contour (no center_px in the setup) with its standard
+    uncertainty: two rows, x and y, u(mu) = |c| u; c agrees with the finite difference of two
+    independent full fits with the centre moved by +-0.05 px (the budget's own re-fits are
+    local refinements over +-u)."""
+    true = thesis_setup("10mm")  # no center_px: the lab's setup when the contour is used
+    frames, x, y = _lab_track(noise_px=0.02)
+    found, u = (642.03, 379.96), (0.01, 0.03)
+    meas = Measurement(setup=true, frames=frames, x=x, y=y, center=found, center_u=u)
+    b = budget(meas, fit_mu(*meas.series(true), true))
+    rows = {r.source: r for r in b.rows}
+    assert set(rows) == {"statistical", "cylinder.center_px[x]", "cylinder.center_px[y]"}
+    for i, axis in enumerate("xy"):
+        row = rows[f"cylinder.center_px[{axis}]"]
+        assert row.value == found[i] and row.u == u[i] and "contour" in row.note
+        assert row.u_mu == pytest.approx(abs(row.sensitivity) * u[i])
+        h = 0.05
+        mus = []
+        for sgn in (1, -1):
+            c = list(found)
+            c[i] += sgn * h
+            moved = Measurement(setup=true, frames=frames, x=x, y=y, center=tuple(c))
+            mus.append(fit_mu(*moved.series(true), true).mu)
+        assert row.sensitivity == pytest.approx((mus[0] - mus[1]) / (2 * h), rel=0.03)
+    # a centre error in y scales the angles: here it outweighs the noise
+    assert rows["cylinder.center_px[y]"].u_mu > rows["statistical"].u_mu
+    # without its uncertainty the contour centre is exact (no row), as before
+    b0 = budget(Measurement(setup=true, frames=frames, x=x, y=y, center=found),
+                fit_mu(*meas.series(true), true))
+    assert [r.source for r in b0.rows] == ["statistical"]

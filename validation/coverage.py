@@ -65,6 +65,11 @@ def draw_case(seed: int) -> dict:
                                 for c in NOMINAL["center_px"]),
         "true_fps": NOMINAL["fps"] + rng.normal(0.0, tol["fps"]),
         "true_pixel_size_mm": NOMINAL["pixel_size_mm"] + rng.normal(0.0, tol["pixel_size_mm"]),
+        # the background the contour mode finds the centre in (drawn after the rest, so the
+        # cases above are those of the lab mode)
+        "contour_gradient": (float(rng.uniform(-0.5, 0.5)), float(rng.uniform(-0.5, 0.5))),
+        "contour_blur_px": float(rng.uniform(0.0, 2.0)),
+        "contour_noise_dn": float(rng.uniform(1.0, 6.0)),
     }
 
 
@@ -86,9 +91,39 @@ def _centres(case: dict, true: Setup):
     return frames, xc + L_px * np.sin(th) + e[0], yc + L_px * np.cos(th) + e[1]
 
 
-def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True) -> dict:
+FRAME = (1280, 1024)  # the thesis camera's frame (px): the contour background's size
+
+
+def contour_background(case: dict, true: Setup) -> np.ndarray:
+    """The lab's background image of the case (8 bit): the backdrop inside the as-built
+    trough's contour circle (its centre and radius in px), the trough's face in a 70 px ring
+    around it, drawn with exact area coverage in linear light; a lighting gradient, a blur
+    and a sensor noise drawn with the case's seed (``contour_*`` keys of the case)."""
+    from validation.drawn_frames import disk_coverage
+
+    w, h = FRAME
+    xc, yc = true.center_px
+    radius = true.cylinder_radius / true.pixel_size
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    gx, gy = case["contour_gradient"]
+    rel = (xx - w / 2) / 1000.0 * gx + (yy - h / 2) / 1000.0 * gy
+    c1 = disk_coverage(h, w, xc, yc, radius)
+    c2 = disk_coverage(h, w, xc, yc, radius + 70.0)
+    img = c1 * 0.7 * (1 + rel) + (c2 - c1) * 0.25 * (1 - rel) + (1 - c2) * 0.5
+    if case["contour_blur_px"] > 0:
+        import cv2
+
+        img = cv2.GaussianBlur(img, (0, 0), case["contour_blur_px"])
+    rng = np.random.default_rng(20_000 + case["seed"])
+    img = 255.0 * img + rng.normal(0.0, case["contour_noise_dn"], img.shape)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
+             contour: bool = False) -> dict:
     """Measure one case blind (nominal setup with its _u) and, with ``oracle``, with the
-    exact as-built setup."""
+    exact as-built setup. ``contour``: the lab gives no centre; rollfric finds it, with its
+    uncertainty, from the case's background (:func:`contour_background`)."""
     true = Setup(cylinder_radius=case["true_radius_mm"] * 1e-3,
                  ball_diameter=case["true_diameter_mm"] * 1e-3, ball_mass=case["mass_kg"],
                  fps=case["true_fps"], pixel_size=case["true_pixel_size_mm"] * 1e-3,
@@ -104,8 +139,21 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True) -> di
                              ("fps", tol["fps"]), ("pixel_size", tol["pixel_size_mm"] * 1e-3)))
     frames, x, y = _centres(case, true)
     out = {k: v for k, v in case.items() if not isinstance(v, tuple)}
+    center, center_u = lab.center_px, None
+    if contour:
+        from rollfric.cylinder import find_cylinder_center
+
+        found = find_cylinder_center(contour_background(case, true),
+                                     radius_px=lab.cylinder_radius / lab.pixel_size)
+        center, center_u = found.center, found.center_u
+        lab = lab.replace(center_px=None, uncertainty=tuple(
+            (k, v) for k, v in lab.uncertainty if k != "center_px"))
+        out.update({f"contour_err_{a}_px": found.center[i] - case["true_center_px"][i]
+                    for i, a in enumerate("xy")})
+        out.update({f"contour_u_{a}_px": found.center_u[i] for i, a in enumerate("xy")})
+        out["contour_gradient_y"] = case["contour_gradient"][1]
     start = time.perf_counter()
-    meas = Measurement(setup=lab, frames=frames, x=x, y=y, center=lab.center_px)
+    meas = Measurement(setup=lab, frames=frames, x=x, y=y, center=center, center_u=center_u)
     res = fit_mu(*meas.series(lab), lab)
     t_fit = time.perf_counter() - start
     b = budget(meas, res, fit_length=fit_length)
@@ -119,6 +167,13 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True) -> di
         L_true = (case["true_radius_mm"] - 0.5 * case["true_diameter_mm"])
         out.update(L_fit_mm=ln["L_fit_mm"], u_L_fit_mm=ln["u_L_fit_mm"],
                    z_L=(ln["L_fit_mm"] - L_true) / ln["u_L_fit_mm"])
+    if contour:
+        # the exact as-built setup but the centre: the contour's own row against the truth
+        exact = dataclasses.replace(true, center_px=None, uncertainty=())
+        m_c = Measurement(setup=exact, frames=frames, x=x, y=y, center=center,
+                          center_u=center_u)
+        bc = budget(m_c, fit_mu(*m_c.series(exact), exact))
+        out.update(z_contour=(bc.mu - mu_true) / bc.u_mu, u_contour_only=bc.u_mu)
     if not oracle:
         return out
     m_o = Measurement(setup=dataclasses.replace(true, uncertainty=()), frames=frames, x=x, y=y,
@@ -151,6 +206,10 @@ def summarize(df: pd.DataFrame) -> dict:
     for ar, g in df.groupby("ar") if df["ar"].nunique() > 1 else ():
         s[f"oracle_within_2u_stat_ar{ar:g}"] = frac(g["z_oracle"], 2.0)
         s[f"oracle_ordinary_within_2se_ar{ar:g}"] = frac(g["z_oracle_ordinary"], 2.0)
+    if "z_contour" in df:
+        s["contour_only_within_2u"] = frac(df["z_contour"], 2.0)
+        s["contour_only_within_u"] = frac(df["z_contour"], 1.0)
+        s["contour_only_z_rms"] = float(np.sqrt(np.mean(df["z_contour"] ** 2)))
     if "z_L" in df:
         s["L_within_2u"] = frac(df["z_L"], 2.0)
         s["L_within_u"] = frac(df["z_L"], 1.0)
@@ -189,8 +248,10 @@ def plot(df: pd.DataFrame, path: Path) -> None:
     cols = [("z", "blind: (mu - truth) / u_mu"),
             ("z_oracle", "oracle: / statistical u (corrected)"),
             ("z_oracle_ordinary", "oracle: / ordinary standard error")]
-    fig = Figure(figsize=(13, 3.8))
-    axes = fig.subplots(1, 3)
+    if "z_contour" in df:
+        cols.insert(1, ("z_contour", "exact setup, contour centre:\n/ (statistical + centre) u"))
+    fig = Figure(figsize=(4.4 * len(cols), 3.8))
+    axes = fig.subplots(1, len(cols))
     grid = np.linspace(-4, 4, 200)
     for ax, (col, title) in zip(axes, cols, strict=True):
         z = df[col].to_numpy(float)
@@ -213,7 +274,13 @@ def main(argv=None) -> int:
     p.add_argument("--cases", type=int, default=200)
     p.add_argument("--seed", type=int, default=0, help="first case seed")
     p.add_argument("--fit-length", action="store_true", help="blind fits also fit L")
+    p.add_argument("--contour", action="store_true",
+                   help="blind without center_px: the centre and its uncertainty from a drawn "
+                        "background's contour (rollfric.cylinder)")
     p.add_argument("--out", help="output folder (track-level cases)")
+    p.add_argument("--merge", nargs="+", metavar="DIR",
+                   help="report the coverage.csv of these folders (runs of other --seed "
+                        "ranges) together in --out")
     p.add_argument("--from-sweep", metavar="OUT", help="report a coverage sweep's results")
     p.add_argument("--oracle-sweep", metavar="OUT", help="the same sweep run in oracle mode")
     args = p.parse_args(argv)
@@ -231,9 +298,19 @@ def main(argv=None) -> int:
         p.error("--out or --from-sweep is needed")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.merge:
+        df = pd.concat([pd.read_csv(Path(d) / "coverage.csv") for d in args.merge],
+                       ignore_index=True)
+        df.to_csv(out / "coverage.csv", index=False)
+        s = summarize(df)
+        (out / "coverage.json").write_text(json.dumps(s, indent=2) + "\n")
+        plot(df, out / "coverage.png")
+        print(json.dumps(s, indent=2))
+        return 0
     rows = []
     for i in range(args.cases):
-        rows.append(run_case(draw_case(args.seed + i), fit_length=args.fit_length))
+        rows.append(run_case(draw_case(args.seed + i), fit_length=args.fit_length,
+                             contour=args.contour))
         if (i + 1) % 10 == 0:
             df = pd.DataFrame(rows)
             df.to_csv(out / "coverage.csv", index=False)
