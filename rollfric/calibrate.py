@@ -2,8 +2,11 @@
 
 ``calibrate_chessboard(images, board=(9, 6), square=0.005)`` finds the inner corners of a
 chessboard in each image (``cv2.findChessboardCorners``, refined with ``cv2.cornerSubPix``) and
-fits OpenCV's camera model to them (``cv2.calibrateCamera``): the camera matrix and the
-distortion [k1, k2, p1, p2, k3] that rollfric's setup file takes (:mod:`rollfric.lens`).
+fits OpenCV's camera model to them (``cv2.calibrateCameraExtended``): the camera matrix and
+the distortion [k1, k2, p1, p2, k3] that rollfric's setup file takes (:mod:`rollfric.lens`),
+with their standard uncertainties (its stdDeviationsIntrinsics: from the reprojection
+residuals and the Jacobian of the fit, parameters taken one at a time, their correlations not
+given).
 """
 
 from __future__ import annotations
@@ -99,7 +102,12 @@ def calibrate_chessboard(images, board: tuple[int, int], square: float,
         raise InputError(f"a {cols} x {rows} chessboard was found in {len(used)} of "
                          f"{len(names)} image(s); at least {MIN_VIEWS} views are needed")
     flags = 0 if free_k3 else cv2.CALIB_FIX_K3
-    rms, K, D, _, _ = cv2.calibrateCamera(obj_pts, img_pts, size, None, None, flags=flags)
+    rms, K, D, _, _, std, _, _ = cv2.calibrateCameraExtended(obj_pts, img_pts, size, None, None,
+                                                             flags=flags)
+    # stdDeviationsIntrinsics: fx, fy, cx, cy, k1, k2, p1, p2, k3, ... (0 for a fixed one)
+    std = np.nan_to_num(np.asarray(std, dtype=float).ravel(), nan=0.0)
+    matrix_u = [[std[0], 0.0, std[2]], [0.0, std[1], std[3]], [0.0, 0.0, 0.0]]
     return ChessboardCalibration(
-        calibration=Calibration(matrix=K.tolist(), distortion=D.ravel()[:5].tolist()),
+        calibration=Calibration(matrix=K.tolist(), distortion=D.ravel()[:5].tolist(),
+                                matrix_u=matrix_u, distortion_u=std[4:9].tolist()),
         rms_px=float(rms), used=tuple(used), skipped=tuple(skipped), image_size=size)

@@ -81,7 +81,13 @@ def run(args) -> int:
              "[camera]",
              "matrix = [" + ", ".join("[" + ", ".join(repr(float(v)) for v in r) + "]"
                                      for r in cal.matrix) + "]",
-             "distortion = [" + ", ".join(repr(float(v)) for v in cal.distortion) + "]", ""]
+             "distortion = [" + ", ".join(repr(float(v)) for v in cal.distortion) + "]",
+             "# standard uncertainties (cv2.calibrateCameraExtended); the budget propagates "
+             "them",
+             "matrix_u = [" + ", ".join("[" + ", ".join(repr(float(v)) for v in r) + "]"
+                                       for r in cal.matrix_u) + "]",
+             "distortion_u = [" + ", ".join(repr(float(v)) for v in cal.distortion_u) + "]",
+             ""]
     write_text(out, "\n".join(lines))
     for name in res.skipped:
         print(f"rollfric calibrate: no board found in {name} (left out)")

@@ -5,6 +5,11 @@ A setup file may carry the calibration exactly as ``cv2.calibrateCamera`` return
     [camera]
     matrix = [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]   # px
     distortion = [k1, k2, p1, p2, k3]
+    matrix_u = [[u_fx, 0.0, u_cx], [0.0, u_fy, u_cy], [0.0, 0.0, 0.0]]   # optional
+    distortion_u = [u_k1, u_k2, u_p1, u_p2, u_k3]                       # optional
+
+(``matrix_u`` and ``distortion_u``: the standard uncertainties ``rollfric calibrate`` writes
+from ``cv2.calibrateCameraExtended``; the uncertainty budget propagates them.)
 
 Located ball centres and the trough's contour points are then undistorted
 (``cv2.undistortPoints``, iterated to convergence) before the trough centre and the angles are
@@ -24,13 +29,25 @@ class CalibrationError(InputError):
     """A camera matrix or distortion vector that OpenCV's model cannot take."""
 
 
+# the entries of the camera matrix a calibration fits: name -> (row, column)
+MATRIX_ENTRIES = {"fx": (0, 0), "fy": (1, 1), "cx": (0, 2), "cy": (1, 2)}
+# OpenCV's names of the distortion coefficients, in their order
+DISTORTION_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
+                    "tx", "ty")
+
+
 @dataclasses.dataclass(frozen=True)
 class Calibration:
     """OpenCV camera matrix (3 x 3, px) and distortion coefficients [k1, k2, p1, p2, k3]
-    (4, 5, 8, 12 or 14 coefficients, as OpenCV accepts)."""
+    (4, 5, 8, 12 or 14 coefficients, as OpenCV accepts), optionally with their standard
+    uncertainties: ``matrix_u`` (3 x 3, px; only fx, fy, cx, cy may be > 0) and
+    ``distortion_u`` (one per coefficient), as ``cv2.calibrateCameraExtended``'s
+    stdDeviationsIntrinsics give them (None: exact)."""
 
     matrix: tuple
     distortion: tuple
+    matrix_u: tuple | None = None
+    distortion_u: tuple | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -50,6 +67,73 @@ class Calibration:
                                    f"{self.distortion!r}")
         object.__setattr__(self, "matrix", tuple(tuple(float(v) for v in r) for r in k))
         object.__setattr__(self, "distortion", tuple(float(v) for v in d))
+        if self.matrix_u is not None:
+            try:
+                ku = np.asarray(self.matrix_u, dtype=float)
+            except (TypeError, ValueError):
+                ku = np.full(1, np.nan)
+            free = np.zeros((3, 3), bool)
+            for r, c in MATRIX_ENTRIES.values():
+                free[r, c] = True
+            if ku.shape != (3, 3) or not np.all(np.isfinite(ku)) or np.any(ku < 0) \
+                    or np.any(ku[~free] != 0):
+                raise CalibrationError(
+                    "camera.matrix_u must be [[u_fx, 0, u_cx], [0, u_fy, u_cy], [0, 0, 0]] "
+                    f"(px, finite, >= 0), got {self.matrix_u!r}")
+            object.__setattr__(self, "matrix_u", tuple(tuple(float(v) for v in r) for r in ku))
+        if self.distortion_u is not None:
+            try:
+                du = np.asarray(self.distortion_u, dtype=float).ravel()
+            except (TypeError, ValueError):
+                du = np.full(1, np.nan)
+            if du.size != d.size or not np.all(np.isfinite(du)) or np.any(du < 0):
+                raise CalibrationError(
+                    f"camera.distortion_u must be {d.size} standard uncertainties (finite, >= "
+                    f"0), one per distortion coefficient, got {self.distortion_u!r}")
+            object.__setattr__(self, "distortion_u", tuple(float(v) for v in du))
+
+    def parameters(self) -> list:
+        """The calibration's fitted parameters with their standard uncertainties: [(name,
+        value, u)], names ``matrix[fx]``, ``matrix[fy]``, ``matrix[cx]``, ``matrix[cy]`` and
+        ``distortion[k1]`` ...; u 0 where not given.
+
+        Returns
+        -------
+        list of tuple
+            (name, value, standard uncertainty).
+        """
+        mu = self.matrix_u or ((0.0,) * 3,) * 3
+        du = self.distortion_u or (0.0,) * len(self.distortion)
+        out = [(f"matrix[{name}]", self.matrix[r][c], mu[r][c])
+               for name, (r, c) in MATRIX_ENTRIES.items()]
+        out += [(f"distortion[{DISTORTION_NAMES[i]}]", v, du[i])
+                for i, v in enumerate(self.distortion)]
+        return out
+
+    def moved(self, name: str, delta: float) -> Calibration:
+        """A copy with one parameter moved by ``delta``.
+
+        Parameters
+        ----------
+        name : str
+            A name of :meth:`parameters`: ``matrix[fx]``, ..., ``distortion[k1]``, ...
+        delta : float
+            The change (px for the matrix, 1 for the distortion).
+
+        Returns
+        -------
+        Calibration
+            The moved calibration (without uncertainties).
+        """
+        kind, entry = name[:-1].split("[")
+        m = [list(r) for r in self.matrix]
+        d = list(self.distortion)
+        if kind == "matrix":
+            r, c = MATRIX_ENTRIES[entry]
+            m[r][c] += delta
+        else:
+            d[DISTORTION_NAMES.index(entry)] += delta
+        return Calibration(matrix=m, distortion=d)
 
     @property
     def K(self) -> np.ndarray:
@@ -171,8 +255,13 @@ class Calibration:
         return np.hypot(*(self.distort(xy) - xy).reshape(-1, 2).T).reshape(xy.shape[:-1])
 
     def to_toml_dict(self) -> dict:
-        """The setup file's [camera] keys."""
-        return {"matrix": [list(r) for r in self.matrix], "distortion": list(self.distortion)}
+        """The setup file's [camera] keys (``matrix_u``, ``distortion_u`` when known)."""
+        out = {"matrix": [list(r) for r in self.matrix], "distortion": list(self.distortion)}
+        if self.matrix_u is not None:
+            out["matrix_u"] = [list(r) for r in self.matrix_u]
+        if self.distortion_u is not None:
+            out["distortion_u"] = list(self.distortion_u)
+        return out
 
 
 def _circle_centres(pts: np.ndarray) -> np.ndarray:
@@ -195,7 +284,8 @@ def calibration_from_dict(camera: dict, source: str = "setup") -> Calibration | 
     Parameters
     ----------
     camera : dict
-        The setup file's [camera] table (keys ``matrix``, px, and ``distortion``).
+        The setup file's [camera] table (keys ``matrix``, px, and ``distortion``, optionally
+        their standard uncertainties ``matrix_u`` and ``distortion_u``).
     source : str
         Name of the file or table, for messages.
 
@@ -223,7 +313,15 @@ def calibration_from_dict(camera: dict, source: str = "setup") -> Calibration | 
                    for v in [*(x for r in m for x in r), *d]):
         raise CalibrationError(f"{source}: camera.matrix must be 3 rows of 3 numbers and "
                                "camera.distortion a list of numbers")
+    for key, base in (("matrix_u", "matrix"), ("distortion_u", "distortion")):
+        v = camera.get(key)
+        if v is not None and (not isinstance(v, list) or any(
+                isinstance(x, bool) or not isinstance(x, (int, float))
+                for x in (y for r in v for y in (r if isinstance(r, list) else [r])))):
+            raise CalibrationError(f"{source}: camera.{key} must be a list of numbers shaped "
+                                   f"like camera.{base}")
     try:
-        return Calibration(matrix=m, distortion=d)
+        return Calibration(matrix=m, distortion=d, matrix_u=camera.get("matrix_u"),
+                           distortion_u=camera.get("distortion_u"))
     except CalibrationError as exc:
         raise CalibrationError(f"{source}: {exc}") from None

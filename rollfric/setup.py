@@ -151,6 +151,9 @@ class Setup:
                 raise SetupError(f"center_px must be two finite numbers, got {self.center_px!r}")
             object.__setattr__(self, "center_px", c)
         object.__setattr__(self, "uncertainty", _check_uncertainty(self))
+        if self.calibration is not None and not isinstance(self.calibration, Calibration):
+            raise SetupError(f"calibration must be a rollfric.lens.Calibration, got "
+                             f"{self.calibration!r}")
 
     def u(self, name: str):
         """Standard uncertainty of one field.
@@ -166,9 +169,6 @@ class Setup:
             SI (a pair for ``center_px``); None if the field is exact.
         """
         return dict(self.uncertainty).get(name)
-        if self.calibration is not None and not isinstance(self.calibration, Calibration):
-            raise SetupError(f"calibration must be a rollfric.lens.Calibration, got "
-                             f"{self.calibration!r}")
 
     @property
     def ball_radius(self) -> float:
@@ -298,6 +298,11 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
         for key in table:
             base = key[:-2] if key.endswith("_u") else None
             if base is not None and base in _SCHEMA[section]:
+                if section == "camera" and base in ("matrix", "distortion"):
+                    if base not in table:
+                        raise SetupError(f"{source}: camera.{key} (its standard uncertainties)"
+                                         f" is given without camera.{base}")
+                    continue  # the lens calibration's, read with it (rollfric.lens)
                 if base not in table:
                     raise SetupError(f"{source}: {section}.{key} (a standard uncertainty) is "
                                      f"given without {section}.{base}")

@@ -16,7 +16,11 @@ A budget has one row per source:
   the located centres are kept; the angles (centre, pixel size for arcsin angles), the times
   (frame rate) and the fit (trough radius, ball diameter, gravity) are redone. Each re-fit is
   a local least-squares refinement started from the nominal solution, over the same samples
-  and parameters as the nominal fit. u(mu) of the row is |c| u.
+  and parameters as the nominal fit. u(mu) of the row is |c| u. A trough centre found from
+  the background's contour is such an input with its own uncertainty
+  (:class:`rollfric.cylinder.CylinderContour` ``center_u``), and so is each parameter of a
+  lens calibration with ``matrix_u`` / ``distortion_u`` (the located centres undistorted
+  again with the moved calibration).
 
 The combined standard uncertainty is the root sum of squares of the rows (first-order law of
 propagation, inputs uncorrelated) and the expanded uncertainty U = k u with k = 2. Inputs
@@ -207,7 +211,9 @@ class Measurement:
     the recording's own timestamps (the frame rate then does not act). NaN entries are frames
     without a ball. ``center_u``: the standard uncertainty (px, x and y) of a ``center`` found
     from the background's contour (the setup then has no center_px); it makes the centre a
-    source of the budget as a setup's ``center_px_u`` does."""
+    source of the budget as a setup's ``center_px_u`` does. ``distorted``: ``x``, ``y`` are
+    positions in the recorded image, undistorted with the setup's lens calibration before the
+    angles (so a moved calibration moves them); ``center`` is in the undistorted image."""
 
     setup: Setup
     frames: np.ndarray | None = None
@@ -218,6 +224,7 @@ class Measurement:
     t: np.ndarray | None = None
     theta: np.ndarray | None = None
     center_u: tuple[float, float] | None = None
+    distorted: bool = False
 
     @property
     def from_centres(self) -> bool:
@@ -243,7 +250,13 @@ class Measurement:
             from rollfric.track import angles
 
             center = setup.center_px if setup.center_px is not None else self.center
-            th = angles(self.x, self.y, center, method=self.angle,
+            x, y = self.x, self.y
+            if self.distorted and setup.calibration is not None:
+                ok = np.isfinite(x) & np.isfinite(y)
+                und = setup.calibration.undistort(np.stack([x[ok], y[ok]], axis=1))
+                x, y = np.full_like(x, np.nan), np.full_like(y, np.nan)
+                x[ok], y[ok] = und[:, 0], und[:, 1]
+            th = angles(x, y, center, method=self.angle,
                         track_radius_px=setup.track_radius / setup.pixel_size)
             if self.t is not None:
                 return np.asarray(self.t, dtype=float), th
@@ -258,8 +271,7 @@ def measurement_from_track(track, info) -> Measurement:
     Parameters
     ----------
     track : pandas.DataFrame
-        Columns ``frame``, ``found``, ``x_px``, ``y_px``, ``t_s`` (and ``xu_px``, ``yu_px``,
-        the undistorted centres, with a lens calibration: those are used).
+        Columns ``frame``, ``found``, ``x_px``, ``y_px`` (in the recorded image), ``t_s``.
     info : rollfric.track.TrackInfo
         How it was measured: ``setup`` (the nominal setup), ``center_px``, ``angle`` and
         ``times`` (the recording's timestamps unless it is "frame / camera.fps").
@@ -274,16 +286,17 @@ def measurement_from_track(track, info) -> Measurement:
     center = tuple(info.center_px)
     center_u = getattr(info, "center_u_px", None)
     found = track["found"].to_numpy() == 1
-    # with a lens calibration the angles come from the undistorted centres (xu_px, yu_px)
-    xcol, ycol = ("xu_px", "yu_px") if "xu_px" in track else ("x_px", "y_px")
-    x = np.where(found, track[xcol].to_numpy(float), np.nan)
-    y = np.where(found, track[ycol].to_numpy(float), np.nan)
+    # located in the recorded image; with a lens calibration they are undistorted for the
+    # angles (as the measurement did), so that a moved calibration can act
+    x = np.where(found, track["x_px"].to_numpy(float), np.nan)
+    y = np.where(found, track["y_px"].to_numpy(float), np.nan)
     stamped = info.times != "frame / camera.fps"
     return Measurement(setup=info.setup, frames=track["frame"].to_numpy(float), x=x, y=y,
                        center=center, angle=info.angle,
                        t=track["t_s"].to_numpy(float) if stamped else None,
                        center_u=None if center_u is None or info.setup.center_px is not None
-                       else tuple(float(v) for v in center_u))
+                       else tuple(float(v) for v in center_u),
+                       distorted=bool(info.undistorted))
 
 
 def _fitted_mask(t, theta, n_samples):
@@ -382,10 +395,22 @@ def _inputs(setup: Setup):
             continue
         out.append((f"{section}.{key}", name, None, float(value) * scale,
                     0.0 if u is None else float(u) * scale, 1.0 / scale))
+    cal = setup.calibration
+    if cal is not None:
+        params = cal.parameters()
+        if any(u > 0 for _, _, u in params):
+            for name, value, u in params:
+                out.append((f"camera.{name}", "calibration", name, float(value), float(u),
+                            1.0))
+        else:
+            out.append(("camera.matrix, camera.distortion", "calibration", None, 0.0, 0.0,
+                        1.0))
     return out
 
 
 def _moved(setup: Setup, field: str, component, delta_lab: float, factor: float) -> Setup:
+    if field == "calibration":
+        return setup.replace(calibration=setup.calibration.moved(component, delta_lab))
     if field == "center_px":
         c = list(setup.center_px)
         c[component] += delta_lab
@@ -397,8 +422,10 @@ def _acts(meas: Measurement, field: str) -> str:
     """'' when ``field`` can change mu in this measurement, else why not."""
     if field == "ball_mass":
         return "enters no step of the measurement (mu is defined by M = mu r N)"
-    if field in ("center_px", "pixel_size") and not meas.from_centres:
+    if field in ("center_px", "pixel_size", "calibration") and not meas.from_centres:
         return "cannot act on a track of given angles"
+    if field == "calibration" and not meas.distorted:
+        return "the centres were given undistorted"
     if field == "fps" and meas.from_centres and meas.t is not None:
         return "times are the recording's own timestamps"
     if field == "pixel_size" and meas.angle == "atan2":

@@ -75,6 +75,16 @@ def test_chessboards_through_a_known_lens_give_it_back(views, tmp_path):
     shift = np.hypot(*(true.undistort(p) - p).T)
     # measured: max 0.79 px where the lens moves points by up to 10.3 px, rms 0.19 px
     assert np.max(err) < 0.1 * np.max(shift) and np.sqrt(np.mean(err ** 2)) < 0.3
+    # the standard uncertainties (cv2.calibrateCameraExtended) cover the true lens: measured
+    # |error| / u at most 1.6 (cx) over fx, fy, cx, cy, k1, k2, p1, p2; k3 held: u 0
+    true_values = {"matrix[fx]": 800.0, "matrix[fy]": 800.0, "matrix[cx]": 319.5,
+                   "matrix[cy]": 239.5, "distortion[k1]": -0.2, "distortion[k2]": 0.05,
+                   "distortion[p1]": 0.0, "distortion[p2]": 0.0, "distortion[k3]": 0.0}
+    for name, value, u in cal.parameters():
+        if name == "distortion[k3]":
+            assert u == 0.0 and value == 0.0
+        else:
+            assert 0 < u and abs(value - true_values[name]) < 3 * u
     # the command: writes the [camera] keys a setup file takes, refuses to overwrite
     paths = []
     for k, img in enumerate(views):
@@ -91,6 +101,8 @@ def test_chessboards_through_a_known_lens_give_it_back(views, tmp_path):
     back = calibration_from_dict(tomllib.loads(out.read_text())["camera"])
     # the same fit (OpenCV's solver differs from run to run in the 9th digit)
     np.testing.assert_allclose(back.matrix, cal.matrix, rtol=1e-6)
+    np.testing.assert_allclose(back.matrix_u, cal.matrix_u, rtol=1e-4)
+    np.testing.assert_allclose(back.distortion_u, cal.distortion_u, rtol=1e-4)
     before = out.read_text()
     assert main(args) == 2 and out.read_text() == before
 

@@ -95,6 +95,21 @@ def test_setup_camera_calibration_keys():
     import tomllib
 
     assert setup_from_dict(tomllib.loads(dumps_setup(s))) == s
+    # with the calibration's standard uncertainties (rollfric calibrate writes them)
+    d["camera"].update(matrix_u=[[2.0, 0, 1.5], [0, 2.0, 1.5], [0, 0, 0]],
+                       distortion_u=[0.004, 0.03, 0.0003, 0.0003, 0.0])
+    su = setup_from_dict(d)
+    assert su.calibration.distortion_u == (0.004, 0.03, 0.0003, 0.0003, 0.0)
+    assert setup_from_dict(tomllib.loads(dumps_setup(su))) == su
+    for cam, match in [({"matrix_u": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}, "matrix_u"),
+                       ({"distortion_u": [0.1, 0.1]}, "distortion_u"),
+                       ({"distortion_u": [-0.1, 0, 0, 0, 0]}, "distortion_u")]:
+        with pytest.raises(SetupError, match=match):
+            setup_from_dict({**d, "camera": {**d["camera"], **cam}})
+    no_lens = {**d, "camera": {k: v for k, v in d["camera"].items()
+                               if k not in ("matrix", "distortion", "matrix_u")}}
+    with pytest.raises(SetupError, match="without camera.distortion"):
+        setup_from_dict(no_lens)
     for cam, match in [({"matrix": d["camera"]["matrix"]}, "go together"),
                        ({"matrix": [[1, 0, 0], [0, 1, 0]], "distortion": [0] * 5}, "matrix"),
                        ({"matrix": d["camera"]["matrix"], "distortion": [0, 1, 2]},

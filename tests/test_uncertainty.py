@@ -309,3 +309,44 @@ def test_contour_centre_is_a_source_and_its_sensitivity_is_the_finite_difference
     b0 = budget(Measurement(setup=true, frames=frames, x=x, y=y, center=found),
                 fit_mu(*meas.series(true), true))
     assert [r.source for r in b0.rows] == ["statistical"]
+
+
+def test_lens_calibration_uncertainty_is_propagated():
+    """A track through a lens (k1 = -0.18 at fx = 2400 px): the located centres are in the
+    recorded image and undistorted with the calibration for the angles. Its standard
+    uncertainties (as rollfric calibrate writes them) are sources; each sensitivity agrees with
+    the finite difference of two independent full fits with that parameter moved."""
+    from rollfric.lens import Calibration
+
+    K = [[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]]
+    D = [-0.18, 0.0, 0.0, 0.0, 0.0]
+    Ku = [[3.0, 0.0, 2.0], [0.0, 3.0, 2.0], [0.0, 0.0, 0.0]]
+    Du = [0.004, 0.03, 0.0003, 0.0003, 0.0]
+    frames, x, y = _lab_track(noise_px=0.02, theta0_deg=20.0)
+    cal = Calibration(K, D, matrix_u=Ku, distortion_u=Du)
+    xd, yd = cal.distort(np.stack([x, y], axis=1)).T
+    setup = thesis_setup("10mm", center_px=(642.0, 380.0)).replace(calibration=cal)
+    meas = Measurement(setup=setup, frames=frames, x=xd, y=yd, center=setup.center_px,
+                       distorted=True)
+    t, th = meas.series(setup)
+    assert np.nanmax(np.abs(th - Measurement(setup=setup, frames=frames, x=x, y=y,
+                                             center=setup.center_px).series(setup)[1])) < 1e-9
+    b = budget(meas, fit_mu(t, th, setup))
+    rows = {r.source: r for r in b.rows}
+    names = {"camera.matrix[fx]", "camera.matrix[fy]", "camera.matrix[cx]",
+             "camera.matrix[cy]", "camera.distortion[k1]", "camera.distortion[k2]",
+             "camera.distortion[p1]", "camera.distortion[p2]"}
+    assert names <= set(rows) and "camera.distortion[k3]" in b.exact
+    for name, h in (("distortion[k1]", 0.002), ("matrix[cy]", 1.0)):
+        mus = []
+        for sgn in (1, -1):
+            moved = setup.replace(calibration=cal.moved(name, sgn * h))
+            mus.append(fit_mu(*meas.series(moved), moved).mu)
+        row = rows[f"camera.{name}"]
+        assert row.u_mu > 0
+        assert row.sensitivity == pytest.approx((mus[0] - mus[1]) / (2 * h), rel=0.05)
+    # on given angles (a track CSV) the lens cannot act
+    given = Measurement(setup=setup, t=t, theta=th)
+    k1 = {r.source: r for r in budget(given, fit_mu(t, th, setup)).rows}[
+        "camera.distortion[k1]"]
+    assert k1.u_mu == 0 and "given angles" in k1.note
