@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from rollfric.errors import InputError
+from rollfric.hac import hac_covariance
 
 
 class ContourError(InputError):
@@ -280,8 +281,6 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     (xc, yc), radius, keep, res = fit
     arc_used = float(np.degrees(np.ptp(np.arctan2(nx[keep], ny[keep]))))  # 0 at the bottom
     # Type A: the fit's covariance from the points' scatter, correlated along the contour
-    from rollfric.uncertainty import hac_covariance
-
     d = np.hypot(pts[keep, 0] - xc, pts[keep, 1] - yc)
     jac = np.stack([-(pts[keep, 0] - xc) / d, -(pts[keep, 1] - yc) / d,
                     -np.ones_like(d)], axis=1)
