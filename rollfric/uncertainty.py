@@ -167,7 +167,9 @@ class Measurement:
             x, y = self.x, self.y
             if self.distorted and setup.calibration is not None:
                 ok = np.isfinite(x) & np.isfinite(y)
-                und = setup.calibration.undistort(np.stack([x[ok], y[ok]], axis=1))
+                # as the measurement did (rollfric.track): corrected for the bent outline
+                und = setup.calibration.undistort_ball(np.stack([x[ok], y[ok]], axis=1),
+                                                       setup.ball_radius / setup.pixel_size)
                 x, y = np.full_like(x, np.nan), np.full_like(y, np.nan)
                 x[ok], y[ok] = und[:, 0], und[:, 1]
             th = angles(x, y, center, method=self.angle,

@@ -329,8 +329,10 @@ def test_lens_calibration_uncertainty_is_propagated():
     meas = Measurement(setup=setup, frames=frames, x=xd, y=yd, center=setup.center_px,
                        distorted=True)
     t, th = meas.series(setup)
+    # undistorted as the measurement does it (corrected for the bent outline of a ball: the
+    # lens's point image of its centre differs from that by < 0.06 px, 1.3e-5 rad here)
     assert np.nanmax(np.abs(th - Measurement(setup=setup, frames=frames, x=x, y=y,
-                                             center=setup.center_px).series(setup)[1])) < 1e-9
+                                             center=setup.center_px).series(setup)[1])) < 2e-5
     b = budget(meas, fit_mu(t, th, setup))
     rows = {r.source: r for r in b.rows}
     names = {"camera.matrix[fx]", "camera.matrix[fy]", "camera.matrix[cx]",
