@@ -352,3 +352,19 @@ def test_lens_calibration_uncertainty_is_propagated():
     k1 = {r.source: r for r in budget(given, fit_mu(t, th, setup)).rows}[
         "camera.distortion[k1]"]
     assert k1.u_mu == 0 and "given angles" in k1.note
+
+
+def test_track_level_coverage_case_with_the_contour_centre():
+    """One case of ``python -m validation.coverage --contour``: the lab gives no centre,
+    rollfric finds it (and its u) in the case's drawn background; the centre's error lies
+    within 3 u, and both budgets (the lab's, and the exact setup's but the centre) are made."""
+    from validation.coverage import draw_case, run_case, summarize
+
+    row = run_case(draw_case(1), contour=True, oracle=False)
+    for axis in "xy":
+        assert abs(row[f"contour_err_{axis}_px"]) < 3 * row[f"contour_u_{axis}_px"] < 0.1
+    assert math.isfinite(row["z"]) and math.isfinite(row["z_contour"])
+    assert row["u_contour_only"] < row["u_mu"]  # the lab's tolerances add to it
+    s = summarize(pd.DataFrame([row, {**row, "contour_error": "not found"}]).assign(
+        z_oracle=np.nan, z_oracle_ordinary=np.nan))
+    assert s["cases"] == 1 and s["contour_not_found"] == 1

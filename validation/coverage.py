@@ -141,10 +141,13 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
     out = {k: v for k, v in case.items() if not isinstance(v, tuple)}
     center, center_u = lab.center_px, None
     if contour:
-        from rollfric.cylinder import find_cylinder_center
+        from rollfric.cylinder import ContourError, find_cylinder_center
 
-        found = find_cylinder_center(contour_background(case, true),
-                                     radius_px=lab.cylinder_radius / lab.pixel_size)
+        try:
+            found = find_cylinder_center(contour_background(case, true),
+                                         radius_px=lab.cylinder_radius / lab.pixel_size)
+        except ContourError as exc:  # a lab would have to measure the centre: no case
+            return {**out, "contour_error": str(exc)}
         center, center_u = found.center, found.center_u
         lab = lab.replace(center_px=None, uncertainty=tuple(
             (k, v) for k, v in lab.uncertainty if k != "center_px"))
@@ -193,7 +196,12 @@ def summarize(df: pd.DataFrame) -> dict:
         z = z[np.isfinite(z)]
         return float(np.mean(np.abs(z) <= k)) if z.size else float("nan")
 
-    s = {"cases": len(df),
+    if "contour_error" in df:  # cases whose contour was not found (reported, left out)
+        failed = int(df["contour_error"].notna().sum())
+        df = df[df["contour_error"].isna()]
+    else:
+        failed = 0
+    s = {"cases": len(df), "contour_not_found": failed,
          "blind_within_U": frac(df["z"], 2.0), "blind_within_u": frac(df["z"], 1.0),
          "blind_z_rms": float(np.sqrt(np.mean(df["z"] ** 2))),
          "oracle_within_2u_stat": frac(df["z_oracle"], 2.0),
