@@ -13,11 +13,14 @@ A scenario file is TOML in bench units (mm, g, Hz, degrees), a superset of the l
     pixel_size_mm = 0.1343
     [environment]
     gravity_m_s2 = 9.81
+    air_density_kg_m3 = 0.0 # air drag on the ball, off; room air 1.2 (sim.losses)
+    air_cd = 0.47           # the ball's drag coefficient
     [motion]
     mu = 0.0079
     theta0_deg = 20.0
     theta_dot0_deg_s = 0.0
     seconds = 4.0
+    mu_speed_s_m = 0.0      # mu(v) = mu + mu_speed_s_m v, v the centre's speed (sim.losses)
     [engine]
     name = "reference"      # reference | mujoco | pybullet
     surface = "tangent"     # tangent (accurate) | mesh | heightfield (naive, biased)
@@ -73,6 +76,10 @@ class Scenario:
     seed: int = 0
     gravity: float = 9.81
     pixel_size: float = 0.1343e-3
+    # losses the fitter does not assume (sim.losses): mu(v) = mu + mu_speed v (s/m), air drag
+    mu_speed: float = 0.0
+    air_density: float = 0.0  # kg/m^3; 0: no drag
+    air_cd: float = 0.47
 
     def __post_init__(self) -> None:
         for name in ("ball_diameter", "ball_mass", "cylinder_radius", "duration", "fps",
@@ -91,6 +98,12 @@ class Scenario:
             object.__setattr__(self, name, float(v))
         if self.mu < 0:
             raise ScenarioError(f"mu must not be negative, got {self.mu!r}")
+        for name in ("mu_speed", "air_density", "air_cd"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                    or v < 0:
+                raise ScenarioError(f"{name} must be a finite number >= 0, got {v!r}")
+            object.__setattr__(self, name, float(v))
         if self.ball_diameter >= 2 * self.cylinder_radius:
             raise ScenarioError(
                 f"ball_diameter ({self.ball_diameter * 1e3:g} mm) must be smaller than the "
@@ -209,10 +222,11 @@ class Scenario:
             "cylinder": {"radius_mm": self.cylinder_radius * 1e3},
             "ball": {"diameter_mm": self.ball_diameter * 1e3, "mass_g": self.ball_mass * 1e3},
             "camera": {"fps": self.fps, "pixel_size_mm": self.pixel_size * 1e3},
-            "environment": {"gravity_m_s2": self.gravity},
+            "environment": {"gravity_m_s2": self.gravity,
+                            "air_density_kg_m3": self.air_density, "air_cd": self.air_cd},
             "motion": {"mu": self.mu, "theta0_deg": math.degrees(self.theta0),
                        "theta_dot0_deg_s": math.degrees(self.theta_dot0),
-                       "seconds": self.duration},
+                       "seconds": self.duration, "mu_speed_s_m": self.mu_speed},
             "engine": {"name": self.engine, "surface": self.surface, "seed": self.seed,
                        "options": dict(self.engine_options)},
         }
@@ -241,10 +255,11 @@ _SCHEMA: dict[str, dict[str, tuple[str, str]]] = {
     "cylinder": {"radius_mm": ("cylinder_radius", "mm")},
     "ball": {"diameter_mm": ("ball_diameter", "mm"), "mass_g": ("ball_mass", "g")},
     "camera": {"fps": ("fps", ""), "pixel_size_mm": ("pixel_size", "mm")},
-    "environment": {"gravity_m_s2": ("gravity", "")},
+    "environment": {"gravity_m_s2": ("gravity", ""),
+                    "air_density_kg_m3": ("air_density", ""), "air_cd": ("air_cd", "")},
     "motion": {"mu": ("mu", ""), "theta0_deg": ("theta0", "deg"),
                "theta_dot0_deg_s": ("theta_dot0", "deg"),
-               "seconds": ("duration", "")},
+               "seconds": ("duration", ""), "mu_speed_s_m": ("mu_speed", "")},
 }
 _ENGINE_KEYS = ("name", "surface", "seed", "options")
 

@@ -34,3 +34,21 @@ def slip_speed(position, velocity, angular_velocity, ball_radius):
 def rolling_spin(theta_dot, track_radius, ball_radius):
     """Angular velocity about +z of a ball rolling without slipping: -(L / r) theta'."""
     return -(track_radius / ball_radius) * np.asarray(theta_dot, dtype=float)
+
+
+def losses_meta(scenario, theta_dot) -> dict:
+    """The trajectory's meta entries of the losses the fitter does not assume (sim.losses):
+    ``losses`` (their settings) and the ball's largest speed and Reynolds number; empty
+    without losses (the meta of such a trajectory stays what it was)."""
+    from sim.losses import ROOM_AIR_DENSITY, losses_of, reynolds
+
+    losses = losses_of(scenario)
+    if not losses.active:
+        return {}
+    vmax = float(np.nanmax(np.abs(theta_dot))) * scenario.track_radius if len(theta_dot) \
+        else 0.0
+    return {"losses": {"mu_speed_s_m": losses.mu_speed,
+                       "air_density_kg_m3": losses.air_density, "air_cd": losses.air_cd,
+                       "max_speed_m_s": vmax,
+                       "max_reynolds": float(reynolds(vmax, scenario.ball_diameter,
+                                                      losses.air_density or ROOM_AIR_DENSITY))}}

@@ -32,6 +32,10 @@ stays). The friction damping 2 / (0.95 solreffriction) times mu r times the roll
 the cone as a push away from the surface (the convex model's "hover"); at 2 ms it beats the
 normal support at mu 0.0164 and 35 deg and the contact flickers (hundreds of frames without
 contact); 5 ms keeps it below.
+
+Losses the fitter does not assume (:mod:`sim.losses`): before every step the air drag
+-m k |v| v is set as the ball's applied force (``xfrc_applied``) and the contact pairs' rolling
+and torsional coefficients are set to (mu + mu_speed v) r for the ball's current speed v.
 """
 
 from __future__ import annotations
@@ -41,7 +45,8 @@ import time
 
 import numpy as np
 
-from sim.engines.common import slip_speed, theta_from_centre
+from sim.engines.common import losses_meta, slip_speed, theta_from_centre
+from sim.losses import applied_force, losses_of, mu_at
 
 DEFAULTS: dict = {
     "timestep_s": 1e-4,
@@ -232,11 +237,24 @@ def run(scenario, progress: bool = False):
 
     record(0)
     step = mujoco.mj_step
+    losses = losses_of(scenario)
+    ball_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "ball")
+    m_ball, r_m = scenario.ball_mass, scenario.ball_radius
+
+    def apply_losses():
+        v = data.qvel[0:3] * 1e-3  # m/s
+        data.xfrc_applied[ball_id, 0:3] = applied_force(v, losses, r_m, m_ball) * 1e3
+        model.pair_friction[:, 2:5] = mu_at(float(np.linalg.norm(v)), scenario.mu,
+                                            losses) * r
+
     for i in tqdm(range(1, n), disable=not progress, desc="mujoco", unit="frame",
                   mininterval=0.5):
-        if tangent:
+        if tangent or losses.active:
             for _ in range(n_sub):
-                place_pad()
+                if tangent:
+                    place_pad()
+                if losses.active:
+                    apply_losses()
                 step(model, data)
         else:
             step(model, data, nstep=n_sub)
@@ -258,6 +276,7 @@ def run(scenario, progress: bool = False):
         "n_geoms": int(model.ngeom),
         "max_contacts": int(ncon.max()),
         "wall_time_s": wall,
+        **losses_meta(scenario, theta_dot),
     }
     return Trajectory(t=scenario.times(), theta=theta, theta_dot=theta_dot, position=pos,
                       quaternion=quat, angular_velocity=omega, normal_force=normal,

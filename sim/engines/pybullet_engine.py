@@ -13,6 +13,11 @@ rolling torque to that value times the normal force (a length), so the ball gets
 rollingFriction = mu r / lateral_friction and the trough lateralFriction = lateral_friction,
 rollingFriction = 0 (combined: mu r). The ball's maximum joint velocity is raised (the default
 100 rad/s makes the 1.58 mm ball slip), damping and sleeping are off, contactSlop is 0.
+
+Losses the fitter does not assume (:mod:`sim.losses`): before every step the air drag
+-m k |v| v is applied to the ball's centre (``applyExternalForce``, world frame; Bullet clears
+it after the step) and the ball's rolling friction is set to (mu + mu_speed v) r / lateral
+for its current speed v.
 """
 
 from __future__ import annotations
@@ -22,7 +27,8 @@ import time
 
 import numpy as np
 
-from sim.engines.common import slip_speed, theta_from_centre
+from sim.engines.common import losses_meta, slip_speed, theta_from_centre
+from sim.losses import applied_force, losses_of, mu_at
 
 DEFAULTS: dict = {
     "timestep_s": 2.5e-4,
@@ -185,6 +191,19 @@ def run(scenario, progress: bool = False):
             if contacts:
                 normal[i] = sum(c[9] for c in contacts)
 
+        losses = losses_of(scenario)
+
+        def apply_losses():
+            (bx, by, bz), _q = get_pose(ball, physicsClientId=client)
+            v, _w = p.getBaseVelocity(ball, physicsClientId=client)
+            f = applied_force(v, losses, r, scenario.ball_mass)
+            p.applyExternalForce(ball, -1, f.tolist(), [bx, by, bz], p.WORLD_FRAME,
+                                 physicsClientId=client)
+            if losses.mu_speed:
+                mu_v = mu_at(float(np.linalg.norm(v)), scenario.mu, losses)
+                p.changeDynamics(ball, -1, rollingFriction=mu_v * r / lat,
+                                 physicsClientId=client)
+
         if tangent:
             place_plane()
         record(0)
@@ -193,6 +212,8 @@ def run(scenario, progress: bool = False):
             for _ in range(n_sub):
                 if tangent:
                     place_plane()
+                if losses.active:
+                    apply_losses()
                 step(physicsClientId=client)
             record(i)
     finally:
@@ -209,6 +230,7 @@ def run(scenario, progress: bool = False):
                      "combined_rolling_friction_m": scenario.mu * r},
         "max_contacts": int(ncon.max()),
         "wall_time_s": wall,
+        **losses_meta(scenario, theta_dot),
     }
     return Trajectory(t=scenario.times(), theta=theta, theta_dot=theta_dot, position=pos,
                       quaternion=quat, angular_velocity=omega, normal_force=normal,

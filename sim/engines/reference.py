@@ -1,5 +1,9 @@
 """The exact reference: the equation of motion integrated by DOP853 to 1e-10 (rollfric.eom).
 
+With losses the fitter does not assume (speed-dependent rolling friction, air drag: the
+scenario's ``mu_speed``, ``air_density``), the equation of :mod:`sim.losses` instead, integrated
+the same way; without them rollfric.eom's, unchanged.
+
 Orientation and spin follow from rolling without slipping: the contact point
 c = centre + r n_out (n_out = (sin theta, -cos theta, 0)) is at rest, so
 v + w x (r n_out) = 0 with v = L theta' (cos theta, sin theta, 0) gives w = (0, 0, -(L/r) theta').
@@ -14,7 +18,9 @@ import numpy as np
 import scipy
 
 from rollfric.eom import solve_reference
-from sim.engines.common import centre_from_theta, rolling_spin
+from sim.engines.common import centre_from_theta, losses_meta, rolling_spin
+from sim.losses import losses_of
+from sim.losses import solve as solve_losses
 
 DEFAULTS: dict = {"rtol": 1e-10}
 
@@ -41,9 +47,18 @@ def run(scenario, progress: bool = False):
     t = scenario.times()
     start = time.perf_counter()
     L, r = scenario.track_radius, scenario.ball_radius
-    theta, theta_dot, t_stop = solve_reference(
-        scenario.theta0, scenario.theta_dot0, scenario.mu, t, track_radius=L,
-        gravity=scenario.gravity, rtol=opts["rtol"])
+    losses = losses_of(scenario)
+    if losses.active:
+        theta, theta_dot, t_stop = solve_losses(
+            scenario.theta0, scenario.theta_dot0, scenario.mu, t, losses, track_radius=L,
+            ball_radius=r, ball_mass=scenario.ball_mass, gravity=scenario.gravity,
+            rtol=opts["rtol"])
+        version = f"scipy {scipy.__version__} solve_ivp DOP853 (sim.losses)"
+    else:
+        theta, theta_dot, t_stop = solve_reference(
+            scenario.theta0, scenario.theta_dot0, scenario.mu, t, track_radius=L,
+            gravity=scenario.gravity, rtol=opts["rtol"])
+        version = f"scipy {scipy.__version__} solve_ivp DOP853 (rollfric.eom)"
     phi = -(L / r) * (theta - scenario.theta0)
     quat = np.column_stack([np.cos(phi / 2), np.zeros_like(phi), np.zeros_like(phi),
                             np.sin(phi / 2)])
@@ -53,11 +68,12 @@ def run(scenario, progress: bool = False):
     normal = m * g * np.cos(theta) + m * L * theta_dot**2
     meta = {
         "engine": "reference",
-        "engine_version": f"scipy {scipy.__version__} solve_ivp DOP853 (rollfric.eom)",
+        "engine_version": version,
         "surface": scenario.surface,
         "settings": opts,
         "t_stop_s": None if not np.isfinite(t_stop) else float(t_stop),
         "wall_time_s": time.perf_counter() - start,
+        **losses_meta(scenario, theta_dot),
     }
     return Trajectory(t=t, theta=theta, theta_dot=theta_dot, position=centre_from_theta(theta, L),
                       quaternion=quat, angular_velocity=omega, normal_force=normal,
