@@ -51,6 +51,8 @@ METRICS = frozenset((
     "mode", "lab_center_measured", "lab_draw", "trough_center_x_px", "trough_center_y_px",
     "trough_center_err_x_px", "trough_center_err_y_px", "undistorted", "offset_fitted",
     "camera_roll_deg",
+    # validation.track_level (a case measured from the exact projection, not a render)
+    "stages", "locator_sigma_px",
     # budget_metrics
     "u_mu", "U_mu", "z_budget", "within_u", "within_U", "u_stat", "z_stat",
     "budget_top_source", "budget_n_sources"))

@@ -6,7 +6,8 @@ A sweep file (TOML)::
     name = "noise"
     description = "mu bias and centre error vs read noise and shot noise"
     mode = "grid"              # grid: every combination of [grid]; list: the [[cases]] tables
-    stages = "full"            # full: sim -> synth -> rollfric; sim: simulate + fit only
+    stages = "full"            # full: sim -> synth -> rollfric; sim: simulate + fit only;
+                               # track: rollfric on the exact projection (validation.track_level)
     seeds = 2                  # each case repeated with render.seed = 0 .. seeds-1
     metrics = ["mu_bias_rel", "center_rms_px"]   # what the plots show
 
@@ -20,6 +21,7 @@ A sweep file (TOML)::
 
     [[cases]]                  # (mode = "list") one table per case
     "render.lighting" = "dim"
+    stages = "full"            # (optional) this case's stages instead of sweep.stages
 
 Each case's id is a hash of its full case dict (:func:`validation.case.case_id`), so the same
 parameters always give the same id. A finished case is written at once to
@@ -57,7 +59,7 @@ from validation.case import (
     merge_case,
 )
 
-STAGES = ("full", "sim")
+STAGES = ("full", "sim", "track")
 DEFAULT_METRICS = ("mu_bias_rel", "mu_pipeline_bias_rel", "center_rms_px", "center_max_px")
 SWEEP_KEYS = ("name", "description", "mode", "stages", "seeds", "metrics")
 REBUILD_EVERY_S = 20.0
@@ -72,6 +74,7 @@ class SweepCase:
     case_id: str
     params: dict  # swept dotted key -> value (includes render.seed when seeds > 1)
     case: dict  # the full case dict
+    stages: str = "full"  # what runs: full, sim or track (sweep.stages or the case's own)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -202,7 +205,12 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
             raise SweepError(f"{source}: mode 'list' needs [[cases]] tables")
         _check_count(len(cases) * seeds, source)
         combos = [_flatten_keys(c) for c in cases]
-        swept = list(dict.fromkeys(k for c in combos for k in c))
+        for c in combos:
+            st = c.get("stages", stages)
+            if not isinstance(st, str) or st not in STAGES:
+                raise SweepError(f"{source}: a case's stages must be one of {STAGES}, "
+                                 f"got {st!r}")
+        swept = list(dict.fromkeys(k for c in combos for k in c if k != "stages"))
     if seeds > 1:
         if "render.seed" in swept:
             raise SweepError(f"{source}: sweep.seeds and a swept render.seed exclude each other")
@@ -210,17 +218,20 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
         swept = [*swept, "render.seed"]
     out, seen = [], set()
     for params in combos:
+        params = dict(params)
+        st = params.pop("stages", stages)
         d = apply_overrides(base, params)
         d["name"] = name
         try:
             case_from_dict(d, source=f"{source} case {params}")
         except InputError as exc:
             raise SweepError(str(exc)) from None
-        cid = case_id(d)
+        # a track-level case measures otherwise than the full one: its own id
+        cid = case_id({**d, "stages": st}) if st == "track" else case_id(d)
         if cid in seen:
             continue  # the same case twice (e.g. a list repeating itself)
         seen.add(cid)
-        out.append(SweepCase(case_id=cid, params=params, case=d))
+        out.append(SweepCase(case_id=cid, params=params, case=d, stages=st))
     return SweepSpec(name=name, description=head.get("description", ""), stages=stages,
                      metrics=metrics, swept=tuple(swept), cases=tuple(out), source=source,
                      text=text)
@@ -245,6 +256,10 @@ def run_one(case_dict: dict, stages: str = "full", recording: str | None = None,
             metrics = case_fn(case_dict)
         elif stages == "sim":
             metrics = e2e.sim_only_case(case_dict)
+        elif stages == "track":
+            from validation.track_level import run_track_case
+
+            metrics = run_track_case(case_dict)
         else:
             metrics = e2e.run_case(case_dict, recording=recording, render_workers=1,
                                    render_threads=1).metrics
@@ -270,6 +285,7 @@ def _row(sc: SweepCase, outcome: dict) -> dict:
            "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     for k, v in sc.params.items():
         row[k] = _scalar(v)
+    row["stages"] = sc.stages
     for k, v in outcome.get("metrics", {}).items():
         if k in ("case_id",):
             continue
@@ -497,7 +513,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
                 if keep_recordings:
                     (out / "recordings").mkdir(exist_ok=True)
                     rec = str((out / "recordings" / f"{sc.case_id}.zarr").resolve())
-                fut = client.submit(run_one, sc.case, spec.stages, rec, case_fn,
+                fut = client.submit(run_one, sc.case, sc.stages, rec, case_fn,
                                     key=f"case-{spec.name}-{sc.case_id}", pure=False)
                 futures[fut] = sc
             bar = tqdm(total=len(spec.cases), initial=n_before, unit="case",
