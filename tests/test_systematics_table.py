@@ -109,6 +109,11 @@ def test_a_case_may_name_its_own_stages():
     assert [c.stages for c in spec.cases] == ["track", "full"]
     assert spec.cases[0].case_id != spec.cases[1].case_id  # same case, measured otherwise
     assert "stages" not in spec.swept
+    # a key the track level does not represent (the ball's image, its timing): rendered
+    spec = sweep_from_dict({"sweep": {"mode": "list", "stages": "track"},
+                            "cases": [{"render": {"motion_blur": 4}},
+                                      {"render": {"camera": {"roll_deg": 0.5}}}]})
+    assert [c.stages for c in spec.cases] == ["full", "track"]
     with pytest.raises(Exception, match="stages"):
         sweep_from_dict({"sweep": {"mode": "list"},
                          "cases": [{"render": {"seed": 0}, "stages": "quick"}]})

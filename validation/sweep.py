@@ -21,7 +21,9 @@ A sweep file (TOML)::
 
     [[cases]]                  # (mode = "list") one table per case
     "render.lighting" = "dim"
-    stages = "full"            # (optional) this case's stages instead of sweep.stages
+    stages = "full"            # (optional) this case's stages instead of sweep.stages (with
+                               # sweep.stages = "track", a case setting a key the track level
+                               # does not represent, validation.track_level.EXACT_KEYS, is full)
 
 Each case's id is a hash of its full case dict (:func:`validation.case.case_id`), so the same
 parameters always give the same id. A finished case is written at once to
@@ -219,7 +221,14 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
     out, seen = [], set()
     for params in combos:
         params = dict(params)
-        st = params.pop("stages", stages)
+        st = params.pop("stages", None)
+        if st is None:
+            st = stages
+            if st == "track":  # a key the track level does not represent: rendered
+                from validation.track_level import exact_at_track_level
+
+                if not exact_at_track_level(params):
+                    st = "full"
         d = apply_overrides(base, params)
         d["name"] = name
         try:

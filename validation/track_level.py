@@ -41,6 +41,29 @@ from validation.case import Case, case_from_dict
 
 LOCATOR_SIGMA_PX = 0.017  # per axis: 0.024 px rms in 2-D, the blind default case's centre error
 
+# the case keys (dotted prefixes) the track level represents exactly: the truth (sim), the lab,
+# how rollfric measures, the camera's pose, projection and lens. Any other render.* key changes
+# the ball's image or its timing: such a case is run rendered (validation.sweep)
+EXACT_KEYS = ("scenario.", "lab.", "measure.", "render.seed", "render.camera.roll_deg",
+              "render.camera.lens_distortion", "render.camera.lens_matrix",
+              "render.camera.projection", "render.camera.working_distance",
+              "render.camera.center_px", "render.camera.width", "render.camera.height")
+
+
+def exact_at_track_level(keys) -> bool:
+    """Whether a case changing these dotted keys is represented exactly at the track level.
+
+    Parameters
+    ----------
+    keys : iterable of str
+        Dotted case keys.
+
+    Returns
+    -------
+    bool
+    """
+    return all(any(k == e or k.startswith(e) for e in EXACT_KEYS) for k in keys)
+
 
 def located_centres(truth: dict, sigma_px: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """The silhouette centres of the truth plus the locator's noise (px).
