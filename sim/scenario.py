@@ -5,6 +5,10 @@ A scenario file is TOML in bench units (mm, g, Hz, degrees), a superset of the l
 
     [cylinder]
     radius_mm = 85.3
+    ovality_mm = 0.0        # out-of-round bore: D_max - D_min of an ellipse (sim.section)
+    ovality_angle_deg = 0.0 # its major axis from the horizontal, counter-clockwise
+    tilt_deg = 0.0          # the axis tilted along its length (> 0: the far end up): the
+                            # ball also rolls along the trough (mujoco, pybullet only)
     [ball]
     diameter_mm = 10.0
     mass_g = 4.07612
@@ -48,6 +52,12 @@ SURFACES = {
     "pybullet": ("tangent", "mesh", "heightfield"),
 }
 MAX_THETA0_DEG = 80.0
+MAX_OVALITY = 0.1  # of the mean radius
+MAX_TILT_DEG = 10.0
+
+
+# fields written only when not zero (sim.section's out-of-round and tilted trough)
+_OPTIONAL_FIELDS = ("ovality", "ovality_angle", "tilt")
 
 
 def _option_defaults(engine: str) -> dict:
@@ -80,6 +90,11 @@ class Scenario:
     mu_speed: float = 0.0
     air_density: float = 0.0  # kg/m^3; 0: no drag
     air_cd: float = 0.47
+    ovality: float = 0.0  # m, D_max - D_min of an elliptic bore (sim.section.Section)
+    ovality_angle: float = 0.0  # rad, its major axis from world x, counter-clockwise
+    tilt: float = 0.0  # rad, the trough axis tilted along its length, the far end up for
+    # tilt > 0: in the trough's frame gravity is g (0, -cos tilt, sin tilt), the ball drifts
+    # along +z, towards the camera
 
     def __post_init__(self) -> None:
         for name in ("ball_diameter", "ball_mass", "cylinder_radius", "duration", "fps",
@@ -104,6 +119,18 @@ class Scenario:
                     or v < 0:
                 raise ScenarioError(f"{name} must be a finite number >= 0, got {v!r}")
             object.__setattr__(self, name, float(v))
+        for name in ("ovality", "ovality_angle", "tilt"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ScenarioError(f"{name} must be a finite number, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if not 0 <= self.ovality <= MAX_OVALITY * self.cylinder_radius:
+            raise ScenarioError(
+                f"ovality ({self.ovality * 1e3:g} mm) must be between 0 and "
+                f"{MAX_OVALITY:g} x the radius ({MAX_OVALITY * self.cylinder_radius * 1e3:g} mm)")
+        if abs(self.tilt) > math.radians(MAX_TILT_DEG):
+            raise ScenarioError(f"tilt ({math.degrees(self.tilt):g} deg) is beyond "
+                                f"+-{MAX_TILT_DEG:g} deg")
         if self.ball_diameter >= 2 * self.cylinder_radius:
             raise ScenarioError(
                 f"ball_diameter ({self.ball_diameter * 1e3:g} mm) must be smaller than the "
@@ -132,6 +159,22 @@ class Scenario:
             raise ScenarioError(
                 f"surface {self.surface!r} is not offered by engine {self.engine!r} "
                 f"(known: {', '.join(SURFACES[self.engine])})")
+        if self.tilt != 0.0 and self.engine == "reference":
+            raise ScenarioError(
+                "the reference engine integrates the planar equation of motion: a trough "
+                "tilted along its length (cylinder.tilt_deg) makes the ball also roll along "
+                "it, a 3D motion; simulate it with engine mujoco or pybullet")
+        if self.ovality != 0.0 and self.engine == "reference" and (
+                self.mu_speed != 0.0 or self.air_density != 0.0):
+            raise ScenarioError(
+                "the reference's out-of-round trough (cylinder.ovality_mm) has no "
+                "speed-dependent friction or air drag (sim.losses): use one or the other, or "
+                "engine mujoco or pybullet")
+        if (self.tilt != 0.0 or self.ovality != 0.0) and self.surface != "tangent":
+            raise ScenarioError(
+                f"surface {self.surface!r} is a round trough of limited length; an "
+                "out-of-round (cylinder.ovality_mm) or tilted (cylinder.tilt_deg) trough needs "
+                "surface \"tangent\"")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ScenarioError(f"seed must be a non-negative integer, got {self.seed!r}")
         if not isinstance(self.engine_options, dict):
@@ -167,6 +210,13 @@ class Scenario:
     def track_radius(self) -> float:
         """L = R - r, the radius of the ball centre's circle (m)."""
         return self.cylinder_radius - self.ball_radius
+
+    @property
+    def section(self):
+        """The trough's cross-section (:class:`sim.section.Section`)."""
+        from sim.section import Section
+
+        return Section(self.cylinder_radius, self.ovality, self.ovality_angle)
 
     @property
     def n_samples(self) -> int:
@@ -205,9 +255,11 @@ class Scenario:
 
     # ---- dict forms
     def to_dict(self) -> dict:
-        """SI form (field name -> value), exact round trip through from_dict."""
+        """SI form (field name -> value), exact round trip through from_dict; the trough's
+        ovality and tilt only when not zero (files of round, level troughs are unchanged)."""
         return {f.name: (dict(getattr(self, f.name)) if f.name == "engine_options"
-                         else getattr(self, f.name)) for f in dataclasses.fields(self)}
+                         else getattr(self, f.name)) for f in dataclasses.fields(self)
+                if not (f.name in _OPTIONAL_FIELDS and getattr(self, f.name) == 0.0)}
 
     @classmethod
     def from_dict(cls, data: dict) -> Scenario:
@@ -219,7 +271,11 @@ class Scenario:
 
     def to_toml_dict(self) -> dict:
         out = {
-            "cylinder": {"radius_mm": self.cylinder_radius * 1e3},
+            "cylinder": {"radius_mm": self.cylinder_radius * 1e3,
+                         **({"ovality_mm": self.ovality * 1e3} if self.ovality else {}),
+                         **({"ovality_angle_deg": math.degrees(self.ovality_angle)}
+                            if self.ovality_angle else {}),
+                         **({"tilt_deg": math.degrees(self.tilt)} if self.tilt else {})},
             "ball": {"diameter_mm": self.ball_diameter * 1e3, "mass_g": self.ball_mass * 1e3},
             "camera": {"fps": self.fps, "pixel_size_mm": self.pixel_size * 1e3},
             "environment": {"gravity_m_s2": self.gravity,
@@ -252,7 +308,8 @@ def to_si(value: float, unit: str) -> float:
 
 _SCHEMA: dict[str, dict[str, tuple[str, str]]] = {
     # section -> key -> (field, unit name: "mm"/"g" divide by 1000, "deg" to radians)
-    "cylinder": {"radius_mm": ("cylinder_radius", "mm")},
+    "cylinder": {"radius_mm": ("cylinder_radius", "mm"), "ovality_mm": ("ovality", "mm"),
+                 "ovality_angle_deg": ("ovality_angle", "deg"), "tilt_deg": ("tilt", "deg")},
     "ball": {"diameter_mm": ("ball_diameter", "mm"), "mass_g": ("ball_mass", "g")},
     "camera": {"fps": ("fps", ""), "pixel_size_mm": ("pixel_size", "mm")},
     "environment": {"gravity_m_s2": ("gravity", ""),

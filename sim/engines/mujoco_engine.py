@@ -9,7 +9,10 @@ Surfaces:
 
 - ``tangent`` (default, accurate): one thin box on a mocap body, re-posed before every step so
   that its top face is tangent to the cylinder directly under the ball: one contact with the
-  exact cylinder geometry.
+  exact cylinder geometry. An out-of-round bore (:mod:`sim.section`) puts the box tangent to
+  the ellipse at the point nearest the ball; a trough tilted along its length
+  (``tilt``) tilts gravity in the trough's frame, g (0, -cos tilt, sin tilt), and the box
+  follows the ball along the axis.
 - ``mesh``: the trough as the triangle mesh a user would export, one facet every
   ``mesh_facet_deg`` degrees. MuJoCo collides with the convex hull of a mesh, so each facet is
   its own convex slab (a box whose top face is the facet's two triangles).
@@ -45,7 +48,7 @@ import time
 
 import numpy as np
 
-from sim.engines.common import losses_meta, slip_speed, theta_from_centre
+from sim.engines.common import initial_state, losses_meta, slip_speed, theta_from_centre
 from sim.losses import applied_force, losses_of, mu_at
 
 DEFAULTS: dict = {
@@ -93,7 +96,13 @@ def build_xml(scenario, opts: dict) -> str:
     g = scenario.gravity * 1e3
     mur = scenario.mu * r  # rolling coefficient is a length (mm)
     _, dt = _steps_per_frame(opts["timestep_s"], scenario.fps)
-    th0 = scenario.theta0
+    if scenario.section.round:
+        x0, y0 = L * math.sin(scenario.theta0), -L * math.cos(scenario.theta0)
+    else:
+        (x0, y0), _v, _w = initial_state(scenario)
+        x0, y0 = x0 * 1e3, y0 * 1e3
+    gvec = f"0 {-g * math.cos(scenario.tilt)!r} {g * math.sin(scenario.tilt)!r}" \
+        if scenario.tilt else f"0 {-g!r} 0"
     width = opts["solimp_width_mm"]
     f0 = opts["sliding_friction"]
     half_w = max(2.0 * r, 5.0)
@@ -145,12 +154,12 @@ def build_xml(scenario, opts: dict) -> str:
         f'solimp="0.9 0.95 {width!r} 0.5 2"/>' for gname in pair_geoms)
     return f"""<mujoco model="rollfric-trough">
   <compiler angle="radian"/>
-  <option timestep="{dt!r}" gravity="0 {-g!r} 0" cone="{opts["cone"]}"
+  <option timestep="{dt!r}" gravity="{gvec}" cone="{opts["cone"]}"
           noslip_iterations="{opts["noslip_iterations"]}" impratio="{opts["impratio"]!r}"
           integrator="{opts["integrator"]}"/>
   <asset>{assets}</asset>
   <worldbody>
-    <body name="ball" pos="{L * math.sin(th0)!r} {-L * math.cos(th0)!r} 0">
+    <body name="ball" pos="{x0!r} {y0!r} 0">
       <freejoint name="ball"/>
       <geom name="ball" type="sphere" size="{r!r}" mass="{m!r}" contype="0" conaffinity="0"/>
     </body>
@@ -199,8 +208,13 @@ def run(scenario, progress: bool = False):
     r = scenario.ball_radius * 1e3
     L = R - r
     th0, w0 = scenario.theta0, scenario.theta_dot0
-    data.qvel[0:3] = [L * w0 * math.cos(th0), L * w0 * math.sin(th0), 0.0]
-    data.qvel[3:6] = [0.0, 0.0, -(L / r) * w0]  # body frame = world frame at identity
+    if scenario.section.round:
+        data.qvel[0:3] = [L * w0 * math.cos(th0), L * w0 * math.sin(th0), 0.0]
+        data.qvel[3:6] = [0.0, 0.0, -(L / r) * w0]  # body frame = world frame at identity
+    else:
+        _p, (vx0, vy0), spin0 = initial_state(scenario)
+        data.qvel[0:3] = [vx0 * 1e3, vy0 * 1e3, 0.0]
+        data.qvel[3:6] = [0.0, 0.0, spin0]
     n_sub, dt = _steps_per_frame(opts["timestep_s"], scenario.fps)
     n = scenario.n_samples
     qpos = np.empty((n, 7))
@@ -213,10 +227,22 @@ def run(scenario, progress: bool = False):
     q = data.qpos
     f6 = np.zeros(6)
 
+    section = scenario.section
+    tilted = scenario.tilt != 0.0
+    last_phi = [math.atan2(q[0], -q[1])]
+
     def place_pad():
-        phi = math.atan2(q[0], -q[1])
-        mocap_pos[0, 0] = pad_dist * math.sin(phi)
-        mocap_pos[0, 1] = -pad_dist * math.cos(phi)
+        if section.round:
+            phi = math.atan2(q[0], -q[1])
+            mocap_pos[0, 0] = pad_dist * math.sin(phi)
+            mocap_pos[0, 1] = -pad_dist * math.cos(phi)
+        else:  # tangent to the ellipse at the point nearest the ball (sim.section, metres)
+            phi = last_phi[0] = section.phi_of_point(q[0] * 1e-3, q[1] * 1e-3, last_phi[0])
+            px, py = section.contact(phi)
+            mocap_pos[0, 0] = px * 1e3 + _PAD_HALF_THICKNESS * math.sin(phi)
+            mocap_pos[0, 1] = py * 1e3 - _PAD_HALF_THICKNESS * math.cos(phi)
+        if tilted:
+            mocap_pos[0, 2] = q[2]
         mocap_quat[0, 0] = math.cos(0.5 * phi)
         mocap_quat[0, 3] = math.sin(0.5 * phi)
 
@@ -280,5 +306,5 @@ def run(scenario, progress: bool = False):
     }
     return Trajectory(t=scenario.times(), theta=theta, theta_dot=theta_dot, position=pos,
                       quaternion=quat, angular_velocity=omega, normal_force=normal,
-                      slip_speed=slip_speed(pos, vel, omega, scenario.ball_radius),
+                      slip_speed=slip_speed(pos, vel, omega, scenario.ball_radius, section),
                       scenario=scenario, meta=meta)

@@ -3,7 +3,10 @@
 Surfaces:
 
 - ``tangent`` (default, accurate): a static plane re-posed before every stepSimulation so that it
-  is tangent to the cylinder directly under the ball: one contact with the exact geometry.
+  is tangent to the cylinder directly under the ball: one contact with the exact geometry. An
+  out-of-round bore (:mod:`sim.section`) puts it tangent to the ellipse at the point nearest
+  the ball; a trough tilted along its length (``tilt``) tilts gravity in the trough's frame,
+  g (0, -cos tilt, sin tilt) (the plane is unbounded along the axis).
 - ``mesh``: the trough as a concave triangle mesh (GEOM_FORCE_CONCAVE_TRIMESH), one facet every
   ``mesh_facet_deg`` degrees.
 - ``heightfield``: a GEOM_HEIGHTFIELD sampled every ``heightfield_cell_mm`` along x.
@@ -27,7 +30,7 @@ import time
 
 import numpy as np
 
-from sim.engines.common import losses_meta, slip_speed, theta_from_centre
+from sim.engines.common import initial_state, losses_meta, slip_speed, theta_from_centre
 from sim.losses import applied_force, losses_of, mu_at
 
 DEFAULTS: dict = {
@@ -137,7 +140,11 @@ def run(scenario, progress: bool = False):
     client = p.connect(p.DIRECT)
     try:
         n_sub, dt = _steps_per_frame(opts["timestep_s"], scenario.fps)
-        p.setGravity(0, -scenario.gravity, 0, physicsClientId=client)
+        if scenario.tilt:
+            p.setGravity(0, -scenario.gravity * math.cos(scenario.tilt),
+                         scenario.gravity * math.sin(scenario.tilt), physicsClientId=client)
+        else:
+            p.setGravity(0, -scenario.gravity, 0, physicsClientId=client)
         p.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0,
                                     numSolverIterations=int(opts["solver_iterations"]),
                                     contactSlop=0.0, deterministicOverlappingPairs=1,
@@ -149,9 +156,16 @@ def run(scenario, progress: bool = False):
         trough = _build_trough(p, client, scenario, opts)
         p.changeDynamics(trough, -1, lateralFriction=lat, rollingFriction=0.0,
                          spinningFriction=0.0, restitution=0.0, physicsClientId=client)
+        section = scenario.section
+        if section.round:
+            start_pos = [L * math.sin(th0), -L * math.cos(th0), 0]
+            start_v = [L * w0 * math.cos(th0), L * w0 * math.sin(th0), 0.0]
+            start_w = [0.0, 0.0, -(L / r) * w0]
+        else:
+            (x0, y0), (vx0, vy0), spin0 = initial_state(scenario)
+            start_pos, start_v, start_w = [x0, y0, 0.0], [vx0, vy0, 0.0], [0.0, 0.0, spin0]
         sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=r, physicsClientId=client)
-        ball = p.createMultiBody(scenario.ball_mass, sphere,
-                                 basePosition=[L * math.sin(th0), -L * math.cos(th0), 0],
+        ball = p.createMultiBody(scenario.ball_mass, sphere, basePosition=start_pos,
                                  physicsClientId=client)
         p.changeDynamics(ball, -1, lateralFriction=1.0, rollingFriction=scenario.mu * r / lat,
                          spinningFriction=0.0, restitution=0.0, linearDamping=0.0,
@@ -159,8 +173,7 @@ def run(scenario, progress: bool = False):
                          maxJointVelocity=float(opts["max_angular_velocity_rad_s"]),
                          activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING,
                          physicsClientId=client)
-        p.resetBaseVelocity(ball, [L * w0 * math.cos(th0), L * w0 * math.sin(th0), 0.0],
-                            [0.0, 0.0, -(L / r) * w0], physicsClientId=client)
+        p.resetBaseVelocity(ball, start_v, start_w, physicsClientId=client)
         n = scenario.n_samples
         pos = np.empty((n, 3))
         quat = np.empty((n, 4))
@@ -172,12 +185,18 @@ def run(scenario, progress: bool = False):
         get_pose, reset_pose = p.getBasePositionAndOrientation, p.resetBasePositionAndOrientation
         step = p.stepSimulation
 
+        last_phi = [math.atan2(start_pos[0], -start_pos[1])]
+
         def place_plane():
             (x, y, _), _q = get_pose(ball, physicsClientId=client)
-            phi = math.atan2(x, -y)
+            if section.round:
+                phi = math.atan2(x, -y)
+                at = [R * math.sin(phi), -R * math.cos(phi), 0.0]
+            else:  # tangent to the ellipse at the point nearest the ball
+                phi = last_phi[0] = section.phi_of_point(x, y, last_phi[0])
+                at = [*(float(v) for v in section.contact(phi)), 0.0]
             qz = (0.0, 0.0, math.sin(0.5 * phi), math.cos(0.5 * phi))
-            reset_pose(trough, [R * math.sin(phi), -R * math.cos(phi), 0.0],
-                       _quat_mul(qz, _Z_TO_Y), physicsClientId=client)
+            reset_pose(trough, at, _quat_mul(qz, _Z_TO_Y), physicsClientId=client)
 
         def record(i):
             pp, qq = get_pose(ball, physicsClientId=client)
@@ -234,4 +253,5 @@ def run(scenario, progress: bool = False):
     }
     return Trajectory(t=scenario.times(), theta=theta, theta_dot=theta_dot, position=pos,
                       quaternion=quat, angular_velocity=omega, normal_force=normal,
-                      slip_speed=slip_speed(pos, vel, omega, r), scenario=scenario, meta=meta)
+                      slip_speed=slip_speed(pos, vel, omega, r, scenario.section),
+                      scenario=scenario, meta=meta)
