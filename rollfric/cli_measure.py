@@ -182,6 +182,8 @@ def _run(args) -> int:
                  "undistorted": bool(info.undistorted),
                  "offset_fitted": bool(info.offset_fitted),
                  "offset_reason": info.offset_reason,
+                 # the contour as an ellipse and the mu bias it implies (rollfric.ellipse)
+                 "contour_ellipse": info.contour_ellipse,
                  "background": info.background,
                  "times": info.times,
                  "ball_radius_px": info.ball_radius_px,
@@ -212,4 +214,9 @@ def _run(args) -> int:
     mu = result.mu if budget is None else budget.mu
     print(f"mu = {mu:.6f} {unc} ({result.method}); ball found in "
           f"{info.n_found} of {info.n_frames} frames -> {out}")
+    ce = info.contour_ellipse
+    if ce is not None:
+        print(f"contour ellipse: axis ratio {ce['axis_ratio']:.5f}, major axis at "
+              f"{ce['angle_deg']:.1f} deg; implied mu bias {100 * ce['mu_bias_if_camera']:+.3f} % "
+              f"(camera yaw/pitch) or {100 * ce['mu_bias_if_trough']:+.3f} % (trough out of round)")
     return report_quality("measure", result)

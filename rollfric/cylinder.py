@@ -22,6 +22,7 @@ import math
 import cv2
 import numpy as np
 
+from rollfric.ellipse import ContourEllipse, fit_ellipse
 from rollfric.errors import InputError
 from rollfric.hac import hac_covariance
 
@@ -70,6 +71,9 @@ class CylinderContour:
         within their profile: a clipped step is not a linear image of the edge, and its edge
         points move with the local contrast (by up to the blur's width); the uncertainty
         above does not cover that.
+    ellipse : rollfric.ellipse.ContourEllipse or None
+        The same edge points fitted as an ellipse (camera yaw/pitch or an out-of-round
+        trough make the contour one).
     """
     center: tuple[float, float]
     radius: float
@@ -80,6 +84,8 @@ class CylinderContour:
     center_u_edge: tuple[float, float] = (0.0, 0.0)
     rms_px: float = 0.0
     saturated_fraction: float = 0.0
+    # the same edge points fitted as an ellipse (rollfric.ellipse)
+    ellipse: ContourEllipse | None = None
 
 
 def _profiles(img, px, py, nx, ny, s):
@@ -307,11 +313,14 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
             prof = _profiles(top, (bx + off * nx)[keep], (by + off * ny)[keep], nx[keep],
                              ny[keep], np.arange(-a, a + 0.5, 1.0))
             saturated = float(np.mean(np.nan_to_num(prof).max(axis=1) > 0))
+    # the kept edge points, in their order along the contour, fitted as an ellipse
+    order = np.argsort(np.arctan2(nx[keep], ny[keep]))
+    ellipse = fit_ellipse(pts[keep][order])
     return CylinderContour(center=(float(xc), float(yc)), radius=float(radius),
                            n_points=int(keep.sum()), arc_deg=arc_used, center_u=u,
                            center_u_fit=u_fit, center_u_edge=u_edge,
                            rms_px=float(np.sqrt(np.mean(res[keep] ** 2))),
-                           saturated_fraction=saturated)
+                           saturated_fraction=saturated, ellipse=ellipse)
 
 
 def _robust_circle(pts, ok):

@@ -108,6 +108,11 @@ class TrackInfo:
         (px; :class:`rollfric.cylinder.CylinderContour` ``center_u``: the circle fit's and the
         edge definition's); None when the centre came from the setup (its ``center_px_u``, if
         any, is in ``setup``).
+    contour_ellipse : dict or None
+        The trough's contour fitted as an ellipse (:mod:`rollfric.ellipse`: centre, semi-axes,
+        angle, eccentricity) and, after a fit, the mu bias it implies if the camera made it
+        (``mu_bias_if_camera``) or the trough is out of round (``mu_bias_if_trough``); None
+        when the centre came from the setup.
     """
 
     setup: Setup
@@ -134,6 +139,7 @@ class TrackInfo:
     offset_fitted: bool = False
     offset_reason: str | None = None
     center_u_px: tuple[float, float] | None = None
+    contour_ellipse: dict | None = None
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -936,6 +942,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     bg, bg_desc, bg_notes = resolve_background(source, background, median_frames=median_frames,
                                                r_px=ball_radius_px(setup))
     center_u, contour_notes = None, []
+    ellipse = None
     if setup.center_px is not None:
         center, center_desc = setup.center_px, "setup center_px"
     else:
@@ -949,6 +956,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                 f"radius of {contour.radius:.1f} px, the setup says {R_px:.1f} px "
                 "(cylinder.radius_mm / camera.pixel_size_mm); fix those or give "
                 "[cylinder] center_px")
+        ellipse = contour.ellipse
         center, center_u, center_desc = contour.center, contour.center_u, (
             f"contour in the background ({contour.n_points} points over "
             f"{contour.arc_deg:.0f} deg, radius {contour.radius:.1f} px, u = "
@@ -995,12 +1003,50 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                **(fit_kwargs or {}))
         coded = [("background_repaired", f"{msg}: a background image without the ball "
                   "(--background) rules out a trace of it") for msg in bg_notes]
+        if ellipse is not None:
+            info, ell_coded = _ellipse_check(ellipse, info, t_s, th, setup, result, use,
+                                             fit_method, fit_kwargs)
+            coded += ell_coded
         coded += [("ball_radius", msg) for msg in info.warnings_radius]
         track_reasons = quality.check_track(df, setup, center, warnings=coded,
                                             flag_counts=info.flags)
         result = dataclasses.replace(
             result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
     return df, info, result
+
+
+def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fit_kwargs):
+    """The mu bias the contour's ellipse implies (:mod:`rollfric.ellipse`): into
+    ``info.contour_ellipse``, a warning above BIAS_WARN, a quality reason above BIAS_SUSPECT."""
+    from rollfric import ellipse as ell
+    from rollfric import fit as fitmod
+
+    out = ellipse.to_dict()
+    # the swing's turning points (of the fitted curve): where the amplitude loss is measured
+    swing = np.asarray(result.curve, dtype=float) - result.offset
+    k = np.flatnonzero(np.diff(np.sign(np.diff(swing))) != 0) + 1
+    amp = float(np.median(np.abs(swing[k]))) if len(k) else float(np.nanmax(np.abs(swing)))
+    cam = ell.camera_bias(ellipse, amp)
+    r_eff, f_b = ell.trough_scale(ellipse, info.ball_radius_px, amp)
+    try:
+        refit = fitmod.fit_mu(t_s, th, setup.replace(cylinder_radius=setup.cylinder_radius
+                                                     * r_eff),
+                              method=fit_method, offset=offset, **(fit_kwargs or {}))
+        trough = ell.trough_bias(result.mu, refit.mu, f_b)
+    except (InputError, ValueError):
+        trough = math.nan
+    out.update(mu_bias_if_camera=cam, mu_bias_if_trough=trough, swing_amplitude_rad=amp,
+               bottom_radius_over_mean=r_eff, trough_angle_scale=f_b)
+    worst = max(abs(cam), abs(trough) if math.isfinite(trough) else 0.0)
+    coded, warns = [], ()
+    if worst > ell.BIAS_WARN:
+        msg = ell.warning_text(ellipse, cam, trough)
+        logger.warning(msg)
+        warns = (msg,)
+        if worst > ell.BIAS_SUSPECT:
+            coded.append(("contour_ellipse", msg))
+    return dataclasses.replace(info, contour_ellipse=out,
+                               warnings=info.warnings + warns), coded
 
 
 OFFSET_MIN_TURNS = 3  # turning points inside the track before the offset is fitted by default

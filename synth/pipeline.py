@@ -45,19 +45,24 @@ def subframe_positions(traj, n_sub: int, exposure: float) -> np.ndarray:
 
     The exposure of frame i is centred on t_i; sub-frame k sits at t_i + ((k + 0.5) / n_sub
     - 0.5) * exposure. Positions between samples follow a cubic Hermite spline through the
-    sampled positions with the rolling velocity L theta_dot (cos theta, sin theta, 0).
+    sampled positions with the rolling velocity L theta_dot (cos theta, sin theta, 0); an
+    out-of-round or tilted trough (whose ball is not on that circle) uses a cubic spline
+    through the positions.
     """
     pos = np.asarray(traj.position, float)
     if n_sub == 1:
         return pos[:, None, :]
-    from scipy.interpolate import CubicHermiteSpline
+    from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
     t = np.asarray(traj.t, float)
+    offs = ((np.arange(n_sub) + 0.5) / n_sub - 0.5) * exposure
+    sc = traj.scenario
+    if sc.ovality or sc.tilt:
+        return CubicSpline(t, pos, axis=0, extrapolate=True)(t[:, None] + offs[None, :])
     L = math.hypot(pos[0, 0], pos[0, 1])
     th, thd = np.asarray(traj.theta), np.asarray(traj.theta_dot)
     vel = L * thd[:, None] * np.column_stack([np.cos(th), np.sin(th), np.zeros_like(th)])
     spline = CubicHermiteSpline(t, pos, vel, axis=0, extrapolate=True)
-    offs = ((np.arange(n_sub) + 0.5) / n_sub - 0.5) * exposure
     return spline(t[:, None] + offs[None, :])
 
 
@@ -99,7 +104,7 @@ def _versions() -> dict:
 _W: dict = {}
 
 
-def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads):
+def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads, oval=(0.0, 0.0)):
     if threads:
         os.environ["LP_NUM_THREADS"] = str(threads)
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
@@ -110,7 +115,7 @@ def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads):
     cfg = SceneConfig.from_dict(scene_dict)
     lens = cfg.camera.lens
     _W["renderer"] = SceneRenderer(cfg.replace(camera=cfg.camera.ideal()), ball_radius,
-                                   cylinder_radius)
+                                   cylinder_radius, *oval)
     from synth.store import chunk_writer
 
     g = zarr.open_group(store_path, mode="r+")
@@ -241,6 +246,8 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
                   calibration=None if cam.lens is None else
                   Calibration(cam.lens.matrix, cam.lens.distortion))
     r_ball, r_cyl = setup.ball_radius, setup.cylinder_radius
+    # the bore as built: an out-of-round trough is drawn as its ellipse (sim.section)
+    oval = (traj.scenario.ovality, traj.scenario.ovality_angle)
     k_sub = scene.motion_blur
     centres = subframe_positions(traj, k_sub, sensor.exposure)
     if workers is None:
@@ -251,7 +258,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
 
     lens = cam.lens
     with replacing(out, folder_ok=True) as tmp:
-        sr = SceneRenderer(scene.replace(camera=cam.ideal()), r_ball, r_cyl)
+        sr = SceneRenderer(scene.replace(camera=cam.ideal()), r_ball, r_cyl, *oval)
         bg = sr.render_full()
         sr.close()
         bg_ideal = None
@@ -285,7 +292,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             arr.attrs["description"] = TRUTH_COLUMNS[name]
         batches = [np.arange(s, min(s + BATCH, n)) for s in range(0, n, BATCH)]
         bar = tqdm(total=n, unit="frame", desc="render", disable=not progress)
-        init = (scene.to_dict(), r_ball, r_cyl, str(tmp), threads)
+        init = (scene.to_dict(), r_ball, r_cyl, str(tmp), threads, oval)
         if workers == 1:
             _worker_init(*init)
             try:

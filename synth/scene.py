@@ -52,16 +52,25 @@ def _look_at(position, target) -> np.ndarray:
     return pose
 
 
-def _trough_meshes(R: float, wall: float, length: float, half_open: float, n: int = 720):
-    """Trimesh parts of the trough: inner bore (smooth), outer surface, end faces, caps."""
+def _trough_meshes(R: float, wall: float, length: float, half_open: float, n: int = 720,
+                   section=None):
+    """Trimesh parts of the trough: inner bore (smooth), outer surface, end faces, caps.
+
+    ``section``: an out-of-round bore (:class:`sim.section.Section`, an ellipse of mean radius
+    R): the bore and the inner edges of the end faces follow it, with the ellipse's normals;
+    the outer surface stays round."""
     import trimesh
 
     full = half_open >= math.pi - 1e-9
     phi = np.linspace(-half_open, half_open, n + 1)
     if full:
         phi = phi[:-1]
+    oval = section is not None and not section.round
     # angle from the bottom, positive to the right (like theta)
     def ring(rad, z):
+        if oval and rad == R:
+            xy = section.outline(phi)
+            return np.column_stack([xy[:, 0], xy[:, 1], np.full(len(phi), z)])
         return np.column_stack([rad * np.sin(phi), -rad * np.cos(phi), np.full(len(phi), z)])
 
     z0, z1 = -length / 2, length / 2
@@ -80,7 +89,14 @@ def _trough_meshes(R: float, wall: float, length: float, half_open: float, n: in
     parts = []
     # inner bore, normals towards the axis
     v, f = strip(ring(R, z0), ring(R, z1), flip=False)
-    nrm = -np.column_stack([v[:, 0], v[:, 1], np.zeros(len(v))])
+    if oval:  # the ellipse's inward normal: -(x / a^2, y / b^2) in its own frame
+        a, b = section.semi_axes
+        ca, sa = math.cos(section.angle), math.sin(section.angle)
+        lx, ly = ca * v[:, 0] + sa * v[:, 1], -sa * v[:, 0] + ca * v[:, 1]
+        gx, gy = lx / (a * a), ly / (b * b)
+        nrm = -np.column_stack([ca * gx - sa * gy, sa * gx + ca * gy, np.zeros(len(v))])
+    else:
+        nrm = -np.column_stack([v[:, 0], v[:, 1], np.zeros(len(v))])
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     inner = trimesh.Trimesh(v, f, vertex_normals=nrm, process=False)
     if np.mean(np.einsum("ij,ij->i", inner.face_normals, nrm[f[:, 0]])) < 0:
@@ -170,8 +186,11 @@ class SceneRenderer:
     """One pyrender scene and one offscreen renderer (one per process: EGL contexts do not
     survive fork)."""
 
-    def __init__(self, config: SceneConfig, ball_radius: float, cylinder_radius: float):
+    def __init__(self, config: SceneConfig, ball_radius: float, cylinder_radius: float,
+                 ovality: float = 0.0, ovality_angle: float = 0.0):
         import trimesh
+
+        from sim.section import Section
 
         pyrender = pyrender_adapter.load()  # headless EGL unless PYOPENGL_PLATFORM says else
 
@@ -179,6 +198,8 @@ class SceneRenderer:
         self.camera: CameraModel = config.camera
         self.ball_radius = float(ball_radius)
         self.cylinder_radius = float(cylinder_radius)
+        # an out-of-round bore (sim.section): the trough's as-built ellipse
+        self.section = Section(self.cylinder_radius, float(ovality), float(ovality_angle))
         self.ss = config.supersample
         self.scale = 3 * self.ss * self.ss * 255
         self._pyrender = pyrender
@@ -192,7 +213,7 @@ class SceneRenderer:
             roughnessFactor=config.trough_roughness)
         prims = []
         parts = _trough_meshes(cylinder_radius, config.trough_wall, config.trough_length,
-                               config.trough_opening)
+                               config.trough_opening, section=self.section)
         # two primitives (smooth bore, flat faces): each primitive costs a draw call with
         # all its uniforms in every pass
         flat = trimesh.util.concatenate([m for m, smooth in parts if not smooth])
@@ -661,6 +682,8 @@ class SceneRenderer:
             texel = max(margins) * 2 * math.tan(fov / 2) / SHADOW_TEX_SZ
             # the 3x3 PCF of bilinear lookups reaches 2.5 texels from the shadow's edge
             pm = 2.5 * texel / cam.pixel_size + margin_px
+            # an out-of-round bore is within ovality / 4 of the round one the rays hit
+            pm += 0.25 * self.section.ovality / cam.pixel_size
             boxes.append(_box(np.vstack([q.min(0) - pm, q.max(0) + pm])))
         return boxes
 
@@ -668,6 +691,7 @@ class SceneRenderer:
         """True for backdrop points the trough's wall certainly hides from the camera."""
         cam = self.camera
         R, wall = self.cylinder_radius, self.config.trough_wall
+        R = R + 0.25 * self.section.ovality  # the bore's largest radius (sim.section)
         half = self.config.trough_length / 2
         q = cam.project(points) - np.asarray(cam.center_px)
         rho = np.hypot(q[:, 0], q[:, 1])
