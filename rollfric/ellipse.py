@@ -8,7 +8,7 @@ A round trough filmed square-on has a circular contour. Two things make it an el
   theta_m = f theta with f = d theta_m / d theta at the bottom (1 / cos(pitch) for a pitch,
   cos(yaw) for a yaw). The Coulomb offset of each half-swing, mu in radians, is scaled alike:
   mu is biased by f - 1 (:func:`camera_bias`).
-- the trough: an out-of-round bore (an ellipse, sim.section). The ball centre runs on the
+- the trough: an out-of-round bore (an ellipse). The ball centre runs on the
   offset curve; near the bottom its angle about the centre is theta = f_B phi with
   f_B = (rho_b - r) / D, rho_b the bore's radius of curvature at its lowest point, D the
   distance from the centre to the ball centre there; the period is set by rho_b - r, not by the
@@ -19,6 +19,11 @@ A round trough filmed square-on has a circular contour. Two things make it an el
 From the image alone the two cannot be told apart (both make the contour and the ball's path
 the same ellipse to within r / R); the period can, when R is known well: an out-of-round trough
 changes the period, a tilted camera does not (``--fit-length`` fits L = R - r).
+
+An ellipse is only reported as one (warned about) when its axes differ by more than
+SIGNIFICANT standard errors of that difference (the least-squares fit's HAC covariance: the
+points' errors are correlated along the contour): a short arc of a round contour fits
+ellipses of any small eccentricity.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ from scipy.optimize import least_squares
 
 BIAS_WARN = 0.001  # implied |mu bias| that is warned about
 BIAS_SUSPECT = 0.01  # ... that makes the measurement suspect
+SIGNIFICANT = 3.0  # axes' difference / its standard error above which the ellipse is real
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,6 +57,8 @@ class ContourEllipse:
         Rms distance of the points from the ellipse, px.
     n_points : int
         Points fitted.
+    axes_diff_u_px : float
+        Standard error of a - b from the fit's covariance, px (inf: not estimable).
     """
 
     center: tuple[float, float]
@@ -58,6 +66,13 @@ class ContourEllipse:
     angle_deg: float
     rms_px: float
     n_points: int
+    axes_diff_u_px: float = math.inf
+
+    @property
+    def significant(self) -> bool:
+        """Whether a - b exceeds SIGNIFICANT standard errors (a real ellipse)."""
+        a, b = self.semi_axes
+        return a - b > SIGNIFICANT * self.axes_diff_u_px
 
     @property
     def eccentricity(self) -> float:
@@ -97,7 +112,9 @@ class ContourEllipse:
         return {"center_px": list(self.center), "semi_axes_px": list(self.semi_axes),
                 "angle_deg": self.angle_deg, "eccentricity": self.eccentricity,
                 "axis_ratio": self.semi_axes[1] / self.semi_axes[0], "rms_px": self.rms_px,
-                "n_points": self.n_points}
+                "n_points": self.n_points,
+                "axes_diff_u_px": self.axes_diff_u_px if math.isfinite(self.axes_diff_u_px)
+                else None, "significant": self.significant}
 
 
 def fit_ellipse(points: np.ndarray) -> ContourEllipse:
@@ -132,6 +149,14 @@ def fit_ellipse(points: np.ndarray) -> ContourEllipse:
 
     sol = least_squares(resid, x0, xtol=1e-14, ftol=1e-14, gtol=1e-14)
     xc, yc, ax, bx, t = sol.x
+    # the points run along the contour (one side, then the other) and their errors are
+    # correlated over neighbouring rows (the pixel grid): the HAC (Newey-West) covariance
+    from rollfric.uncertainty import hac_covariance
+
+    _, cov, _, _ = hac_covariance(sol.jac, sol.fun)
+    g = np.array([0.0, 0.0, 1.0, -1.0, 0.0])
+    var = float(g @ cov @ g)
+    u_diff = math.sqrt(var) if math.isfinite(var) and var >= 0 else math.inf
     ax, bx = abs(ax), abs(bx)
     if bx > ax:
         ax, bx, t = bx, ax, t + math.pi / 2
@@ -140,7 +165,8 @@ def fit_ellipse(points: np.ndarray) -> ContourEllipse:
         deg -= 180.0
     return ContourEllipse(center=(float(xc + off[0]), float(yc + off[1])),
                           semi_axes=(float(ax), float(bx)), angle_deg=float(deg),
-                          rms_px=float(np.sqrt(np.mean(sol.fun ** 2))), n_points=len(pts))
+                          rms_px=float(np.sqrt(np.mean(sol.fun ** 2))), n_points=len(pts),
+                          axes_diff_u_px=u_diff)
 
 
 def _slope(angle_of, amplitude: float) -> float:

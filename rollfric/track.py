@@ -1039,7 +1039,7 @@ def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fi
                bottom_radius_over_mean=r_eff, trough_angle_scale=f_b)
     worst = max(abs(cam), abs(trough) if math.isfinite(trough) else 0.0)
     coded, warns = [], ()
-    if worst > ell.BIAS_WARN:
+    if ellipse.significant and worst > ell.BIAS_WARN:
         msg = ell.warning_text(ellipse, cam, trough)
         logger.warning(msg)
         warns = (msg,)

@@ -34,9 +34,11 @@ def test_fit_ellipse_recovers_axes_and_angle(angle):
     assert e.center == pytest.approx((640.0, -100.0), abs=1e-6)
     assert (e.angle_deg - angle + 90) % 180 - 90 == pytest.approx(0.0, abs=1e-4)
     assert e.eccentricity == pytest.approx(math.sqrt(1 - (634.5 / 636.0) ** 2), rel=1e-6)
-    # a circle: ratio 1 within the noise
+    assert e.significant
+    # a circle: ratio 1 within the noise, and not a significant ellipse
     c = ell.fit_ellipse(_arc_points(635.0, 635.0, 0.0, noise=0.05))
     assert abs(c.semi_axes[0] - c.semi_axes[1]) < 0.05
+    assert not c.significant
 
 
 def _track(**changes):
@@ -92,3 +94,28 @@ def test_round_contour_implies_no_bias():
     assert ell.camera_bias(e) == pytest.approx(0.0, abs=1e-15)
     r_eff, f_b = ell.trough_scale(e, 37.2)
     assert r_eff == pytest.approx(1.0) and f_b == pytest.approx(1.0)
+
+
+def test_rendered_out_of_round_bore_is_found_as_its_ellipse():
+    """synth draws the bore as the scenario's ellipse; rollfric's contour finds it back."""
+    from rollfric.cylinder import find_cylinder_center
+    from synth.camera import CameraModel
+    from synth.config import SceneConfig
+    from synth.scene import SceneRenderer
+
+    R, r, ov, ang = 0.0853, 0.005, 0.6e-3, 30.0
+    cam = CameraModel()  # the thesis camera, orthographic, 0.1343 mm/px
+    sr = SceneRenderer(SceneConfig(camera=cam, shadows=False), r, R, ov, math.radians(ang))
+    try:
+        bg = sr.render_full().astype(float) * (255.0 / sr.scale)
+    finally:
+        sr.close()
+    c = find_cylinder_center(bg, radius_px=R / cam.pixel_size)
+    e = c.ellipse
+    a, b = (R + ov / 4) / cam.pixel_size, (R - ov / 4) / cam.pixel_size
+    assert e.semi_axes[0] - e.semi_axes[1] == pytest.approx(a - b, abs=0.15)  # 2.2 px
+    assert e.mean_radius == pytest.approx(0.5 * (a + b), abs=0.3)
+    # counter-clockwise in the world is clockwise on screen (image y down)
+    assert e.angle_deg == pytest.approx(-ang, abs=3.0)
+    assert e.center == pytest.approx(cam.center_px, abs=0.2)
+    assert e.significant  # (a round bore: a - b = 0.03 px, u 0.04 px, measured)
