@@ -21,8 +21,8 @@ the same ellipse to within r / R); the period can, when R is known well: an out-
 changes the period, a tilted camera does not (``--fit-length`` fits L = R - r).
 
 An ellipse is only reported as one (warned about) when its axes differ by more than
-SIGNIFICANT standard errors of that difference (the least-squares fit's HAC covariance: the
-points' errors are correlated along the contour): a short arc of a round contour fits
+SIGNIFICANT standard errors of that difference (the least-squares fit's covariance widened for
+the points' errors correlated along the contour): a short arc of a round contour fits
 ellipses of any small eccentricity.
 """
 
@@ -150,13 +150,19 @@ def fit_ellipse(points: np.ndarray) -> ContourEllipse:
     sol = least_squares(resid, x0, xtol=1e-14, ftol=1e-14, gtol=1e-14)
     xc, yc, ax, bx, t = sol.x
     # the points run along the contour (one side, then the other) and their errors are
-    # correlated over neighbouring rows (the pixel grid): the HAC (Newey-West) covariance
-    from rollfric.uncertainty import hac_covariance
-
-    _, cov, _, _ = hac_covariance(sol.jac, sol.fun)
+    # correlated over neighbouring rows (the pixel grid): the ordinary covariance s^2 (J'J)^-1
+    # widened by the AR(1) long-run factor (1 + rho) / (1 - rho), rho the residuals' lag-1
+    # autocorrelation
+    res = sol.fun - sol.fun.mean()
+    rr = float(res @ res)
+    rho = float(np.clip(res[1:] @ res[:-1] / rr, 0.0, 0.97)) if rr > 0 else 0.0
     g = np.array([0.0, 0.0, 1.0, -1.0, 0.0])
-    var = float(g @ cov @ g)
-    u_diff = math.sqrt(var) if math.isfinite(var) and var >= 0 else math.inf
+    try:
+        cov = np.linalg.inv(sol.jac.T @ sol.jac) * float(sol.fun @ sol.fun) / max(len(q) - 5, 1)
+        var = float(g @ cov @ g) * (1.0 + rho) / (1.0 - rho)
+        u_diff = math.sqrt(var) if math.isfinite(var) and var >= 0 else math.inf
+    except np.linalg.LinAlgError:
+        u_diff = math.inf
     ax, bx = abs(ax), abs(bx)
     if bx > ax:
         ax, bx, t = bx, ax, t + math.pi / 2
