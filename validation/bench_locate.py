@@ -54,6 +54,21 @@ def drawn_case(ball: str, n: int, *, noise: float = 0.0, shadow: float = 0.0,
     return Case(label, r_px, bg, frames, truth, noise, contrast, scene.center)
 
 
+def mirror_case(n: int, *, noise: float = 2.0, seed: int = 0) -> Case:
+    """``n`` full frames of the 10 mm ball drawn as a polished steel mirror
+    (:mod:`validation.mirror_frames`: its rim mirrors the backdrop above, the trough below),
+    spread over +-0.35 rad of the track, with the sphere's exact centre."""
+    from validation.mirror_frames import MirrorScene, make_mirror_frames
+
+    scene = MirrorScene(noise=noise)
+    rng = np.random.default_rng(seed)
+    truth = np.array([scene.ball_center(t) for t in rng.uniform(-0.35, 0.35, n)])
+    bg, frames = make_mirror_frames(scene, [tuple(c) for c in truth], seed=seed)
+    contrast = scene.backdrop * scene.full_scale / 2  # the upper rim's step, half the lower's
+    return Case(f"10mm drawn steel mirror, noise {noise:g} DN", scene.r_px, bg, frames, truth,
+                noise, contrast, scene.center)
+
+
 def rendered_case(ball: str, n: int, *, noise: str = "none", lighting: str = "thesis",
                   seed: int = 0) -> Case:
     """``n`` frames of the ball rendered by ``synth`` (thesis camera, ``lighting`` preset,
@@ -177,6 +192,8 @@ def _locators(case: Case):
     out = {
         "subpixel (ROI)": lambda f, g: locate.locate_subpixel(f, case.background, r, guess=g),
         "subpixel (full frame)": lambda f, g: locate.locate_subpixel(f, case.background, r),
+        "subpixel, MIRROR options (ROI)": lambda f, g: locate.locate_subpixel(
+            f, case.background, r, guess=g, opts=locate.MIRROR),
         "thesis large-ball": lambda f, g: locate.locate_large_thesis(
             f, case.background, r, side=1 if g[0] >= case.center[0] else -1, guess=g),
         "thesis small-ball": lambda f, g: locate.locate_small_thesis(
@@ -262,6 +279,7 @@ def bench_locators(quick: bool = False) -> list[dict]:
     cases = [drawn_case(b, n, seed=i) for i, b in enumerate(BALLS)]
     cases += [drawn_case(b, n, noise=3.0, seed=10 + i) for i, b in enumerate(BALLS)]
     cases += [drawn_case("10mm", n, shadow=0.5, seed=20)]
+    cases += [mirror_case(n, seed=25)]
     balls = ("10mm",) if quick else tuple(BALLS)
     cases += [rendered_case(b, n, noise=nz, seed=30 + i) for i, b in enumerate(balls)
               for nz in ("none", "realistic")]

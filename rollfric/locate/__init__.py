@@ -20,7 +20,7 @@ One module per job:
 from rollfric.locate.location import Location, Locator
 from rollfric.locate.regions import LazyFrame, _crop, as_array, relative_image
 from rollfric.locate.search import coarse_candidates, coarse_find
-from rollfric.locate.subpixel import SubpixelOptions, locate_subpixel
+from rollfric.locate.subpixel import MIRROR, SubpixelOptions, locate_subpixel
 from rollfric.locate.thesis import locate_large_thesis, locate_small_thesis
 from rollfric.registry import LOCATORS
 
@@ -30,6 +30,7 @@ __all__ = [
     "METHODS",
     "LazyFrame",
     "LOCATORS",
+    "MIRROR",
     "Location",
     "Locator",
     "SubpixelOptions",

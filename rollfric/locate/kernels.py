@@ -32,7 +32,7 @@ def _profiles(rel, cx, cy, s0, ds, ns, n):
 
 
 @numba.njit(cache=True)
-def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel):
+def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out):
     """Per ray: the steepest step of the ball's polarity in [r - w, r + w], then the edge
     position from the integral of the normalised profile across a window of 2 ne + 2 samples
     (exact for a sampled step), with the inside/outside levels from nl samples either side.
@@ -56,13 +56,14 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel):
             diffs[m] = (a - b) / nl
             m += 1
     s_edge = np.full(n, np.nan)
+    spread = np.full(n, np.nan)
     a_used = np.full(n, np.nan)
     b_used = np.full(n, np.nan)
     con = np.full(n, np.nan)
     osd = np.full(n, np.nan)
     valid = np.zeros(n, np.bool_)
     if m < 3:
-        return s_edge, con, osd, valid, a_used, b_used
+        return s_edge, con, osd, valid, a_used, b_used, spread
     # polarity: the majority sign among the rays with a clear step (rays where the ball sits
     # in front of a region of its own level -- a cast shadow, the trough -- have none and
     # must not outvote the arc that has contrast)
@@ -81,6 +82,7 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel):
     kbs = np.full(n, -1)
     a_in = np.full(n, np.nan)
     b_out = np.full(n, np.nan)
+    a_deep = np.full(n, np.nan)
     for i in range(n):
         best = -np.inf
         kb = -1
@@ -101,6 +103,14 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel):
             b2 += v * v
         a /= nl
         b /= nl
+        # the level a further nl samples inside: a flat inside (a rim's reflection) or a
+        # gradient (a specular spot's tail)
+        j0 = kb - ne - 1 - 2 * nl
+        if j0 >= 0:
+            a2 = 0.0
+            for j in range(nl):
+                a2 += prof[i, j0 + 1 + j]
+            a_deep[i] = a2 / nl
         kbs[i] = kb
         a_in[i] = a
         b_out[i] = b
@@ -110,19 +120,39 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel):
     # level) carry no edge and are left out of the level statistics below
     fin = np.isfinite(a_in) & np.isfinite(b_out)
     if fin.sum() < 3:
-        return s_edge, con, osd, valid, a_used, b_used
+        return s_edge, con, osd, valid, a_used, b_used, spread
     cr = np.sort(sgn * (a_in[fin] - b_out[fin]))
     cref = cr[int(0.75 * (len(cr) - 1))]
     for i in range(n):
         if fin[i] and sgn * (a_in[i] - b_out[i]) < min_rel * cref:
             fin[i] = False
     if fin.sum() < 3:
-        return s_edge, con, osd, valid, a_used, b_used
+        return s_edge, con, osd, valid, a_used, b_used, spread
     # the ball's inside level: per ray, unless a spot or shading spoils it (then the median)
-    a_med = np.median(a_in[fin])
     c_med = np.median(np.abs(a_in[fin] - b_out[fin]))
     sd_med = np.median(osd[fin])
-    spoiled = np.abs(a_in - a_med) > 0.08 * c_med + 3.0 * sd_med
+    # the inside level next to the rim varies along it (a mirror ball's rim reflects the
+    # bright backdrop on one side, the dark trough on the other): a ray's level is compared
+    # with the median of its neighbours' over about 1/8 of the rim, not with one median
+    a_loc = np.full(n, np.nan)
+    mloc = max(2, n // 16)
+    buf = np.empty(2 * mloc + 1)
+    for i in range(n):
+        nb_ = 0
+        for j in range(-mloc, mloc + 1):
+            q = (i + j) % n
+            if fin[q]:
+                buf[nb_] = a_in[q]
+                nb_ += 1
+        if nb_ > 0:
+            a_loc[i] = np.median(buf[:nb_])
+    a_med = np.median(a_in[fin])
+    spoiled = np.zeros(n, np.bool_)
+    for i in range(n):
+        ref = a_loc[i] if np.isfinite(a_loc[i]) else a_med
+        tol = 0.08 * c_med + 3.0 * sd_med
+        spoiled[i] = abs(a_in[i] - a_med) > tol and (not local_lv or abs(a_in[i] - ref) > tol
+                                                     or not abs(a_in[i] - a_deep[i]) <= tol)
     # drop those rays when enough clean ones remain, else use the median inside level
     drop = (fin & ~spoiled).sum() >= 0.5 * fin.sum()
     # levels averaged over neighbouring rays (2 ksm + 1, clean ones only): less noise
@@ -149,11 +179,12 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel):
         kb = kbs[i]
         if kb < 0 or not fin[i]:
             continue
-        a = a_sm[i] if np.isfinite(a_sm[i]) else a_med
+        ref = a_loc[i] if local_lv and np.isfinite(a_loc[i]) else a_med
+        a = a_sm[i] if np.isfinite(a_sm[i]) else ref
         if spoiled[i]:
             if drop:
                 continue
-            a = a_med
+            a = ref
         b = b_sm[i]
         c = a - b
         if c * sgn <= 0:
@@ -167,11 +198,41 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel):
         if not np.isfinite(se) or se <= s0 + (kb - ne) * ds or se >= s0 + (kb + ne + 1) * ds:
             continue
         s_edge[i] = se
+        # the edge's spread: the rms distance from se of the profile's drop, over the edge
+        # window and the level windows beside it (a clean step: the blur's width; a rim that
+        # mirrors a narrow band of the surroundings: wider)
+        gs = 0.0
+        gm = 0.0
+        for j in range(kb - ne - nl // 2, kb + ne + 1 + nl // 2):
+            g = max((prof[i, j] - prof[i, j + 1]) / c, 0.0)
+            dd = s0 + (j + 0.5) * ds - se
+            gs += g
+            gm += g * dd * dd
+        spread[i] = np.sqrt(max(gm, 0.0) / gs) if gs > 0 else np.nan
         con[i] = abs(c)
         valid[i] = True
         a_used[i] = a
         b_used[i] = b
-    return s_edge, con, osd, valid, a_used, b_used
+    # rays whose edge is much wider than the rim's sharpest (a rim that mirrors a narrow band
+    # of bright surroundings: its edge lies inside the silhouette) are left out, when enough
+    # sharp ones remain
+    nv = valid.sum()
+    if wide_out and nv >= 8:
+        sp = np.sort(spread[valid])
+        ref = sp[int(0.25 * (nv - 1))]
+        low = sp[:max(2, nv // 2)]
+        mad = np.median(np.abs(low - np.median(low)))
+        lim = ref + max(0.25, 6.0 * 1.4826 * mad)
+        nsharp = 0
+        for i in range(n):
+            if valid[i] and spread[i] <= lim:
+                nsharp += 1
+        if nsharp >= 0.3 * nv:
+            for i in range(n):
+                if valid[i] and not spread[i] <= lim:
+                    valid[i] = False
+                    s_edge[i] = np.nan
+    return s_edge, con, osd, valid, a_used, b_used, spread
 
 
 @numba.njit(cache=True)
@@ -397,7 +458,7 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
 
 
 @numba.njit(cache=True)
-def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor):
+def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor, local):
     """Edge points of the clean rays: the ball's typical contrast (a tight band first, widened
     only when too few rays pass: real balls vary around the rim) and a flat outside (shadow
     gradients, spots, the trough contact and occluders fail). Returns status, xs, ys, ray index."""
@@ -412,11 +473,26 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor)
     if cmed < max(4.0 * nz, floor):
         return 2, empty, empty, iempty
     keep = np.zeros(n, np.bool_)
+    # the typical contrast: the median, or (``local``) that of the ray's neighbours over about
+    # 1/8 of the rim (a mirror ball's rim: bright where it mirrors the backdrop)
+    cref = np.full(n, cmed)
+    if local:
+        mloc = max(2, n // 16)
+        buf = np.empty(2 * mloc + 1)
+        for i in range(n):
+            nb_ = 0
+            for j in range(-mloc, mloc + 1):
+                q = (i + j) % n
+                if valid[q]:
+                    buf[nb_] = con[q]
+                    nb_ += 1
+            if nb_ >= mloc:
+                cref[i] = np.median(buf[:nb_])
     for tol in bands:
         cnt = 0
         for i in range(n):
             keep[i] = (valid[i] and out_sd[i] < 0.02 * cmed + 2.5 * nz
-                       and abs(con[i] - cmed) < tol * cmed + 3.0 * nz)
+                       and abs(con[i] - cref[i]) < tol * cref[i] + 3.0 * nz)
             cnt += keep[i]
         if cnt >= max(min_rays, 0.4 * nv):
             break
@@ -446,3 +522,35 @@ def _fit_stats(wts, res):
         return 0, np.nan, np.nan
     sw = wts.sum()
     return n_in, np.median(res[inl]), np.sqrt((wts * res * res).sum() / max(sw, 1e-12))
+
+
+@numba.njit(cache=True)
+def _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, cx, cy, inset, kappa, most):
+    """Move each ray's edge out by the Fresnel rise of a mirror ball's rim: within a fraction
+    of a pixel of the silhouette the ball reflects more (grazing incidence) than where its
+    inside level ``a`` was measured, which moves the integral edge in by ``kappa`` x (the
+    frame's level there, a + background) / (a - b). In place; returns the shifts (0 for
+    rays not valid)."""
+    h, w = bgr.shape
+    n = len(s_edge)
+    shift = np.zeros(n)
+    for i in range(n):
+        if not valid[i]:
+            continue
+        phi = (i + 0.5) * (2.0 * np.pi / n)
+        x = cx + np.cos(phi) * (s_edge[i] - inset)
+        y = cy + np.sin(phi) * (s_edge[i] - inset)
+        ix = min(max(int(np.rint(x)), 0), w - 1)
+        iy = min(max(int(np.rint(y)), 0), h - 1)
+        c = a_lv[i] - b_lv[i]
+        if c == 0.0:
+            continue
+        level = max(a_lv[i] + bgr[iy, ix], 0.0)
+        # the inside level over the contrast, at most ``most`` (a rim that mirrors the
+        # backdrop: about 1; above, a ball too faint against its background to judge)
+        q = min(level / abs(c), most)
+        shift[i] = -kappa * q * (1.0 if c > 0 else -1.0)
+    for i in range(n):
+        if valid[i]:
+            s_edge[i] += shift[i]
+    return shift

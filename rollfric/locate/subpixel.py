@@ -12,6 +12,7 @@ of the centre in pixels. The numba kernels are in :mod:`rollfric.locate.kernels`
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import cv2
@@ -21,6 +22,7 @@ from rollfric.locate.kernels import (
     _edges,
     _fit_circle,
     _fit_stats,
+    _mirror_rim,
     _pixel_fit,
     _profiles,
     _select,
@@ -55,6 +57,49 @@ class SubpixelOptions:
     free_min_frac: float = 0.45  # free radius only when at least this fraction of the rim fits
     radius_sigma: float = 0.003  # relative uncertainty of r_px (centre error on partial arcs)
     max_sigma: float = 0.5  # px: a centre less certain than this is reported not found
+    # a steel ball's rim, a curved mirror (docs/how/locator.md, "A steel ball's rim"); the
+    # last two are off by default (they cost drawn matt balls' tests; MIRROR turns them on):
+    rim_levels: bool = True  # a ray's inside level is checked against its neighbours' (and
+    # its own further in), not against one median: the rim mirrors bright and dark surroundings
+    sharp_rays: bool = True  # rays whose edge is much wider than the rim's sharpest are left
+    # out (r_px >= 12): a rim that mirrors a narrow band of bright surroundings
+    mirror_rim: bool = False  # correct each ray's edge for the Fresnel rise at the rim
+    steel_eta: float = 2.9  # the ball's complex refractive index (steel, green)
+    steel_k: float = 3.0
+    local_contrast: bool = False  # the contrast band about the neighbouring rays' contrast
+    # (r_px >= 12), not one median
+
+
+MIRROR = SubpixelOptions(mirror_rim=True, local_contrast=True)
+"""The sub-pixel locator's options for a polished steel ball whose rim mirrors its surroundings
+(the Fresnel correction and the contrast band along the rim)."""
+
+
+@functools.lru_cache(maxsize=64)
+def _fresnel_kappa(r_px: float, depth: float, eta: float, k: float) -> float:
+    """How far (px) the Fresnel rise at a mirror ball's rim moves the integral edge in, per
+    unit of (inside level / contrast): the integral over the depth below the silhouette of
+    F / F(depth) - 1 (where positive), F the unpolarised reflectance of a conductor of index
+    eta + i k at the incidence a ball of radius r_px has there (orthographic view)."""
+    d = np.linspace(0.0, depth, 4001)[1:]
+    cos_i = np.sqrt(np.clip(1.0 - (1.0 - d / r_px) ** 2, 0.0, 1.0))
+    n2 = complex(eta, k) ** 2
+    root = np.sqrt(n2 - (1.0 - cos_i ** 2))
+    f = 0.5 * (np.abs((cos_i - root) / (cos_i + root)) ** 2
+               + np.abs((n2 * cos_i - root) / (n2 * cos_i + root)) ** 2)
+    excess = np.clip(f / f[-1] - 1.0, 0.0, None)
+    return float(np.sum(excess) * (d[1] - d[0]))
+
+
+def _shift_circle(cx, cy, r, rays, n, shift, free):
+    """(cx, cy, r) moved by the least-squares fit of dx cos + dy sin (+ dr) to the radial
+    ``shift`` of rays ``rays`` (of n around the rim)."""
+    if len(rays) < 3:
+        return cx, cy, r
+    phi = (rays + 0.5) * (2.0 * math.pi / n)
+    cols = [np.cos(phi), np.sin(phi)] + ([np.ones_like(phi)] if free else [])
+    sol = np.linalg.lstsq(np.column_stack(cols), shift, rcond=None)[0]
+    return cx + sol[0], cy + sol[1], r + (sol[2] if free else 0.0)
 
 
 def _n_rays(r_px: float, spacing: float = 2.5, most: int = 128) -> int:
@@ -211,7 +256,7 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
         ds = opts.ds if w <= 3.0 else 2 * opts.ds  # coarse sampling while the search is wide
         ne = max(2, int(round(edge_half / ds)))
         nl = max(2, int(round(level_len / ds)))
-        m = (ne + nl + 3) * ds
+        m = (ne + 2 * nl + 3) * ds  # the inside levels at two depths
         s0 = max(0.5, r - w - m)
         ns = int(math.ceil((r + w + m - s0) / ds)) + 1
         half = int(math.ceil(s0 + ns * ds)) + 2
@@ -223,12 +268,22 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
         rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
         lcx, lcy = cx - x0c, cy - y0c
         prof = _profiles(rel, lcx, lcy, s0, ds, ns, n)
-        s_edge, con, out_sd, valid, a_lv, b_lv = _edges(prof, s0, ds, r, w, ne, nl,
-                                                        opts.level_smooth, opts.min_contrast_rel)
+        s_edge, con, out_sd, valid, a_lv, b_lv, spread = _edges(prof, s0, ds, r, w, ne, nl,
+                                                        opts.level_smooth, opts.min_contrast_rel,
+                                                        opts.rim_levels,
+                                                        opts.sharp_rays and r_px >= 12
+                                                        and w <= 3.0)
+        rim_shift = None
+        if opts.mirror_rim:
+            inset = (ne + 0.5 * nl + 1) * ds
+            kappa = _fresnel_kappa(round(r_px, 1), inset, opts.steel_eta, opts.steel_k)
+            rim_shift = _mirror_rim(s_edge, valid, a_lv, b_lv, bg.astype(np.float32), lcx, lcy,
+                                    inset, kappa, 1.5)
         status, xs, ys, idx = _select(s_edge, con, out_sd, valid, lcx, lcy,
                                       opts.contrast_bands, opts.min_rays,
                                       -1.0 if noise is None else float(noise),
-                                      0.004 * _full_scale(frame.dtype))
+                                      0.004 * _full_scale(frame.dtype),
+                                      opts.local_contrast and r_px >= 12)
         if status:
             return Location.missing(_SELECT_FAIL[status])
         # a free radius only on most of the rim: on a partial arc (the rest of the rim without
@@ -261,6 +316,10 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
                                                   free_p, ray_ok, a_lv, b_lv,
                                                   (ne + 0.5 * nl + 1) * ds, 5)
             if math.isfinite(pcx) and math.hypot(pcx - fcx, pcy - fcy) < 0.5:
+                if rim_shift is not None:
+                    # the pixels' edge model has the same Fresnel rise: the circle moves by
+                    # the least-squares circle through the rays' shifts
+                    pcx, pcy, pr = _shift_circle(pcx, pcy, pr, inl, n, rim_shift[inl], free_p)
                 fcx, fcy, sigma = pcx, pcy, psig
                 if free_p:
                     r_seen = pr

@@ -1,0 +1,125 @@
+"""The default locator on a polished steel ball drawn as a curved mirror
+(validation.mirror_frames): the rim mirrors the bright backdrop above and the dark trough below,
+and the centre must still be found where the sphere's centre is (known exactly)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from rollfric.locate import MIRROR, SubpixelOptions, locate_subpixel
+from validation.mirror_frames import (
+    MirrorScene,
+    background,
+    draw_ball,
+    fresnel_conductor,
+    make_mirror_frames,
+)
+
+L_PX = (85.3 - 5.0) / 0.1343  # ball centre to trough axis (px)
+
+
+def _scene_at(theta, tx, ty, **kw):
+    """A 200 x 200 crop of the thesis geometry with the ball's centre at (tx, ty)."""
+    return MirrorScene(width=200, height=200,
+                       center=(tx - L_PX * math.sin(theta), ty - L_PX * math.cos(theta)), **kw)
+
+
+def _errors(n=6, seed=0, opts=None, **kw):
+    """(radial, tangential) centre errors (px) about the trough axis over n frames."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        th = rng.uniform(-0.3, 0.3)
+        tx, ty = 100 + rng.uniform(-0.5, 0.5), 100 + rng.uniform(-0.5, 0.5)
+        sc = _scene_at(th, tx, ty, **kw)
+        bg, (f,) = make_mirror_frames(sc, [(tx, ty)], seed=seed * 100 + i)
+        loc = locate_subpixel(f, bg, sc.r_px, guess=(tx + 0.8, ty - 0.6),
+                              **({"opts": opts} if opts is not None else {}))
+        assert loc.found, loc.reason
+        ex, ey = loc.x - tx, loc.y - ty
+        out.append((ex * math.sin(th) + ey * math.cos(th), ex * math.cos(th) - ey * math.sin(th)))
+    return np.array(out)
+
+
+def test_fresnel_of_iron_at_normal_and_grazing_incidence():
+    # normal incidence: |(n - 1) / (n + 1)|^2 for n = eta + i k; grazing: 1
+    n = complex(2.95, 2.93)
+    assert fresnel_conductor(np.array([1.0]), 2.95, 2.93)[0] == pytest.approx(
+        abs((n - 1) / (n + 1)) ** 2, rel=1e-12)
+    assert fresnel_conductor(np.array([0.0]), 2.95, 2.93)[0] == pytest.approx(1.0, abs=1e-12)
+
+
+def test_mirror_frames_are_seeded_and_show_a_bright_upper_rim():
+    sc = _scene_at(0.1, 100.3, 99.8, noise=2.0)
+    bg1, (f1,) = make_mirror_frames(sc, [(100.3, 99.8)], seed=3)
+    bg2, (f2,) = make_mirror_frames(sc, [(100.3, 99.8)], seed=3)
+    assert np.array_equal(f1, f2) and np.array_equal(bg1, bg2)
+    r = sc.r_px
+    # 3 px inside the rim: the mirrored backdrop above, the trough's bore below
+    up = float(f1[int(round(99.8 - r + 3)), 100])
+    down = float(f1[int(round(99.8 + r - 3)), 100])
+    middle = float(f1[100, 100])
+    assert up > 60 and down < 30 and middle < 30
+    # outside the rim the background, untouched
+    assert np.array_equal(f1[:, :5] != 0, bg1[:, :5] != 0)
+
+
+def test_silhouette_area_and_centroid_are_exact():
+    # a ball that reflects nothing (index 1: no interface) in front of the backdrop: the
+    # drawn tile's darkening is the disk's area coverage (no trough face beside it)
+    sc = _scene_at(0.0, 100.37, 99.61, psf_px=0.0, eta=1.0, k=1e-12, wall_mm=0.0)
+    sharp = background(sc, ss=4)
+    tile, x0, y0 = draw_ball(sharp, sc, 100.37, 99.61, np.random.default_rng(0))
+    cov = 1.0 - tile / sharp[y0:y0 + tile.shape[0], x0:x0 + tile.shape[1]]
+    yy, xx = np.mgrid[y0:y0 + tile.shape[0], x0:x0 + tile.shape[1]]
+    assert cov.sum() == pytest.approx(math.pi * sc.r_px ** 2, rel=2e-4)
+    assert (cov * xx).sum() / cov.sum() == pytest.approx(100.37, abs=2e-3)
+    assert (cov * yy).sum() / cov.sum() == pytest.approx(99.61, abs=2e-3)
+
+
+@pytest.mark.parametrize("kw", [{"backdrop_top_mm": -30.0}, {"backdrop_top_mm": 0.0},
+                                {"psf_px": 0.0}])
+def test_default_locator_holds_on_a_mirror_rim(kw):
+    e = _errors(**kw)
+    assert np.sqrt(np.mean(e[:, 0] ** 2)) < 0.05, e
+    assert np.sqrt(np.mean(e[:, 1] ** 2)) < 0.05, e
+
+
+def test_default_locator_on_the_wide_bright_crescent():
+    # the backdrop mirrored over the outer 0.3 r of the upper rim: 1.6 px rms before the rim's
+    # levels were compared along it; the Fresnel rise left uncorrected moves the bright half's
+    # edges 0.17 px in, and the fits of about half the rim scatter
+    e = _errors()
+    assert np.sqrt(np.mean(e[:, 0] ** 2)) < 0.08, e
+    assert np.sqrt(np.mean(e[:, 1] ** 2)) < 0.03, e
+
+
+@pytest.mark.parametrize("kw", [{}, {"noise": 2.0}, {"psf_px": 0.0}, {"psf_px": 1.0},
+                                {"roughness": 0.03}, {"backdrop_top_mm": -30.0},
+                                {"backdrop_top_mm": 0.0}])
+def test_mirror_options_hold_on_a_mirror_rim(kw):
+    e = _errors(opts=MIRROR, **kw)
+    assert np.sqrt(np.mean(e[:, 0] ** 2)) < 0.05, e
+    assert np.sqrt(np.mean(e[:, 1] ** 2)) < 0.05, e
+
+
+def test_fresnel_correction_restores_the_silhouette_radius():
+    # the rim's Fresnel rise moves every edge in; corrected, the radius is the sphere's
+    rng = np.random.default_rng(5)
+    th = 0.12
+    tx, ty = 100 + rng.uniform(-0.5, 0.5), 100 + rng.uniform(-0.5, 0.5)
+    sc = _scene_at(th, tx, ty)
+    bg, (f,) = make_mirror_frames(sc, [(tx, ty)], seed=5)
+    plain = locate_subpixel(f, bg, sc.r_px, guess=(tx + 0.8, ty - 0.6))
+    fixed = locate_subpixel(f, bg, sc.r_px, guess=(tx + 0.8, ty - 0.6), opts=MIRROR)
+    assert plain.r < sc.r_px - 0.1
+    assert abs(fixed.r - sc.r_px) < 0.04
+
+
+def test_the_median_inside_level_lost_the_mirror_rim():
+    # the locator before the rim's levels were compared along it: the bright half of the rim
+    # outvoted or was outvoted by the dark half, and the centre moved by a pixel
+    old = SubpixelOptions(rim_levels=False, sharp_rays=False)
+    e = _errors(opts=old)
+    assert np.sqrt(np.mean(e[:, 0] ** 2)) > 0.3
