@@ -38,6 +38,11 @@ def register(sub) -> None:
                    help="exposure time (default: the noise preset's, 200 us)")
     p.add_argument("--bit-depth", type=int, choices=[8, 10, 12], default=None,
                    help="sensor bit depth (default: the noise preset's)")
+    p.add_argument("--renderer", default="pyrender", choices=["pyrender", "mitsuba"],
+                   help="pyrender: rasterised, fast; mitsuba: path traced, a physically based "
+                        "steel ball (the extra rollfric[mitsuba], docs/how/renderers.md)")
+    p.add_argument("--spp", type=int, default=None,
+                   help="mitsuba: samples per pixel around the ball, a power of 4 (default 64)")
     p.add_argument("--frames", type=int, default=None, help="render only the first N frames")
     p.add_argument("--workers", type=int, default=None,
                    help="render processes (default: CPUs, at most 2)")
@@ -69,7 +74,10 @@ def run(args) -> int:
         check_export(args.export, overwrite=args.overwrite)
 
     scene = synth.SceneConfig(lighting=synth.lighting_preset(args.lighting),
-                              supersample=args.supersample, motion_blur=args.motion_blur)
+                              supersample=args.supersample, motion_blur=args.motion_blur,
+                              renderer=args.renderer)
+    if args.spp is not None:
+        scene = scene.replace(mitsuba_spp=args.spp)
     cam = dataclasses.replace(scene.camera, projection=args.projection,
                               working_distance=args.working_distance_mm * 1e-3)
     scene = scene.replace(camera=cam)

@@ -17,6 +17,8 @@ class SynthError(InputError):
     """A synthetic-recording input that cannot be rendered (the message names it)."""
 
 
+RENDERERS = ("pyrender", "mitsuba")
+SPP_CHOICES = tuple(4 ** k for k in range(7))  # samples per pixel of the mitsuba backend
 MAX_LAMP_DISTANCE = 100.0  # m: a lamp further away from the trough is no lamp of a lab
 
 
@@ -105,6 +107,14 @@ class SceneConfig:
     supersample: int = 1  # render ss x ss pixels per output pixel (box filter), plus 4x MSAA
     motion_blur: int = 1  # sub-frames integrated over the exposure (1: none)
     ball_silhouette_segments: int = 512  # vertices on the ball mesh's silhouette ring
+    # the backend: "pyrender" (rasterised, fast, the default) or "mitsuba" (path traced, a
+    # physically based steel ball: synth.mitsuba_scene, the extra rollfric[mitsuba])
+    renderer: str = "pyrender"
+    mitsuba_spp: int = 64  # samples per pixel in the windows around the ball (a power of 4)
+    mitsuba_background_spp: int = 256  # samples per pixel of the ball-free frame
+    mitsuba_max_depth: int = 4  # path vertices (3: the ball reflects the lit backdrop)
+    mitsuba_margin: float = 0.15  # window margin around the ball's silhouette, ball radii
+    lamp_radius: float = 0.004  # m, the mitsuba lamps' emitting spheres
 
     def __post_init__(self) -> None:
         if isinstance(self.camera, dict):
@@ -116,6 +126,22 @@ class SceneConfig:
         if not isinstance(self.motion_blur, int) or not 1 <= self.motion_blur <= 64:
             raise SynthError(f"motion_blur must be an integer 1..64 sub-frames, got "
                              f"{self.motion_blur!r}")
+        if self.renderer not in RENDERERS:
+            raise SynthError(f"renderer must be one of {', '.join(RENDERERS)}, got "
+                             f"{self.renderer!r}")
+        for name in ("mitsuba_spp", "mitsuba_background_spp"):
+            v = getattr(self, name)
+            # Mitsuba's low-discrepancy sampler takes powers of 4 (square powers of two)
+            if isinstance(v, bool) or not isinstance(v, int) or v not in SPP_CHOICES:
+                raise SynthError(f"{name} must be a power of 4 (1, 4, 16, 64, 256, 1024, "
+                                 f"4096), got {v!r}")
+        v = self.mitsuba_max_depth
+        if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 64:
+            raise SynthError(f"mitsuba_max_depth must be an integer 1..64, got {v!r}")
+        for name in ("mitsuba_margin", "lamp_radius"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise SynthError(f"{name} must be positive, got {v!r}")
         for name in ("trough_length", "trough_wall", "backdrop_distance"):
             if not getattr(self, name) > 0:
                 raise SynthError(f"{name} must be positive")

@@ -91,7 +91,7 @@ def _versions() -> dict:
 
     out = {}
     for dist in ("rollfric", "pyrender-maintained", "pyrender2", "pyrender", "numpy", "zarr",
-                 "PyOpenGL", "trimesh"):
+                 "PyOpenGL", "trimesh", "mitsuba", "drjit"):
         try:
             out[dist] = version(dist)
         except PackageNotFoundError:
@@ -104,18 +104,49 @@ def _versions() -> dict:
 _W: dict = {}
 
 
-def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads, oval=(0.0, 0.0)):
+def make_renderer(scene: SceneConfig, ball_radius: float, cylinder_radius: float,
+                  seed: int = 0, threads: int | None = None, oval=(0.0, 0.0)):
+    """The backend ``scene.renderer`` names, for the scene's ideal (lens-free) camera.
+
+    Parameters
+    ----------
+    scene : SceneConfig
+        The scene (its camera's lens is applied to the renders afterwards, by synth.lens).
+    ball_radius, cylinder_radius : float
+        Sizes (m).
+    seed : int, optional
+        The recording's seed (Mitsuba's sample streams; pyrender draws no random numbers).
+    threads : int, optional
+        CPU threads of the backend (llvmpipe's or Dr.Jit's).
+    oval : tuple, optional
+        The bore's (ovality, ovality_angle) (sim.section; (0, 0): round).
+
+    Returns
+    -------
+    synth.scene.SceneRenderer or synth.mitsuba_scene.MitsubaRenderer
+    """
+    ideal = scene.replace(camera=scene.camera.ideal())
+    if scene.renderer == "mitsuba":
+        from synth.mitsuba_scene import MitsubaRenderer, set_threads
+
+        if threads:
+            set_threads(threads)
+        return MitsubaRenderer(ideal, ball_radius, cylinder_radius, *oval, seed=seed)
     if threads:
-        os.environ["LP_NUM_THREADS"] = str(threads)
+        os.environ["LP_NUM_THREADS"] = str(threads)  # read when llvmpipe starts
+    from synth.scene import SceneRenderer
+
+    return SceneRenderer(ideal, ball_radius, cylinder_radius, *oval)
+
+
+def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads, oval=(0.0, 0.0),
+                 seed=0):
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     import zarr
 
-    from synth.scene import SceneRenderer
-
     cfg = SceneConfig.from_dict(scene_dict)
     lens = cfg.camera.lens
-    _W["renderer"] = SceneRenderer(cfg.replace(camera=cfg.camera.ideal()), ball_radius,
-                                   cylinder_radius, *oval)
+    _W["renderer"] = make_renderer(cfg, ball_radius, cylinder_radius, seed, threads, oval)
     from synth.store import chunk_writer
 
     g = zarr.open_group(store_path, mode="r+")
@@ -142,11 +173,12 @@ def _worker_batch(indices, centres):
         tiles = sr.tiles_for(centres[n])
         patches = []
         if tiles and lens is None:
-            rendered = sr.render_tiles(poses, tiles)
+            rendered = sr.render_tiles(poses, tiles, index=int(i))
             patches = [((x0, y0, w, h), img.astype(np.int64) - k * bg[y0:y0 + h, x0:x0 + w])
                        for (x0, y0, w, h), img in zip(tiles, rendered, strict=True)]
         elif tiles:
-            patches = _through_lens(tiles, sr.render_tiles(poses, tiles), bg, k, lens)
+            patches = _through_lens(tiles, sr.render_tiles(poses, tiles, index=int(i)), bg, k,
+                                    lens)
         write(int(i), patches)
     return len(indices)
 
@@ -225,8 +257,6 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
 
     from rollfric.lens import Calibration
     from rollfric.setup import Setup
-    from synth.scene import SceneRenderer
-
     scene = scene or SceneConfig()
     sensor = sensor or SensorConfig()
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -251,14 +281,15 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     k_sub = scene.motion_blur
     centres = subframe_positions(traj, k_sub, sensor.exposure)
     if workers is None:
-        workers = max(1, min(2, os.cpu_count() or 1))
+        # Mitsuba's Dr.Jit spreads one process's renders over every core itself
+        workers = 1 if scene.renderer == "mitsuba" else max(1, min(2, os.cpu_count() or 1))
     workers = max(1, min(int(workers), max(1, n // BATCH)))
     if threads is None and workers > 1:
         threads = 1  # one llvmpipe thread per process: the processes fill the cores
 
     lens = cam.lens
     with replacing(out, folder_ok=True) as tmp:
-        sr = SceneRenderer(scene.replace(camera=cam.ideal()), r_ball, r_cyl, *oval)
+        sr = make_renderer(scene, r_ball, r_cyl, seed, oval=oval)
         bg = sr.render_full()
         sr.close()
         bg_ideal = None
@@ -292,7 +323,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             arr.attrs["description"] = TRUTH_COLUMNS[name]
         batches = [np.arange(s, min(s + BATCH, n)) for s in range(0, n, BATCH)]
         bar = tqdm(total=n, unit="frame", desc="render", disable=not progress)
-        init = (scene.to_dict(), r_ball, r_cyl, str(tmp), threads, oval)
+        init = (scene.to_dict(), r_ball, r_cyl, str(tmp), threads, oval, int(seed))
         if workers == 1:
             _worker_init(*init)
             try:

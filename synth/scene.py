@@ -366,10 +366,12 @@ class SceneRenderer:
         return self.render_region(0, 0, self.camera.width, self.camera.height,
                                   stock_shaders=stock_shaders)
 
-    def render_tiles(self, poses, tiles, *, draw: str = "lean",
+    def render_tiles(self, poses, tiles, index: int = 0, *, draw: str = "lean",
                      timings: dict | None = None) -> list[np.ndarray]:
         """Render regions ``tiles`` [(x0, y0, w, h), ...] of the scene with the ball at each of
-        ``poses`` (sub-frames) and return, per tile, the sum over the sub-frames.
+        ``poses`` (sub-frames) and return, per tile, the sum over the sub-frames. ``index``
+        (the frame's number) is not used: a rasteriser draws no random numbers (Mitsuba's
+        backend seeds its samples with it).
 
         The tiles are drawn through the full frame's own viewport and projection with a
         scissor box, and only the box is resolved and read: every tile pixel goes through the

@@ -21,7 +21,9 @@ case of ``rollfric validate``)::
     motion_blur = 1            # sub-frames integrated over the exposure (1: none)
     supersample = 1            # ss x ss samples per pixel (plus 4x MSAA)
     shadows = true
-    seed = 0                   # seed of the sensor noise
+    renderer = "pyrender"      # or "mitsuba": path traced (rollfric[mitsuba]; spp etc. in
+                               #   [render.scene]: mitsuba_spp, mitsuba_background_spp)
+    seed = 0                   # seed of the sensor noise (and of Mitsuba's samples)
     [render.sensor]            # overrides of the preset: read_noise, full_well, shot_noise,
     read_noise = 8.0           #   exposure, gain, bit_depth, prnu, dsnu, vignetting, ...
     [render.camera]            # width, height, center_px, projection, working_distance
@@ -73,7 +75,7 @@ RENDER_KEYS = {
     "lighting": str, "intensity_scale": float, "lamp_spread": float, "lamp_dy_mm": float,
     "lamp_dz_mm": float, "ambient": float, "noise": str, "motion_blur": int,
     "supersample": int, "shadows": bool, "seed": int, "sensor": dict, "camera": dict,
-    "scene": dict, "lamps": list,
+    "scene": dict, "lamps": list, "renderer": str,
 }
 MEASURE_KEYS = {"locator": str, "fit": str, "offset": (bool, str), "oracle": bool,
                 "budget": bool}
@@ -458,7 +460,7 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
         scene_over = dict(r.get("scene", {}))
         scene = sc.SceneConfig(camera=cam, lighting=lighting)
         _known(scene_over, scene, f"{source}: render.scene")
-        for k in ("motion_blur", "supersample", "shadows"):
+        for k in ("motion_blur", "supersample", "shadows", "renderer"):
             if k in r:
                 scene_over[k] = r[k]
         scene = dataclasses.replace(scene, **scene_over)

@@ -1,0 +1,70 @@
+"""Mitsuba's path tracer for synth's scene: no caustics of the ball on trough or backdrop.
+
+Imported by :mod:`synth.mitsuba_scene` after it has chosen Mitsuba's variant (``@dr.syntax``
+rewrites :meth:`RimPath.sample` with this module's globals, so ``mi`` and ``dr`` live here).
+"""
+
+from __future__ import annotations
+
+import drjit as dr
+import mitsuba as mi
+from mitsuba.ad.integrators.common import RBIntegrator, mis_weight
+
+
+class RimPath(RBIntegrator):
+    """A path tracer (next-event estimation with multiple importance sampling, Mitsuba's
+    ``prb`` primal pass) in which a glossy surface (the ball: trough and backdrop are
+    diffuse) is black when a path reaches it from a diffuse surface.
+
+    That leaves out one kind of light only: lamp light reflected by the ball onto the trough
+    and backdrop (caustics), which a path tracer finds only by chance from a small lamp and
+    shows as rare very bright pixels. The ball's own image (its reflections of lamps,
+    backdrop and trough) and every shadow are path traced as usual.
+    """
+
+    @dr.syntax
+    def sample(self, mode, scene, sampler, ray, δL, state_in, active, **kwargs):  # noqa: ARG002
+        """Radiance along ``ray`` (primal only; see ``ADIntegrator.sample``)."""
+        bsdf_ctx = mi.BSDFContext()
+        ray = mi.Ray3f(ray)
+        depth = mi.UInt32(0)
+        L = mi.Spectrum(0)
+        beta = mi.Spectrum(1)
+        active = mi.Bool(active)
+        diffuse_seen = mi.Bool(False)
+        si_prev = dr.zeros(mi.SurfaceInteraction3f)
+        pdf_prev = mi.Float(1.0)
+        delta_prev = mi.Bool(True)
+        while dr.hint(active, max_iterations=self.max_depth, label="synth_rim_path"):
+            active_next = mi.Bool(active)
+            si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=depth == 0)
+            bsdf = si.bsdf(ray)
+            glossy = mi.has_flag(bsdf.flags(), mi.BSDFFlags.Glossy)
+            blocked = diffuse_seen & glossy & si.is_valid()
+            # light of an emitter hit by BSDF sampling, weighed against next-event estimation
+            ds = mi.DirectionSample3f(scene, si=si, ref=si_prev)
+            mis = mis_weight(pdf_prev, scene.pdf_emitter_direction(si_prev, ds, ~delta_prev))
+            Le = beta * mis * ds.emitter.eval(si, active_next)
+            active_next &= (depth + 1 < self.max_depth) & si.is_valid() & ~blocked
+            # next-event estimation
+            active_em = active_next & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
+            ds, em_weight = scene.sample_emitter_direction(si, sampler.next_2d(), True,
+                                                           active_em)
+            active_em &= ds.pdf != 0.0
+            wo = si.to_local(ds.d)
+            bsdf_em, bsdf_pdf_em = bsdf.eval_pdf(bsdf_ctx, si, wo, active_em)
+            mis_em = dr.select(ds.delta, 1, mis_weight(ds.pdf, bsdf_pdf_em))
+            Lr = beta * mis_em * bsdf_em * em_weight
+            # the next vertex
+            bs, bsdf_weight = bsdf.sample(bsdf_ctx, si, sampler.next_1d(), sampler.next_2d(),
+                                          active_next)
+            L = L + Le + Lr
+            ray = si.spawn_ray(si.to_world(bs.wo))
+            beta *= bsdf_weight
+            si_prev = si
+            pdf_prev = bs.pdf
+            delta_prev = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+            diffuse_seen |= ~glossy
+            depth[si.is_valid()] += 1
+            active = active_next & (dr.max(mi.unpolarized_spectrum(beta)) != 0)
+        return L, depth != 0, [], L

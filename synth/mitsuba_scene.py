@@ -1,0 +1,475 @@
+"""The physically based backend: synth's scene path traced by Mitsuba 3 on the CPU.
+
+The same scene description as the pyrender backend (:mod:`synth.scene`), translated once:
+
+- the trough: the same annular-sector mesh (smooth bore, flat end faces), a diffuse surface of
+  reflectance ``trough_color``; its front end face faces the camera;
+- the paper backdrop: a diffuse rectangle of reflectance ``backdrop_reflectance``;
+- each lamp: a small sphere of radius ``lamp_radius`` emitting uniformly, of radiant intensity
+  ``intensity`` (W/sr, what pyrender's spot light gives inside its cone: radiance
+  I / (pi a^2)); no cone (a sphere lights every direction), soft shadows;
+- ambient light: a constant environment of radiance ``ambient`` (a diffuse surface open to it
+  reflects ``ambient`` x its reflectance, as pyrender's ambient term);
+- the ball: an exact sphere, a rough conductor (GGX, alpha = ``ball_roughness``^2 as in
+  pyrender's metallic-roughness model) with iron's optical constants at R, G, B (eta 2.91,
+  2.95, 2.58; k 3.09, 2.93, 2.77): a dark curved mirror with Fresnel reflection at grazing
+  angles;
+- the camera: orthographic or pinhole, mapped so that a pixel centre (u, v) sees exactly the
+  point :meth:`synth.camera.CameraModel.project` puts there (roll included); a box pixel
+  filter (a pixel is the mean over its square). The camera's rays start just in front of the
+  trough, so lamps between the camera and the scene are not seen directly (pyrender's lights
+  are invisible too), though the ball reflects them.
+
+Light transport: a path tracer (:class:`synth.mitsuba_integrator.RimPath`, next-event estimation
+with multiple importance sampling, ``mitsuba_max_depth`` vertices) that leaves out light
+reaching a diffuse surface by way of the ball (the ball is black seen from the trough or the
+backdrop): those caustics of a small lamp in a polished ball are found only by chance and show
+up as rare very bright pixels; they land on the trough and backdrop, not on the ball's own
+image. Everything else - the ball's reflections of lamps, backdrop and trough, its shadows,
+ambient occlusion - is path traced.
+
+Rendered values: linear RGB radiance, clipped to [0, 1], encoded as display values c = L^(1/2.2)
+(what pyrender writes) and summed over the three channels in units of 1/UNIT (``scale`` = 3
+UNIT is white), rounded to integers: the store's format, read by the same sensor model.
+
+Speed: the ball-free frame is rendered once at ``mitsuba_background_spp`` samples per pixel;
+each frame path traces only windows around the ball and its shadows (:meth:`tiles_for`, sized
+in steps of WINDOW_STEP px so that Dr.Jit compiles few kernels) at ``mitsuba_spp`` samples per
+pixel. Each render is seeded from (seed, frame, sub-frame): same seed, same bytes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+
+import numpy as np
+
+from synth.camera import CameraModel
+from synth.config import SceneConfig, SynthError
+
+IRON_ETA = (2.91, 2.95, 2.58)  # iron's refractive index at R, G, B (~ 650, 550, 450 nm)
+IRON_K = (3.09, 2.93, 2.77)  # and its extinction coefficient
+UNIT = 4080  # integer levels of display value 1.0 per channel (16 x 255)
+WINDOW_STEP = 16  # px: window sizes are rounded up to multiples of this
+PASS_SAMPLES = 1 << 22  # samples per Mitsuba call (memory bound of one wavefront)
+VARIANT = "llvm_ad_rgb"
+
+_STATE: dict = {}
+
+
+def available() -> str | None:
+    """Why the Mitsuba backend cannot run here, or None when it can.
+
+    Returns
+    -------
+    str or None
+        A sentence naming what is missing (Mitsuba 3, or an LLVM >= 16 for Dr.Jit's CPU JIT:
+        ``DRJIT_LIBLLVM_PATH`` pointing at e.g. Debian's libllvm19), None when it works.
+    """
+    try:
+        load()
+    except SynthError as exc:
+        return str(exc)
+    return None
+
+
+def find_llvm() -> str | None:
+    """The newest libLLVM >= 16 in the usual places (Debian's libllvmNN, llvm.org's packages),
+    for Dr.Jit when ``DRJIT_LIBLLVM_PATH`` is not set.
+
+    Returns
+    -------
+    str or None
+    """
+    import glob
+    import re
+
+    best = None
+    for pattern in ("/usr/lib/x86_64-linux-gnu/libLLVM-*.so", "/usr/lib/aarch64-linux-gnu/"
+                    "libLLVM-*.so", "/usr/lib/llvm-*/lib/libLLVM*.so", "/usr/lib/libLLVM-*.so"):
+        for path in glob.glob(pattern):
+            m = re.search(r"(?:libLLVM-|llvm-)(\d+)", path)
+            if m and int(m.group(1)) >= 16 and (best is None or int(m.group(1)) > best[0]):
+                best = (int(m.group(1)), path)
+    return best[1] if best else None
+
+
+def load():
+    """Import Mitsuba, select its LLVM variant and register :class:`RimPath` (once a process).
+
+    Returns
+    -------
+    module
+        The ``mitsuba`` module.
+
+    Raises
+    ------
+    SynthError
+        Mitsuba is not installed, or Dr.Jit has no usable LLVM (needs LLVM >= 16; Debian 12's
+        default LLVM 15 fails to compile its kernels).
+    """
+    if "mi" in _STATE:
+        return _STATE["mi"]
+    if "DRJIT_LIBLLVM_PATH" not in os.environ and "drjit" not in sys.modules:
+        found = find_llvm()
+        if found:
+            os.environ["DRJIT_LIBLLVM_PATH"] = found
+    try:
+        import drjit as dr
+        import mitsuba as mi
+    except ImportError:
+        raise SynthError("render.renderer = \"mitsuba\" needs Mitsuba 3: pip install "
+                         "\"rollfric[mitsuba]\"") from None
+    hint = ("Dr.Jit's CPU backend needs LLVM >= 16 (Debian: apt-get install libllvm19; "
+            "then DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so)")
+    if not dr.has_backend(dr.JitBackend.LLVM):
+        raise SynthError(f"Mitsuba found no LLVM library: {hint}")
+    version = tuple(dr.detail.llvm_version())
+    if version < (16,):
+        raise SynthError(f"Mitsuba found LLVM {'.'.join(map(str, version))} "
+                         f"(DRJIT_LIBLLVM_PATH={os.environ.get('DRJIT_LIBLLVM_PATH', '')!r}): "
+                         f"{hint}")
+    mi.set_variant(VARIANT)
+    mi.register_integrator("synth_rim_path", lambda props: _rim_path_class()(props))
+    _STATE["mi"] = mi
+    return mi
+
+
+def _rim_path_class():
+    """The :class:`synth.mitsuba_integrator.RimPath` class (importable once a variant is set)."""
+    from synth.mitsuba_integrator import RimPath
+
+    return RimPath
+
+
+def render_seed(seed: int, *key: int) -> int:
+    """A 32-bit Mitsuba seed for render ``key`` (e.g. frame, sub-frame) of recording ``seed``.
+
+    Parameters
+    ----------
+    seed : int
+        The recording's seed.
+    *key : int
+        Which render (the background: no key).
+
+    Returns
+    -------
+    int
+    """
+    return int(np.random.SeedSequence(int(seed), spawn_key=tuple(int(k) for k in key))
+               .generate_state(1)[0])
+
+
+def _camera_to_world(cam: CameraModel) -> np.ndarray:
+    """4x4 matrix of Mitsuba's camera frame (looks along its +z; film x along its -x, film y
+    along its -y; orthographic: the film spans camera x in [-1, 1]) in the world frame."""
+    W, H, s = cam.width, cam.height, cam.pixel_size
+    cx, cy = cam.center_px
+    if cam.projection == "orthographic":
+        # the frame centre ((W-1)/2, (H-1)/2) in the camera's turned world frame
+        origin = np.array([((W - 1) / 2 - cx) * s, (cy - (H - 1) / 2) * s, cam.camera_z])
+        axes = np.diag([-W * s / 2, W * s / 2, -1.0])
+    else:
+        origin = np.array([0.0, 0.0, cam.camera_z])
+        axes = np.diag([-1.0, 1.0, -1.0])
+    c, sn = math.cos(cam.roll), math.sin(cam.roll)
+    unturn = np.array([[c, sn, 0.0], [-sn, c, 0.0], [0.0, 0.0, 1.0]])  # R(-roll)
+    m = np.eye(4)
+    m[:3, :3] = unturn @ axes
+    m[:3, 3] = unturn @ origin
+    return m
+
+
+def sensor_dict(cam: CameraModel, near: float, far: float, spp: int,
+                window: tuple[int, int, int, int] | None = None) -> dict:
+    """Mitsuba sensor of ``cam`` rendering full-frame pixels ``window`` = (x0, y0, w, h).
+
+    Parameters
+    ----------
+    cam : CameraModel
+        The camera (no lens: render its ideal camera).
+    near, far : float
+        Clip distances from the camera along its axis (m).
+    spp : int
+        Samples per pixel.
+    window : tuple, optional
+        The pixels to render (default: the whole frame).
+
+    Returns
+    -------
+    dict
+        For ``mitsuba.load_dict``.
+    """
+    mi = load()
+    W, H = cam.width, cam.height
+    x0, y0, w, h = window or (0, 0, W, H)
+    film = {"type": "hdrfilm", "width": W, "height": H, "rfilter": {"type": "box"},
+            "pixel_format": "rgb", "component_format": "float32", "crop_offset_x": int(x0),
+            "crop_offset_y": int(y0), "crop_width": int(w), "crop_height": int(h)}
+    d = {"to_world": mi.ScalarTransform4f(_camera_to_world(cam).tolist()),
+         "near_clip": float(near), "far_clip": float(far), "film": film,
+         "sampler": {"type": "ldsampler", "sample_count": int(spp)}}
+    if cam.projection == "orthographic":
+        d["type"] = "orthographic"
+    else:
+        cx, cy = cam.center_px
+        d |= {"type": "perspective", "fov_axis": "x",
+              "fov": math.degrees(2 * math.atan(W / (2 * cam.focal_px))),
+              "principal_point_offset_x": -(cx - (W - 1) / 2) / W,
+              "principal_point_offset_y": -(cy - (H - 1) / 2) / H}
+    return d
+
+
+def to_levels(rgb: np.ndarray) -> np.ndarray:
+    """Linear RGB radiance (h, w, 3) -> integer display levels (h, w): the sum over channels
+    of round-free UNIT * clip(L, 0, 1)^(1/2.2), rounded once.
+
+    Parameters
+    ----------
+    rgb : numpy.ndarray
+        Linear radiance.
+
+    Returns
+    -------
+    numpy.ndarray
+        int64 levels, 3 UNIT = white.
+    """
+    c = np.clip(np.asarray(rgb, dtype=np.float64), 0.0, 1.0) ** (1 / 2.2)
+    return np.rint(UNIT * c.sum(axis=2)).astype(np.int64)
+
+
+class MitsubaRenderer:
+    """synth's scene in Mitsuba, with the interface of :class:`synth.scene.SceneRenderer`
+    that the pipeline uses (scale, render_full, ball_pose, tiles_for, render_tiles, close)."""
+
+    def __init__(self, config: SceneConfig, ball_radius: float, cylinder_radius: float,
+                 ovality: float = 0.0, ovality_angle: float = 0.0, seed: int = 0):
+        mi = load()
+        from sim.section import Section
+        from synth.scene import _trough_meshes
+
+        if config.camera.lens is not None:
+            raise SynthError("MitsubaRenderer renders the ideal camera (pass camera.ideal())")
+        self.config = config
+        self.camera = config.camera
+        self.ball_radius = float(ball_radius)
+        self.cylinder_radius = float(cylinder_radius)
+        # an out-of-round bore (sim.section), as the pyrender scene builds it
+        self.section = Section(self.cylinder_radius, float(ovality), float(ovality_angle))
+        self.seed = int(seed)
+        self.scale = 3 * UNIT
+        self.lamps = config.lighting.lamps
+        cam = self.camera
+        # camera rays start 1 mm in front of the trough (lamps nearer the camera are unseen)
+        self.near = cam.working_distance - config.trough_length / 2 - 1e-3
+        self.far = cam.working_distance + config.backdrop_distance + 0.05
+        if cam.projection == "perspective":  # clip distances are along the axis
+            self.far *= 1.2
+        light = config.lighting
+        tc = config.trough_color
+        scene = {"type": "scene",
+                 "integrator": {"type": "synth_rim_path",
+                                "max_depth": int(config.mitsuba_max_depth)},
+                 "ambient": {"type": "constant",
+                             "radiance": {"type": "rgb", "value": [light.ambient] * 3}}}
+        parts = _trough_meshes(cylinder_radius, config.trough_wall, config.trough_length,
+                               config.trough_opening, section=self.section)
+        for k, (mesh, smooth) in enumerate(parts):
+            m = mi.Mesh(f"trough{k}", len(mesh.vertices), len(mesh.faces),
+                        has_vertex_normals=smooth)
+            p = mi.traverse(m)
+            p["vertex_positions"] = mi.Float(np.ravel(mesh.vertices).astype(np.float32))
+            p["faces"] = mi.UInt32(np.ravel(mesh.faces).astype(np.uint32))
+            if smooth:
+                p["vertex_normals"] = mi.Float(
+                    np.ravel(mesh.vertex_normals).astype(np.float32))
+            p.update()
+            m.set_bsdf(mi.load_dict({"type": "diffuse",
+                                     "reflectance": {"type": "rgb", "value": [tc] * 3}}))
+            scene[f"trough{k}"] = m
+        size = 4.0 * cylinder_radius + 0.4
+        br = light.backdrop_reflectance
+        scene["backdrop"] = {
+            "type": "rectangle",
+            "to_world": mi.ScalarTransform4f().translate([0.0, 0.0, -config.backdrop_distance])
+            .scale([size, size, 1.0]),
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [br] * 3}}}
+        a = config.lamp_radius
+        for i, lamp in enumerate(light.lamps):
+            radiance = lamp.intensity / (math.pi * a * a)
+            scene[f"lamp{i}"] = {"type": "sphere", "center": list(lamp.position), "radius": a,
+                                 "emitter": {"type": "area", "radiance": {
+                                     "type": "rgb", "value": [radiance] * 3}}}
+        self._scene_dict = scene
+        self._ball_dict = {
+            "type": "sphere", "center": [0.0, 0.0, 0.0], "radius": self.ball_radius,
+            "bsdf": {"type": "roughconductor", "distribution": "ggx",
+                     "alpha": config.ball_roughness ** 2,
+                     "eta": {"type": "rgb", "value": list(IRON_ETA)},
+                     "k": {"type": "rgb", "value": list(IRON_K)}}}
+        self._static = mi.load_dict(scene)
+        self._with_ball = mi.load_dict(scene | {"ball": self._ball_dict})
+        self._params = mi.traverse(self._with_ball)
+
+    # -- rendering ---------------------------------------------------------------------------
+
+    def _render(self, scene, window, spp: int, seed: int) -> np.ndarray:
+        """Mean linear RGB (h, w, 3) of ``window`` at ``spp`` (a power of 4), in passes of at
+        most PASS_SAMPLES samples (each pass seeded from ``seed`` and its number)."""
+        mi = load()
+        x0, y0, w, h = window
+        per = max(1, min(int(spp), PASS_SAMPLES // max(w * h, 1)))
+        per = 4 ** int(math.log(per, 4) + 1e-9)  # the sampler takes powers of 4
+        n_pass = math.ceil(spp / per)
+        acc = np.zeros((h, w, 3))
+        done = 0
+        for k in range(n_pass):
+            n = min(per, spp - done)
+            sensor = mi.load_dict(sensor_dict(self.camera, self.near, self.far, n, window))
+            s = seed if n_pass == 1 else render_seed(seed, k)
+            acc += n * np.asarray(mi.render(scene, sensor=sensor, spp=n, seed=s),
+                                  dtype=np.float64)
+            done += n
+        return acc / spp
+
+    def render_full(self) -> np.ndarray:
+        """The ball-free frame at ``mitsuba_background_spp`` samples per pixel.
+
+        Returns
+        -------
+        numpy.ndarray
+            (H, W) int64 levels (``scale`` = white).
+        """
+        cam = self.camera
+        rgb = self._render(self._static, (0, 0, cam.width, cam.height),
+                           self.config.mitsuba_background_spp, render_seed(self.seed))
+        return to_levels(rgb)
+
+    def render_window_rgb(self, centre, window, spp: int, seed: int) -> np.ndarray:
+        """Linear RGB of full-frame pixels ``window`` = (x0, y0, w, h) with the ball at
+        ``centre`` (m; None: no ball), at ``spp`` samples per pixel.
+
+        Parameters
+        ----------
+        centre : array_like or None
+            Ball centre in the world frame (m).
+        window : tuple
+            (x0, y0, w, h) full-frame pixels.
+        spp : int
+            Samples per pixel.
+        seed : int
+            Mitsuba's seed.
+
+        Returns
+        -------
+        numpy.ndarray
+            (h, w, 3) float64.
+        """
+        if centre is None:
+            return self._render(self._static, window, spp, seed)
+        self.set_ball(centre)
+        return self._render(self._with_ball, window, spp, seed)
+
+    def set_ball(self, centre) -> None:
+        """Move the ball's centre to ``centre`` (m)."""
+        mi = load()
+        c = [float(v) for v in np.asarray(centre, float)]
+        self._params["ball.to_world"] = mi.ScalarTransform4f().translate(c).scale(
+            self.ball_radius)
+        self._params.update()
+
+    def ball_pose(self, centre) -> np.ndarray:
+        """The ball's centre (m): a uniform sphere needs no orientation."""
+        return np.asarray(centre, float)
+
+    def render_tiles(self, poses, tiles, index: int = 0) -> list[np.ndarray]:
+        """Render ``tiles`` [(x0, y0, w, h), ...] with the ball at each of ``poses`` (centres,
+        one per sub-frame) and return per tile the sum of the sub-frames' levels.
+
+        Each window is path traced at ``mitsuba_spp`` samples per pixel, seeded from
+        (seed, index, sub-frame, tile).
+
+        Returns
+        -------
+        list of numpy.ndarray
+            (h, w) int64 per tile.
+        """
+        spp = self.config.mitsuba_spp
+        out = []
+        for t, (x0, y0, w, h) in enumerate(tiles):
+            win = self._window(x0, y0, w, h)
+            acc = np.zeros((h, w), dtype=np.int64)
+            for k, c in enumerate(poses):
+                rgb = self.render_window_rgb(c, win, spp, render_seed(self.seed, index, k, t))
+                wx, wy = x0 - win[0], y0 - win[1]
+                acc += to_levels(rgb[wy:wy + h, wx:wx + w])
+            out.append(acc)
+        return out
+
+    def _window(self, x0: int, y0: int, w: int, h: int) -> tuple[int, int, int, int]:
+        """A window holding tile (x0, y0, w, h), its size rounded up to WINDOW_STEP (fewer
+        kernel sizes to compile), kept inside the frame."""
+        W, H = self.camera.width, self.camera.height
+        ww = min(W, -(-w // WINDOW_STEP) * WINDOW_STEP)
+        wh = min(H, -(-h // WINDOW_STEP) * WINDOW_STEP)
+        wx = min(max(x0 - (ww - w) // 2, 0), W - ww)
+        wy = min(max(y0 - (wh - h) // 2, 0), H - wh)
+        return wx, wy, ww, wh
+
+    # -- footprint ---------------------------------------------------------------------------
+
+    def tiles_for(self, centres: np.ndarray) -> list:
+        """Tiles (x0, y0, w, h) holding every pixel the ball changes: its silhouette and its
+        shadows (pyrender's footprint, :meth:`synth.scene.SceneRenderer.tiles_for`, widened by
+        the lamps' penumbra) and its ambient occlusion on the surfaces just around it."""
+        from synth.scene import SceneRenderer
+
+        return SceneRenderer.tiles_for(self, centres)
+
+    def ball_box(self, centres: np.ndarray, margin_px: float | None = None):
+        """Pixel box (x0, y0, x1, y1) of the ball's silhouettes at ``centres`` (K, 3) with a
+        margin of ``mitsuba_margin`` ball radii (the ball's occlusion of ambient light and
+        the penumbra of its shadows on nearby surfaces)."""
+        from synth.scene import SceneRenderer
+
+        uv, rad = self.camera.sphere_silhouette(centres, self.ball_radius)
+        m = self.config.mitsuba_margin * float(rad.max()) + 1.5
+        return SceneRenderer.ball_box(self, centres, m if margin_px is None else margin_px)
+
+    def shadow_boxes(self, centres: np.ndarray, margin_px: float = 1.5) -> list:
+        """Pyrender's shadow boxes widened by the lamp's penumbra on the backdrop."""
+        from synth.scene import SceneRenderer
+
+        cam = self.camera
+        a = self.config.lamp_radius
+        # penumbra width on the backdrop: a (ball-to-backdrop) / (lamp-to-ball), in px
+        far = self.config.backdrop_distance + 2 * self.cylinder_radius
+        near = min(max(math.dist(lp.position, (0.0, 0.0, 0.0)) - 0.2, 0.05)
+                   for lp in self.lamps)
+        pen = a * far / near / cam.pixel_size
+        return SceneRenderer.shadow_boxes(self, centres, margin_px + pen)
+
+    def _behind_trough(self, points: np.ndarray) -> np.ndarray:
+        from synth.scene import SceneRenderer
+
+        return SceneRenderer._behind_trough(self, points)
+
+    def close(self) -> None:
+        """Drop the Mitsuba scenes."""
+        self._static = self._with_ball = self._params = None
+
+
+def set_threads(n: int) -> None:
+    """Use ``n`` CPU threads for Dr.Jit's kernels in this process.
+
+    Parameters
+    ----------
+    n : int
+        Thread count (>= 1).
+    """
+    load()
+    import drjit as dr
+
+    dr.set_thread_count(int(n))
