@@ -42,7 +42,8 @@ def register(sub) -> None:
                    help="pyrender: rasterised, fast; mitsuba: path traced, a physically based "
                         "steel ball (the extra rollfric[mitsuba], docs/how/renderers.md)")
     p.add_argument("--spp", type=int, default=None,
-                   help="mitsuba: samples per pixel around the ball, a power of 4 (default 64)")
+                   help="mitsuba: samples per pixel around the ball, a power of 4 "
+                        "(default 256)")
     p.add_argument("--frames", type=int, default=None, help="render only the first N frames")
     p.add_argument("--workers", type=int, default=None,
                    help="render processes (default: CPUs, at most 2)")

@@ -110,7 +110,7 @@ class SceneConfig:
     # the backend: "pyrender" (rasterised, fast, the default) or "mitsuba" (path traced, a
     # physically based steel ball: synth.mitsuba_scene, the extra rollfric[mitsuba])
     renderer: str = "pyrender"
-    mitsuba_spp: int = 64  # samples per pixel in the windows around the ball (a power of 4)
+    mitsuba_spp: int = 256  # samples per pixel in the windows around the ball (a power of 4)
     mitsuba_background_spp: int = 256  # samples per pixel of the ball-free frame
     mitsuba_max_depth: int = 4  # path vertices (3: the ball reflects the lit backdrop)
     mitsuba_margin: float = 0.15  # window margin around the ball's silhouette, ball radii

@@ -55,6 +55,7 @@ UNIT = 4080  # integer levels of display value 1.0 per channel (16 x 255)
 WINDOW_STEP = 16  # px: window sizes are rounded up to multiples of this
 PASS_SAMPLES = 1 << 22  # samples per Mitsuba call (memory bound of one wavefront)
 VARIANT = "llvm_ad_rgb"
+AMBIENT_WEIGHT = 0.05  # next-event estimation's weight of the ambient light (lamps: 1)
 
 _STATE: dict = {}
 
@@ -272,7 +273,9 @@ class MitsubaRenderer:
         scene = {"type": "scene",
                  "integrator": {"type": "synth_rim_path",
                                 "max_depth": int(config.mitsuba_max_depth)},
-                 "ambient": {"type": "constant",
+                 # next-event estimation picks an emitter by weight: the dim ambient light
+                 # seldom (its light reaches the surfaces by BSDF sampling as well)
+                 "ambient": {"type": "constant", "sampling_weight": AMBIENT_WEIGHT,
                              "radiance": {"type": "rgb", "value": [light.ambient] * 3}}}
         parts = _trough_meshes(cylinder_radius, config.trough_wall, config.trough_length,
                                config.trough_opening, section=self.section)

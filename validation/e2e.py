@@ -45,6 +45,11 @@ METRICS = frozenset((
     "n_found", "center_rms_px", "center_max_px", "center_p95_px", "center_median_px",
     "center_bias_x_px", "center_bias_y_px", "center_std_x_px", "center_std_y_px",
     "center_within_1px", "theta_rms_rad", "theta_max_rad", "theta_bias_rad",
+    # the centre error along the line from the trough axis (radial, + outward) and across it
+    # (tangential, + towards larger theta): a rim that looks different above and below moves
+    # the centre radially, which atan2 angles ignore
+    "center_radial_bias_px", "center_radial_rms_px", "center_tangential_bias_px",
+    "center_tangential_rms_px", "renderer",
     "model_vs_truth_rms_rad", "ball_radius_px", "amplitude0_deg", "n_frames",
     "frame_width_px", "frame_height_px", "render_fps",
     # mode_metrics
@@ -320,7 +325,7 @@ def compute_metrics(case: Case, traj, truth, track, fit, fit_truth, setup) -> di
         # rollfric's own verdict (rollfric.quality): "ok" or "suspect", and the reasons' codes
         "fit_quality": getattr(fit, "quality", "ok"),
         "fit_quality_reasons": ",".join(r.code for r in getattr(fit, "quality_reasons", ())),
-        "locator": case.locator,
+        "locator": case.locator, "renderer": case.scene.renderer,
         "engine": case.scenario.engine,
         "surface": case.scenario.surface,
     })
@@ -375,10 +380,22 @@ def compute_metrics(case: Case, traj, truth, track, fit, fit_truth, setup) -> di
             "center_std_y_px": float(np.std(ey[good])),
             "center_within_1px": float(np.mean(eg <= 1.0)),
         })
+        ax, ay = np.asarray(tt["cx_px"], float), np.asarray(tt["cy_px"], float)
+        rx, ry = tx - ax, ty - ay
+        rn = np.hypot(rx, ry)
+        rx, ry = rx / rn, ry / rn  # unit vector from the trough axis to the ball
+        er = (ex * rx + ey * ry)[good]
+        et_ = (ex * ry - ey * rx)[good]  # (ry, -rx): the direction theta grows in the image
+        m.update({"center_radial_bias_px": float(np.mean(er)),
+                  "center_radial_rms_px": float(np.sqrt(np.mean(er ** 2))),
+                  "center_tangential_bias_px": float(np.mean(et_)),
+                  "center_tangential_rms_px": float(np.sqrt(np.mean(et_ ** 2)))})
     else:
         for k in ("center_rms_px", "center_max_px", "center_p95_px", "center_median_px",
                   "center_bias_x_px", "center_bias_y_px", "center_std_x_px",
-                  "center_std_y_px", "center_within_1px"):
+                  "center_std_y_px", "center_within_1px", "center_radial_bias_px",
+                  "center_radial_rms_px", "center_tangential_bias_px",
+                  "center_tangential_rms_px"):
             m[k] = math.nan
     th_true = np.asarray(tt["theta_rad"], float)
     et = fth - th_true
