@@ -120,7 +120,7 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     import sim
     import synth
-    from synth.pipeline import _versions
+    from synth.pipeline import BATCH, _versions
     from synth.scene import SceneRenderer
 
     scene = scene or synth.SceneConfig()
@@ -181,6 +181,18 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
                            frames=min(n_seq, len(traj)))
         t_seq = time.perf_counter() - t0
         n_done = min(n_seq, len(traj))
+        # a short recording on as many processes: the start-up (spawning, imports, EGL,
+        # background, first frame by pyrender's path) is what the two have in common
+        steady, startup = t_seq / n_done, float("nan")
+        if n_done >= 4 * BATCH:
+            n_short = min(2 * BATCH * workers, n_done // 2)
+            t0 = time.perf_counter()
+            synth.render(traj, tmp / "short.zarr", scene=scene,
+                         sensor=synth.noise_preset("realistic"), seed=0, workers=workers,
+                         frames=n_short)
+            t_short = time.perf_counter() - t0
+            steady = max((t_seq - t_short) / (n_done - n_short), 1e-9)
+            startup = t_short - n_short * steady
         size = _dir_size(out)
         disk = _disk_usage(out)
         rec = synth.open_recording(out)
@@ -235,6 +247,9 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "sequence_ms_per_frame": round(1e3 * t_seq / n_done, 2),
         "speedup_sequence": round(full_ms / (1e3 * t_seq / n_done), 1),
         "est_4000_frames_s": round(4000 * t_seq / n_done, 1),
+        "sequence_startup_s": round(startup, 2),
+        "sequence_steady_ms_per_frame": round(1e3 * steady, 2),
+        "speedup_sequence_steady": round(full_ms / (1e3 * steady), 1),
         "store_mb": round(size / 1e6, 2),
         "est_store_4000_mb": round(size / 1e6 * 4000 / n_done, 1),
         "store_disk_mb": round(disk / 1e6, 2),
