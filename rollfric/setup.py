@@ -28,6 +28,19 @@ The camera's lens calibration as ``cv2.calibrateCamera`` returns it (:mod:`rollf
     distortion = [-0.18, 0.0, 0.0, 0.0, 0.0]                                # k1 k2 p1 p2 k3
 
 With a calibration, ``center_px`` and ``pixel_size_mm`` refer to the undistorted image.
+
+A pinhole camera's depth (:mod:`rollfric.perspective`): the trough's contour is seen on an edge
+of the bore that is not in the ball's plane, and a camera whose optical axis is off the trough's
+axis sees it about another centre. With the working distance the trough centre found from the
+contour is moved to the ball's plane along the line of sight::
+
+    [camera]
+    working_distance_mm = 500.0   # pinhole (entrance pupil) to the ball's plane
+    [cylinder]
+    contour_depth_mm = -15.0      # the edge the contour is seen on: in front of (+) or
+                                  # behind (-) the ball's plane (default 0)
+
+The optical axis meets the image at the calibration's (cx, cy), else at the frame's centre.
 """
 
 from __future__ import annotations
@@ -133,6 +146,9 @@ class Setup:
     # ((field name, u), ...); a field not listed is exact
     uncertainty: tuple = ()
     calibration: Calibration | None = None  # the lens (rollfric.lens); None: no distortion
+    working_distance: float | None = None  # m, pinhole to the ball's plane; None: not given
+    contour_depth: float | None = None  # m, the contour's edge in front of (+) the ball's
+    # plane; None: not stated (from the contour's radius when working_distance is given)
 
     def __post_init__(self) -> None:
         for name in ("cylinder_radius", "ball_diameter", "ball_mass", "fps", "pixel_size",
@@ -154,6 +170,16 @@ class Setup:
         if self.calibration is not None and not isinstance(self.calibration, Calibration):
             raise SetupError(f"calibration must be a rollfric.lens.Calibration, got "
                              f"{self.calibration!r}")
+        wd = self.working_distance
+        if wd is not None and (isinstance(wd, bool) or not isinstance(wd, (int, float))
+                               or not math.isfinite(wd) or not 1e-3 <= wd <= 1e3):
+            raise SetupError(f"working_distance must be 1 mm .. 1 km, got {wd!r}")
+        zc = self.contour_depth
+        if zc is not None and (isinstance(zc, bool) or not isinstance(zc, (int, float))
+                               or not math.isfinite(zc)
+                               or (wd is not None and not abs(zc) < 0.5 * wd)):
+            raise SetupError(f"contour_depth must be finite and nearer than half the working "
+                             f"distance, got {zc!r}")
 
     def u(self, name: str):
         """Standard uncertainty of one field.
@@ -206,6 +232,10 @@ class Setup:
         }
         if self.calibration is not None:
             out["camera"].update(self.calibration.to_toml_dict())
+        if self.working_distance is not None:
+            out["camera"]["working_distance_mm"] = self.working_distance * 1e3
+        if self.contour_depth is not None:
+            cyl["contour_depth_mm"] = self.contour_depth * 1e3
         if self.gravity != STANDARD_GRAVITY:
             out["environment"] = {"gravity_m_s2": self.gravity}
         for name, u in self.uncertainty:
@@ -256,9 +286,10 @@ def _check_uncertainty(setup: Setup) -> tuple:
 
 # What a setup file may hold: section -> {key: required?}
 _SCHEMA = {
-    "cylinder": {"radius_mm": True, "center_px": False},
+    "cylinder": {"radius_mm": True, "center_px": False, "contour_depth_mm": False},
     "ball": {"diameter_mm": True, "mass_g": True},
-    "camera": {"fps": True, "pixel_size_mm": True, "matrix": False, "distortion": False},
+    "camera": {"fps": True, "pixel_size_mm": True, "matrix": False, "distortion": False,
+               "working_distance_mm": False},
     "environment": {"gravity_m_s2": False},
 }
 _REQUIRED_SECTIONS = ("cylinder", "ball", "camera")
@@ -375,6 +406,16 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
             raise SetupError(f"{where} (a standard uncertainty) must be finite and >= 0, "
                              f"got {value!r}")
         uncertainty.append((name, tuple(vals) if name == "center_px" else vals[0] / scale))
+    wd = (number("camera", "working_distance_mm") * 1e-3
+          if "working_distance_mm" in data["camera"] else None)
+    zc = data["cylinder"].get("contour_depth_mm")
+    if zc is not None and (isinstance(zc, bool) or not isinstance(zc, (int, float))
+                           or not math.isfinite(zc)):
+        raise SetupError(f"{source}: cylinder.contour_depth_mm must be a number (mm), "
+                         f"got {zc!r}")
+    if wd is not None and zc is not None and not abs(zc) * 1e-3 < 0.5 * wd:
+        raise SetupError(f"{source}: cylinder.contour_depth_mm ({zc:g}) must be nearer the "
+                         f"ball's plane than half of camera.working_distance_mm")
     try:
         calibration = calibration_from_dict(data["camera"], source)
     except CalibrationError as exc:
@@ -389,6 +430,8 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
         center_px=None if center is None else (float(center[0]), float(center[1])),
         gravity=gravity,
         uncertainty=tuple(uncertainty),
+        working_distance=wd,
+        contour_depth=None if zc is None else float(zc) * 1e-3,
     )
 
 

@@ -26,6 +26,7 @@ from rollfric import io, locate, plausibility, quality
 from rollfric.background import median_background
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
+from rollfric.perspective import ball_plane_center, contour_depth_from_radius
 from rollfric.registry import LOCATORS
 from rollfric.setup import Setup, SetupError, setup_from_dict
 
@@ -961,6 +962,19 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             f"contour in the background ({contour.n_points} points over "
             f"{contour.arc_deg:.0f} deg, radius {contour.radius:.1f} px, u = "
             f"({contour.center_u[0]:.2g}, {contour.center_u[1]:.2g}) px)")
+        if setup.working_distance is not None:
+            # the contour's edge is not in the ball's plane (rollfric.perspective)
+            D = setup.working_distance
+            z, how = setup.contour_depth, "stated"
+            if z is None:
+                z, how = contour_depth_from_radius(contour.radius, R_px, D), \
+                    "from the contour's radius"
+            h, w = source.shape[1:]
+            pp = (lens.K[0, 2], lens.K[1, 2]) if lens is not None else \
+                ((w - 1) / 2.0, (h - 1) / 2.0)
+            center = ball_plane_center(center, pp, D, z)
+            center_desc += (f", moved to the ball's plane (edge {z * 1e3:+.1f} mm, {how}; "
+                            f"working distance {D * 1e3:g} mm)")
         logger.info(f"cylinder centre from the background contour: ({center[0]:.2f}, "
                     f"{center[1]:.2f}) px")
         check_setup_fits(setup.replace(center_px=center), source.shape)

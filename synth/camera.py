@@ -11,10 +11,28 @@ Pixels: x right, y down, origin at the centre of the top-left pixel (OpenCV).
   u = cx + f x / (D - z), v = cy - f y / (D - z) with f = D / s (pixels), so that one pixel is
   exactly s at the ball plane.
 
+A pinhole need not sit on the cylinder axis: ``principal_px`` (perspective only; default
+``center_px``) is where its optical axis, still parallel to the cylinder axis, meets the image.
+The pinhole then sits at (X0, Y0) = ((pu - cx) s, (cy - pv) s) across the axis and
+u = pu + f (x - X0) / (D - z), v = pv - f (y - Y0) / (D - z): the axis still projects to
+``center_px`` in the ball plane, but at depth z to pp + (center_px - pp) D / (D - z), so the
+trough's front and back edges (z = +-L/2) are seen about centres displaced by
+(center_px - pp) (+-L/2) / D from the ball plane's axis (4 px for 131.5 px at L/2 = 15 mm,
+D = 0.5 m).
+
 The camera may be rolled about its optical axis by ``roll`` (rad): world points are turned by
 ``roll`` about the cylinder axis before they are projected, so the trough's bottom (the
 direction of gravity) appears at theta = +roll in rollfric's convention (right of the image
 vertical through the axis), a camera turned clockwise as seen from behind it.
+
+The camera may also be tilted against the cylinder axis, swung about the axis point in the
+ball plane (it stays aimed at it): ``yaw`` (rad) swings it towards +x (image right, about the
+world's y axis), ``pitch`` towards +y (up, about x). World points are turned by
+Rz(roll) Ry(yaw) Rx(pitch) (the camera's view of them); the ball plane's axis point still
+projects to ``center_px``, but the trough's front face (z = +L/2, nearer the camera) shifts by
+(L/2) sin(angle) / s left (yaw) or down (pitch) and its back face the other way: 1.95 px a
+degree for the thesis's 15 mm half-length at 0.1343 mm/px; circles become ellipses (axes
+ratio cos(angle)).
 
 A lens (``lens_distortion`` = OpenCV's [k1, k2, p1, p2, k3] with ``lens_matrix``, default
 fx = fy = focal_px at the frame centre) bends the ideal image (:mod:`synth.lens`); the
@@ -46,8 +64,12 @@ class CameraModel:
     znear: float = 0.05  # m, clip planes as distances from the camera
     zfar: float = 2.0
     roll: float = 0.0  # rad about the optical axis: the trough bottom appears at theta = +roll
+    yaw: float = 0.0  # rad: the camera swung towards +x about the ball plane's axis point
+    pitch: float = 0.0  # rad: swung towards +y
     lens_matrix: tuple | None = None  # OpenCV 3x3 camera matrix (px) of the lens model
     lens_distortion: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)  # OpenCV k1, k2, p1, p2, k3
+    principal_px: tuple | None = None  # perspective: the optical axis in the image (px);
+    # None: center_px (the pinhole on the cylinder axis)
 
     def __post_init__(self) -> None:
         if self.projection not in ("orthographic", "perspective"):
@@ -68,8 +90,21 @@ class CameraModel:
             raise InputError(f"camera center_px must be two finite numbers, got "
                              f"{self.center_px!r}")
         object.__setattr__(self, "center_px", c)
+        if self.principal_px is not None:
+            pp = tuple(float(v) for v in self.principal_px)
+            if len(pp) != 2 or not all(math.isfinite(v) for v in pp):
+                raise InputError(f"camera principal_px must be two finite numbers, got "
+                                 f"{self.principal_px!r}")
+            if self.projection != "perspective":
+                raise InputError("camera principal_px is a pinhole's: it needs projection = "
+                                 "'perspective'")
+            object.__setattr__(self, "principal_px", pp)
         if not math.isfinite(self.roll) or abs(self.roll) > math.pi / 4:
             raise InputError(f"camera roll must be within +-45 deg, got {self.roll!r} rad")
+        for name in ("yaw", "pitch"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v) or abs(v) > math.pi / 12:
+                raise InputError(f"camera {name} must be within +-15 deg, got {v!r} rad")
         d = tuple(float(v) for v in self.lens_distortion)
         if len(d) != 5 or not all(math.isfinite(v) for v in d):
             raise InputError(f"camera lens_distortion must be [k1, k2, p1, p2, k3], got "
@@ -106,15 +141,54 @@ class CameraModel:
             lens_distortion=(0.0,) * 5,
             center_px=(self.center_px[0] - win.x0, self.center_px[1] - win.y0))
 
+    @property
+    def rotation(self) -> np.ndarray:
+        """World -> camera axes (3 x 3): Rz(roll) Ry(yaw) Rx(pitch)."""
+        cr, sr = math.cos(self.roll), math.sin(self.roll)
+        cy, sy = math.cos(self.yaw), math.sin(self.yaw)
+        cp, sp = math.cos(self.pitch), math.sin(self.pitch)
+        rz = np.array([[cr, -sr, 0.0], [sr, cr, 0.0], [0.0, 0.0, 1.0]])
+        # the camera swung towards +x: its right axis is (cos, 0, -sin) in the world, its
+        # view axis (towards it) (sin, 0, cos); towards +y likewise in y
+        ry = np.array([[cy, 0.0, -sy], [0.0, 1.0, 0.0], [sy, 0.0, cy]])
+        rx = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
+        return rz @ ry @ rx
+
+    @property
+    def tilted(self) -> bool:
+        """True when the optical axis is not along the cylinder axis (yaw or pitch)."""
+        return bool(self.yaw or self.pitch)
+
     def _turned(self, p: np.ndarray) -> np.ndarray:
-        """World points with x, y turned by the camera's roll (what the camera sees)."""
-        if not self.roll:
+        """World points in the camera's axes (turned by roll, yaw, pitch: what it sees)."""
+        if not self.roll and not self.tilted:
             return p
-        c, s = math.cos(self.roll), math.sin(self.roll)
-        out = p.copy()
-        out[..., 0] = c * p[..., 0] - s * p[..., 1]
-        out[..., 1] = s * p[..., 0] + c * p[..., 1]
-        return out
+        if not self.tilted:  # the roll alone: exactly as before (x, y only)
+            c, s = math.cos(self.roll), math.sin(self.roll)
+            out = p.copy()
+            out[..., 0] = c * p[..., 0] - s * p[..., 1]
+            out[..., 1] = s * p[..., 0] + c * p[..., 1]
+            return out
+        return p @ self.rotation.T
+
+    @property
+    def principal(self) -> tuple[float, float]:
+        """Where the optical axis meets the image (px): ``principal_px``, else ``center_px``."""
+        return self.center_px if self.principal_px is None else self.principal_px
+
+    @property
+    def pinhole_offset(self) -> tuple[float, float]:
+        """(X0, Y0), m: the pinhole across the cylinder axis, in the camera's (rolled) x right,
+        y up; (0, 0) on the axis and for the orthographic camera."""
+        if self.principal_px is None:
+            return 0.0, 0.0
+        (pu, pv), (cx, cy) = self.principal_px, self.center_px
+        return (pu - cx) * self.pixel_size, (cy - pv) * self.pixel_size
+
+    @property
+    def position(self) -> np.ndarray:
+        """The camera's (pinhole's) position in the world frame (m)."""
+        return self.pose()[:3, 3].copy()
 
     @property
     def focal_px(self) -> float:
@@ -129,11 +203,14 @@ class CameraModel:
     def pose(self) -> np.ndarray:
         """4x4 camera-to-world pose (OpenGL camera: looks along its -z)."""
         pose = np.eye(4)
-        pose[2, 3] = self.camera_z
-        if self.roll:
+        if self.tilted:
+            pose[:3, :3] = self.rotation.T  # camera-to-world
+        elif self.roll:
             # camera-to-world: the inverse of the roll that turns world points for the camera
             c, s = math.cos(self.roll), math.sin(self.roll)
             pose[:2, :2] = [[c, s], [-s, c]]
+        x0, y0 = self.pinhole_offset
+        pose[:3, 3] = pose[:3, :3] @ np.array([x0, y0, self.camera_z])
         return pose
 
     # -- exact projections -------------------------------------------------------------------
@@ -166,8 +243,9 @@ class CameraModel:
             depth = self.camera_z - p[..., 2]
             if np.any(depth <= 0):
                 raise InputError("point behind the perspective camera")
-            u = cx + self.focal_px * p[..., 0] / depth
-            v = cy - self.focal_px * p[..., 1] / depth
+            (pu, pv), (x0, y0) = self.principal, self.pinhole_offset
+            u = pu + self.focal_px * (p[..., 0] - x0) / depth
+            v = pv - self.focal_px * (p[..., 1] - y0) / depth
         return np.stack([u, v], axis=-1)
 
     def sphere_silhouette(self, centres, radius: float):
@@ -201,8 +279,9 @@ class CameraModel:
             return self.project(c), np.full(len(c), radius / self.pixel_size)
         c = self._turned(c)
         # camera coordinates with y down, z = depth (standard pinhole)
-        X = c[:, 0]
-        Y = -c[:, 1]
+        x0, y0 = self.pinhole_offset
+        X = c[:, 0] - x0
+        Y = -(c[:, 1] - y0)
         Z = self.camera_z - c[:, 2]
         k = X * X + Y * Y + Z * Z - radius * radius
         if np.any(k <= 0):
@@ -225,7 +304,7 @@ class CameraModel:
         l2 = 0.5 * tr - disc
         semi_prod = np.sqrt((g / l1) * (g / l2))  # a * b in normalised units
         f = self.focal_px
-        cx, cy = self.center_px
+        cx, cy = self.principal
         uv = np.stack([cx + f * a0, cy + f * b0], axis=-1)
         return uv, f * np.sqrt(semi_prod)
 
@@ -250,7 +329,7 @@ class CameraModel:
         numpy.ndarray
             The 4x4 projection matrix.
         """
-        cx, cy = self.center_px
+        cx, cy = self.center_px if self.projection == "orthographic" else self.principal
         a = 2.0 * (cx - x0 + 0.5) / w - 1.0
         b = 1.0 - 2.0 * (cy - y0 + 0.5) / h
         n, fa = self.znear, self.zfar
@@ -284,6 +363,10 @@ class CameraModel:
         """
         d = dataclasses.asdict(self) | {"center_px": list(self.center_px),
                                         "lens_distortion": list(self.lens_distortion)}
+        if self.principal_px is None:
+            d.pop("principal_px")
+        else:
+            d["principal_px"] = list(self.principal_px)
         if self.lens_matrix is not None:
             d["lens_matrix"] = [list(r) for r in self.lens_matrix]
         return d

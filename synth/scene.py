@@ -308,7 +308,9 @@ class SceneRenderer:
         pose = np.eye(4)
         pose[:3, 3] = c
         if self.camera.projection == "perspective":
-            pose[:3, :3] = _rotation_z_to(np.array([0.0, 0.0, self.camera.camera_z]) - c)
+            pose[:3, :3] = _rotation_z_to(self.camera.position - c)
+        elif self.camera.tilted:  # the silhouette ring across the tilted view direction
+            pose[:3, :3] = _rotation_z_to(self.camera.rotation.T @ np.array([0.0, 0.0, 1.0]))
         return pose
 
     def set_ball(self, pose: np.ndarray | None) -> None:
@@ -666,7 +668,7 @@ class SceneRenderer:
                 hits = P + t_hit[:, None] * dirs
                 # an orthographic camera sees the bore edge-on (no pixels); a pinhole sees the
                 # part of the bore behind the front edge
-                bore_seen = on_bore & (cam.projection == "perspective")
+                bore_seen = on_bore & (cam.projection == "perspective" or cam.tilted)
                 keep = bore_seen | (~on_bore & ~self._behind_trough(hits))
                 pts.append(hits[keep])
                 if keep.any():
@@ -699,9 +701,16 @@ class SceneRenderer:
         rho = np.hypot(q[:, 0], q[:, 1])
         if cam.projection == "orthographic":
             lo, hi = R / cam.pixel_size, (R + wall) / cam.pixel_size
+            if cam.tilted:  # the faces shift by (L/2) sin(tilt): widen the margins by it
+                shift = half * math.sin(math.hypot(cam.yaw, cam.pitch)) / cam.pixel_size
+                lo, hi = lo + shift, hi - shift
         else:
             f, D = cam.focal_px, cam.camera_z
             lo, hi = R * f / (D - half), (R + wall) * f / (D + half)
+            # a pinhole off the axis sees the trough's edges about other centres: widen
+            # the margins by how far they move (synth.camera)
+            shift = math.hypot(*cam.pinhole_offset) / cam.pixel_size * half / (D - half)
+            lo, hi = lo + shift, hi - shift
         # angle from the bottom (image y down; the bottom appears at +roll)
         phi = np.abs(np.arctan2(q[:, 0], q[:, 1]) - cam.roll)
         # 3 px and 1 degree inside the wall's silhouette, to stay clear of its edges

@@ -29,6 +29,10 @@ case of ``rollfric validate``)::
     [render.camera]            # width, height, center_px, projection, working_distance
     width = 1280
     roll_deg = 0.5             # camera rolled: the trough bottom appears at theta = +0.5 deg
+    yaw_deg = 0.0              # optical axis turned towards +x / +y about the ball plane's
+    pitch_deg = 0.0            #   axis point (the trough's faces shift by 15 mm x sin)
+    principal_px = [639.5, 511.5]   # perspective: the optical axis in the image (default
+                               #   center_px: the pinhole on the trough's axis)
     lens_distortion = [-0.18, 0.0, 0.0, 0.0, 0.0]   # OpenCV k1 k2 p1 p2 k3 (synth.lens)
     lens_matrix = [[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]]
 
@@ -77,6 +81,9 @@ RENDER_KEYS = {
     "supersample": int, "shadows": bool, "seed": int, "sensor": dict, "camera": dict,
     "scene": dict, "lamps": list, "renderer": str,
 }
+# render.camera angles in lab units: roll_deg (the trough bottom appears at +roll_deg), yaw_deg
+# and pitch_deg (the optical axis turned towards +x / +y about the ball plane's axis point)
+ANGLE_KEYS = {"roll_deg": "roll", "yaw_deg": "yaw", "pitch_deg": "pitch"}
 MEASURE_KEYS = {"locator": str, "fit": str, "offset": (bool, str), "oracle": bool,
                 "budget": bool}
 LOCATORS = ("subpixel", "thesis-large", "thesis-small")
@@ -449,13 +456,14 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
         cam = CameraModel(pixel_size=scenario.pixel_size)
         if "camera.pixel_size_mm" in drawn:
             cam_over.pop("pixel_size", None)  # the drawn as-built pixel size
-        _known({k: v for k, v in cam_over.items() if k != "roll_deg"}, cam,
+        _known({k: v for k, v in cam_over.items() if k not in ANGLE_KEYS}, cam,
                f"{source}: render.camera")
         if "center_px" in cam_over:
             cam_over["center_px"] = tuple(cam_over["center_px"])
-        if "roll_deg" in cam_over:  # lab units: the trough bottom appears at +roll_deg
-            cam_over["roll"] = math.radians(_finite(cam_over.pop("roll_deg"),
-                                                    f"{source}: render.camera.roll_deg"))
+        for key, field in ANGLE_KEYS.items():  # lab units (deg) -> the camera's radians
+            if key in cam_over:
+                cam_over[field] = math.radians(_finite(cam_over.pop(key),
+                                                       f"{source}: render.camera.{key}"))
         cam = dataclasses.replace(cam, **cam_over)
         scene_over = dict(r.get("scene", {}))
         scene = sc.SceneConfig(camera=cam, lighting=lighting)

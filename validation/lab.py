@@ -56,6 +56,9 @@ NOMINAL_KEYS = {
 }
 TOP_KEYS = ("draw", "seed", "center_error_px", "center_px_u", "lens_calibrated")
 CALIBRATION_KEYS = ("matrix", "distortion")
+# what the lab states about its camera's depth (rollfric.perspective), copied into its setup
+# file as given: no as-built counterpart in the scenario (the camera's are render.camera keys)
+STATED_KEYS = {"camera": ("working_distance_mm",), "cylinder": ("contour_depth_mm",)}
 
 
 class LabError(InputError):
@@ -80,6 +83,7 @@ class Lab:
     center_u: tuple[float, float] | None = None  # the lab's stated u of its centre (px)
     calibration: dict | None = None  # the lab's [camera] matrix and distortion
     lens_calibrated: bool = False  # the lab's calibration is the rendering lens
+    stated: dict = dataclasses.field(default_factory=dict)  # "section.key" -> STATED_KEYS value
 
     def setup_dict(self, center_px: tuple[float, float] | None = None, camera=None) -> dict:
         """The lab's setup file (lab-file form) with the nominal values, their ``_u`` keys and,
@@ -92,6 +96,9 @@ class Lab:
             out.setdefault(sec, {})[key] = value
             if dotted in self.tolerance and setup_reads_tolerances():
                 out[sec][f"{key}_u"] = self.tolerance[dotted]
+        for dotted, value in self.stated.items():
+            sec, key = dotted.split(".")
+            out.setdefault(sec, {})[key] = value
         cal = self.calibration
         if cal is None and self.lens_calibrated and camera is not None \
                 and camera.lens is not None:
@@ -191,13 +198,13 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
         elif ce is None:
             raise LabError(f"{source}: lab.center_px_u needs lab.center_error_px (the lab "
                            "measured the centre) or lab.draw = true (its error drawn)")
-    nominal, tol, asbuilt, overrides = {}, {}, {}, {}
+    nominal, tol, asbuilt, overrides, stated = {}, {}, {}, {}, {}
     for sec, keys in NOMINAL_KEYS.items():
         t = table.get(sec, {})
         if not isinstance(t, dict):
             raise LabError(f"{source}: lab.{sec} must be a table")
         known = [*keys, *(f"{k}_u" for k in keys),
-                 *(CALIBRATION_KEYS if sec == "camera" else ())]
+                 *(CALIBRATION_KEYS if sec == "camera" else ()), *STATED_KEYS.get(sec, ())]
         for k in t:
             if k not in known:
                 raise LabError(f"{source}: unknown key lab.{sec}.{k} (known: "
@@ -216,6 +223,13 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
                                    f"{tol[dotted]:g} is not positive")
                 overrides[dotted] = truth
             asbuilt[dotted] = truth
+        for k in STATED_KEYS.get(sec, ()):
+            if k in t:  # a depth may lie in front of or behind the ball's plane
+                v = t[k] if k == "contour_depth_mm" else _number(t[k], f"{source}: lab.{sec}.{k}")
+                if isinstance(v, bool) or not isinstance(v, (int, float)) \
+                        or not math.isfinite(v):
+                    raise LabError(f"{source}: lab.{sec}.{k} must be a finite number, got {v!r}")
+                stated[f"{sec}.{k}"] = float(v)
     lens_cal = table.get("lens_calibrated", False)
     if not isinstance(lens_cal, bool):
         raise LabError(f"{source}: lab.lens_calibrated must be true or false, got {lens_cal!r}")
@@ -226,7 +240,7 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
                        "both give the lab's calibration: keep one")
     return Lab(nominal=nominal, tolerance=tol, asbuilt=asbuilt, center_error_px=ce,
                draw=draw, seed=seed, center_u=cu, calibration=calibration,
-               lens_calibrated=lens_cal), overrides
+               lens_calibrated=lens_cal, stated=stated), overrides
 
 
 def apply_asbuilt(scenario_dict: dict, overrides: dict) -> dict:
