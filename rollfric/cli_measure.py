@@ -193,6 +193,10 @@ def _run(args) -> int:
                  "n_refitted": info.n_refitted,
                  # frames left out of the fit, by track.csv flag
                  "frames_flagged": dict(info.flags),
+                 "frames_dropped": [{"after_frame": int(k), "frames": int(m)}
+                                    for k, m in info.frames_dropped],
+                 "timing_irregular": [{"frame": int(k), "step_ratio": float(r)}
+                                      for k, r in info.timing_irregular],
                  "warnings": list(info.warnings),
                  "median_sigma_px": float(track["sigma_px"].median())
                  if track["sigma_px"].notna().any() else None,

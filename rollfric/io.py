@@ -240,7 +240,8 @@ class VideoSource(_Source):
 
 
 class ZarrArraySource(_Source):
-    """A Zarr store with an array ``frames`` (T, H, W) uint8/uint16 (optional ``background``)."""
+    """A Zarr store with an array ``frames`` (T, H, W) uint8/uint16 (optional ``background``
+    (H, W) and ``timestamps`` (T,): each frame's time in seconds)."""
 
     def __init__(self, group, path: Path) -> None:
         arr = group["frames"]
@@ -257,6 +258,9 @@ class ZarrArraySource(_Source):
         self.fps = float(fps) if isinstance(fps, (int, float)) and fps > 0 else None
         if "background" in group:
             self.background = np.asarray(group["background"][...])
+        if "timestamps" in group:  # the camera's time of each frame (s)
+            ts = np.asarray(group["timestamps"][...], dtype=float).reshape(-1)
+            self.timestamps = ts - ts[0] if ts.size else ts
 
     def __getitem__(self, i: int) -> np.ndarray:
         i = self._index(i)
@@ -321,6 +325,8 @@ class _WrappedSource(_Source):
                                  f"{len(src)} frames")
         super().__init__(name, shape[0], shape[1:], src.dtype)
         self.fps = getattr(src, "fps", None)
+        stamps = getattr(src, "timestamps", None)
+        self.timestamps = None if stamps is None else np.asarray(stamps, dtype=float)
         bg = getattr(src, "background", None)
         self.background = None if bg is None else np.asarray(bg)
         attrs = dict(group.attrs)

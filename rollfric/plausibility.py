@@ -93,18 +93,20 @@ def _side_median(v: np.ndarray, ok: np.ndarray, k: int) -> np.ndarray:
     return out
 
 
-def _predict(i: int, x: np.ndarray, y: np.ndarray, ok: np.ndarray) -> tuple[float, float, float]:
+def _predict(i: int, x: np.ndarray, y: np.ndarray, ok: np.ndarray,
+             pos: np.ndarray | None = None) -> tuple[float, float, float]:
     """(x, y, model error) at frame i from up to HALF_WINDOW ok frames on each side (i left
-    out): a quadratic in the frame number, and how far a cubic's prediction differs from it
-    (the polynomial's own error where the neighbours are far or one-sided: near a gap, at a
-    low frame rate)."""
+    out): a quadratic in the frame number (or in ``pos``, the frames' times in periods: a
+    recording with dropped frames or its own timestamps), and how far a cubic's prediction
+    differs from it (the polynomial's own error where the neighbours are far or one-sided:
+    near a gap, at a low frame rate)."""
     n = x.size
     left = [j for j in range(i - 1, max(-1, i - MAX_GAP - 1), -1) if ok[j]][:HALF_WINDOW]
     right = [j for j in range(i + 1, min(n, i + MAX_GAP + 1)) if ok[j]][:HALF_WINDOW]
     nb = np.array(sorted(left + right))
     if nb.size < DEGREE + 2:
         return math.nan, math.nan, math.nan
-    u = (nb - i).astype(float)
+    u = (nb - i).astype(float) if pos is None else pos[nb] - pos[i]
     px = np.polynomial.polynomial.polyfit(u, x[nb], DEGREE)
     py = np.polynomial.polynomial.polyfit(u, y[nb], DEGREE)
     model = 0.0
@@ -115,28 +117,31 @@ def _predict(i: int, x: np.ndarray, y: np.ndarray, ok: np.ndarray) -> tuple[floa
     return float(px[0]), float(py[0]), model
 
 
-def innovations(x, y, ok) -> tuple[np.ndarray, np.ndarray]:
+def innovations(x, y, ok, pos=None) -> tuple[np.ndarray, np.ndarray]:
     """(|centre - prediction|, the prediction's model error) in px for each ok frame, the
     prediction from the neighbours on both sides (one-sided at the ends of a run; NaN where
-    too few neighbours)."""
+    too few neighbours); ``pos``: the frames' times in periods (None: the frame numbers)."""
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
+    pos = None if pos is None else np.asarray(pos, dtype=float)
     e = np.full(x.size, np.nan)
     m = np.full(x.size, np.nan)
     for i in np.nonzero(ok)[0]:
-        px, py, m[i] = _predict(i, x, y, ok)
+        px, py, m[i] = _predict(i, x, y, ok, pos)
         e[i] = math.hypot(x[i] - px, y[i] - py)
     return e, m
 
 
 def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlier_frac=None,
                 gain=None, r_ref: float | None = None,
-                r_rel_sigma: float | None = None) -> np.ndarray:
+                r_rel_sigma: float | None = None, pos=None) -> np.ndarray:
     """The flag of every frame ('' for a good one) from the located centres and the locator's
     per-frame figures (any may be None: that check is skipped). ``found``: frames the tracker
     located; ``same_pixels``: frames whose ball pixels equal the previous frame's; ``r_ref``:
     the calibrated apparent radius (px) and ``r_rel_sigma`` its relative frame-to-frame
-    scatter. Frames already not found keep an empty flag here (the tracker
+    scatter; ``pos``: each frame's time in camera periods (None: its number; see
+    :mod:`rollfric.timing`: after a dropped frame the later ones are a period later). Frames
+    already not found keep an empty flag here (the tracker
     names them)."""
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -188,7 +193,8 @@ def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlie
     # jumps: the worst first, its neighbours' predictions again without it, until none is left
     s_loc = np.asarray(sigma, dtype=float) if sigma is not None else np.zeros(n)
     s_loc = np.where(np.isfinite(s_loc), s_loc, 0.0)
-    e, model = innovations(x, y, ok)
+    pos = None if pos is None else np.asarray(pos, dtype=float)
+    e, model = innovations(x, y, ok, pos)
     scale = max(float(np.nanmedian(e[ok])) / 1.1774 if np.any(ok & np.isfinite(e)) else 0.0,
                 JUMP_FLOOR_PX)
     for _ in range(n):
@@ -206,6 +212,6 @@ def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlie
         e[i] = np.nan
         for j in range(max(0, i - MAX_GAP), min(n, i + MAX_GAP + 1)):
             if ok[j]:
-                px, py, model[j] = _predict(j, x, y, ok)
+                px, py, model[j] = _predict(j, x, y, ok, pos)
                 e[j] = math.hypot(x[j] - px, y[j] - py)
     return flags

@@ -22,7 +22,7 @@ import sys
 import numpy as np
 import pandas as pd
 
-from rollfric import io, locate, plausibility, quality
+from rollfric import io, locate, plausibility, quality, timing
 from rollfric.background import median_background
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
@@ -114,6 +114,13 @@ class TrackInfo:
         angle, eccentricity) and, after a fit, the mu bias it implies if the camera made it
         (``mu_bias_if_camera``) or the trough is out of round (``mu_bias_if_trough``); None
         when the centre came from the setup.
+    frames_dropped : tuple of (int, int)
+        Dropped frames found from the motion (:mod:`rollfric.timing`) and repaired in t_s:
+        (recorded frame k, camera periods lost between frames k and k + 1); empty when the
+        times are the recording's own timestamps (they show a gap themselves).
+    timing_irregular : tuple of (int, float)
+        (frame k, step ratio): steps of the ball that fit no whole number of frame periods
+        (timing that cannot be repaired: a quality reason "timing").
     """
 
     setup: Setup
@@ -141,6 +148,8 @@ class TrackInfo:
     offset_reason: str | None = None
     center_u_px: tuple[float, float] | None = None
     contour_ellipse: dict | None = None
+    frames_dropped: tuple = ()
+    timing_irregular: tuple = ()
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -527,10 +536,13 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
                     angle: str = "atan2", center: tuple[float, float] | None = None,
                     progress: bool = True, opts=None,
-                    times=None) -> tuple[pd.DataFrame, TrackInfo]:
+                    times=None, drops: bool = True) -> tuple[pd.DataFrame, TrackInfo]:
     """Locate the ball in every frame of ``source``; one row a frame (see TRACK_COLUMNS), plus
     r_px, sigma_px (estimated centre error) and inlier_frac where the locator gives them.
     ``times``: t_s of each frame (default frame / setup.fps; see :func:`frame_times`).
+    Without ``times`` and with ``drops`` the frames the camera dropped are found from the
+    ball's steps (:func:`rollfric.timing.find_gaps`) and t_s is (frame + periods lost before
+    it) / setup.fps; the plausibility checks predict each frame at those times.
 
     subpixel: the ball's apparent radius is calibrated on the way (:class:`RadiusCalibration`)
     and partial arcs are fitted with it; the frames fitted with the known radius before the
@@ -558,7 +570,9 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     opts : dict or None
         Options of the locator.
     times : array_like or None
-        t_s of each frame (s); None: frame / setup.fps.
+        t_s of each frame (s); None: frame / setup.fps, repaired for dropped frames.
+    drops : bool
+        Find dropped frames from the motion when ``times`` is None.
 
     Returns
     -------
@@ -684,12 +698,23 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         logger.warning(msg)
     # per-frame plausibility: frames that fail leave the track with their flag
     found = rows[:, 5] == 1.0
+    gaps = None
+    if times is not None:
+        pos = np.asarray(times, dtype=float) * setup.fps
+    elif drops:
+        gaps = timing.find_gaps(rows[:, 0], rows[:, 1], found)
+        pos = gaps.pos
+        for msg in timing_messages(gaps):
+            logger.warning(msg)
+            warnings.append(msg)
+    else:
+        pos = np.arange(n, dtype=float)
     flags = plausibility.flag_frames(
         rows[:, 0], rows[:, 1], found, same_pixels=identical, sigma=rows[:, 3],
         # the rim's share and the radius are the sub-pixel locator's own figures
         inlier_frac=rows[:, 4] if method == "subpixel" else None,
         gain=rows[:, 6], radius=rows[:, 2] if method == "subpixel" else None,
-        r_ref=r_cal, r_rel_sigma=cal.rel_sigma if r_cal is not None else None)
+        r_ref=r_cal, r_rel_sigma=cal.rel_sigma if r_cal is not None else None, pos=pos)
     flags[~found] = np.where(lost[~found], "off_track", "not_found")
     rejected = found & (flags != "")
     rows[rejected, :5] = np.nan
@@ -711,7 +736,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     frame_idx = np.arange(n)
     df = pd.DataFrame({
         "frame": frame_idx,
-        "t_s": frame_idx / setup.fps if times is None else np.asarray(times, dtype=float),
+        "t_s": pos / setup.fps if times is None else np.asarray(times, dtype=float),
         "x_px": rows[:, 0],
         "y_px": rows[:, 1],
         "theta_rad": theta,
@@ -733,8 +758,67 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                      times=TIMES_FPS if times is None else "given",
                      ball_radius_px=r_px, track_radius_px=L_px, **cal_keys,
                      n_refitted=len(redo) if r_cal is not None else 0, flags=counts,
-                     warnings=tuple(warnings), warnings_radius=tuple(warnings_radius))
+                     warnings=tuple(warnings), warnings_radius=tuple(warnings_radius),
+                     frames_dropped=() if gaps is None else gaps.dropped,
+                     timing_irregular=() if gaps is None else gaps.irregular)
     return df, info
+
+
+def timing_messages(gaps) -> list[str]:
+    """What to tell about the dropped frames and irregular steps found in a track.
+
+    Parameters
+    ----------
+    gaps : rollfric.timing.Gaps
+        The result of :func:`rollfric.timing.find_gaps`.
+
+    Returns
+    -------
+    list of str
+        One message for the dropped frames (repaired), one for the irregular steps.
+    """
+    out = []
+    if gaps.dropped:
+        out.append(dropped_message(gaps))
+    if gaps.irregular:
+        out.append(irregular_message(gaps.irregular))
+    return out
+
+
+def dropped_message(gaps) -> str:
+    """The message of the dropped frames found (:func:`timing_messages`).
+
+    Parameters
+    ----------
+    gaps : rollfric.timing.Gaps
+
+    Returns
+    -------
+    str
+    """
+    where = ", ".join(f"{m} after frame {k}" for k, m in gaps.dropped[:8])
+    more = f" and {len(gaps.dropped) - 8} more" if len(gaps.dropped) > 8 else ""
+    return (f"{gaps.n_dropped} dropped frame(s) found from the ball's steps ({where}{more}): "
+            "the later frames' t_s are moved by the periods lost; a step slower than "
+            f"{gaps.min_step_px:.2g} px a frame (near the turning points) would hide one")
+
+
+def irregular_message(irregular) -> str:
+    """The message (and quality reason "timing") of steps that fit no whole number of periods.
+
+    Parameters
+    ----------
+    irregular : sequence of (int, float)
+        (frame, step ratio) pairs (:attr:`rollfric.timing.Gaps.irregular`).
+
+    Returns
+    -------
+    str
+    """
+    where = ", ".join(f"frame {k} ({r:.2f} x)" for k, r in irregular[:8])
+    return (f"{len(irregular)} step(s) of the ball fit no whole number of frame periods "
+            f"({where}): the timing is irregular there and cannot be repaired from the motion; "
+            "a recording with timestamps would tell")
 
 
 def check_track_fits(df: pd.DataFrame, setup: Setup) -> None:
@@ -986,7 +1070,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             logger.warning(note)
             contour_notes.append(note)
     df, info = track_recording(source, setup, bg, method=method, angle=angle, center=center,
-                               progress=progress, times=t)
+                               progress=progress,
+                               times=None if times_desc == TIMES_FPS else t)
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,
@@ -1022,6 +1107,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                              fit_method, fit_kwargs)
             coded += ell_coded
         coded += [("ball_radius", msg) for msg in info.warnings_radius]
+        if info.timing_irregular:
+            coded.append(("timing", irregular_message(info.timing_irregular)))
         track_reasons = quality.check_track(df, setup, center, warnings=coded,
                                             flag_counts=info.flags)
         result = dataclasses.replace(

@@ -207,7 +207,11 @@ def measurement_from_track(track, info) -> Measurement:
     x = np.where(found, track["x_px"].to_numpy(float), np.nan)
     y = np.where(found, track["y_px"].to_numpy(float), np.nan)
     stamped = info.times != "frame / camera.fps"
-    return Measurement(setup=info.setup, frames=track["frame"].to_numpy(float), x=x, y=y,
+    # frame / fps times count the camera's periods: the frame number plus the periods of the
+    # dropped frames found before it (rollfric.timing), which t_s holds
+    frames = track["frame"].to_numpy(float) if stamped else \
+        np.rint(track["t_s"].to_numpy(float) * info.setup.fps)
+    return Measurement(setup=info.setup, frames=frames, x=x, y=y,
                        center=center, angle=info.angle,
                        t=track["t_s"].to_numpy(float) if stamped else None,
                        center_u=None if center_u is None or info.setup.center_px is not None

@@ -242,14 +242,18 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
 def render(trajectory, out, *, scene: SceneConfig | None = None,
            sensor: SensorConfig | None = None, seed: int = 0, progress: bool = False,
            workers: int | None = None, overwrite: bool = False, frames: int | None = None,
-           threads: int | None = None) -> Path:
+           threads: int | None = None, timing=None) -> Path:
     """Render ``trajectory`` (sim.Trajectory, trajectory CSV or scenario TOML) as the lab
     camera would have seen it and store it as a recording at ``out`` (a ``.zarr`` directory).
 
     ``frames`` limits the number of frames (the first ones); ``workers`` processes render in
     parallel (default: the number of CPUs, at most 2; spawned, as EGL contexts do not survive
     fork), each with ``threads`` llvmpipe threads (default 1 when several processes run); the
-    sensor model is stored, not applied: frames get their noise when read. Returns the path.
+    sensor model is stored, not applied: frames get their noise when read. ``timing``
+    (:class:`synth.timing.FrameTiming`): the camera's jitter and dropped frames, drawn with
+    ``seed``; the frames and the truth are then at the real sample times (``truth/t_s``), the
+    lost camera frames are listed in the attrs (``timing``), and with ``timing.timestamps`` the
+    store carries each frame's time (array ``timestamps``, s). Returns the path.
     """
     import zarr
     from tqdm import tqdm
@@ -263,6 +267,15 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         raise SynthError(f"seed must be a non-negative integer, got {seed!r}")
     out = check_output(out, overwrite=overwrite)
     traj = load_trajectory(trajectory)
+    timing_attrs = None
+    if timing is not None:
+        from synth.timing import frame_times, resample
+
+        times, numbers = frame_times(len(traj), traj.fps, timing, seed)
+        if not timing.ideal:
+            traj = resample(traj, times)
+        lost = np.setdiff1d(np.arange(numbers[-1] + 1), numbers)
+        timing_attrs = {**timing.to_dict(), "dropped_frames": lost.tolist()}
     n = len(traj) if frames is None else int(frames)
     if n < 1 or n > len(traj):
         raise SynthError(f"frames must be 1..{len(traj)}, got {frames!r}")
@@ -321,6 +334,9 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         for name, values in truth_table(traj, cam, r_ball).items():
             arr = tg.create_array(name, data=np.asarray(values, dtype=np.float64))
             arr.attrs["description"] = TRUTH_COLUMNS[name]
+        if timing is not None and timing.timestamps:  # the camera's own time of each frame
+            ts = g.create_array("timestamps", data=np.asarray(traj.t, dtype=np.float64))
+            ts.attrs["description"] = "time of each frame's exposure (s), the camera's clock"
         batches = [np.arange(s, min(s + BATCH, n)) for s in range(0, n, BATCH)]
         bar = tqdm(total=n, unit="frame", desc="render", disable=not progress)
         init = (scene.to_dict(), r_ball, r_cyl, str(tmp), threads, oval, int(seed))
@@ -352,6 +368,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             "frame_scale": int(frame_scale),
             "gamma": 2.2,
             "truth_columns": TRUTH_COLUMNS,
+            **({"timing": timing_attrs} if timing_attrs is not None else {}),
         })
     return out
 

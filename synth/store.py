@@ -12,12 +12,16 @@ Layout (a directory ``REC.zarr``)::
                                                 fill 0); stores rendered before: one chunk a
                                                 frame
     truth/<column>    (T,)       float64        exact ground truth, see TRUTH_COLUMNS
+    timestamps        (T,)       float64        optional: each frame's time (s), the camera's
+                                                clock (render(timing=...), synth.timing)
     background_ideal_clean (H', W')             with a lens only: the ideal render the lens
                                                 bends into the frames (synth.lens)
 
 Root attributes: ``format``, ``setup`` (the lab setup, TOML form), ``scene``, ``sensor``,
 ``sensor_noise`` (the noise generator, ``synth.sensor.NOISES``; absent: "tiles/1", the stores
-rendered before it), ``seed``, ``scenario``, ``versions``, ``fps``, ``n_frames``, scales.
+rendered before it), ``seed``, ``scenario``, ``versions``, ``fps``, ``n_frames``, scales, and
+with a camera timing (:mod:`synth.timing`) ``timing`` (its jitter, drop rate and the camera
+frames lost, ``dropped_frames``).
 
 Frames are made when read: clean frame -> the seeded sensor model (``synth.sensor``), the same
 bytes on every read. ``frames.read(i, (y0, y1, x0, x1))`` makes only that region of interest
@@ -84,6 +88,11 @@ class SynthFrames:
         self._sensor = Sensor(self.sensor_config, self.shape[1:], self.seed, self.noise)
         self._background = None
         self._chunk_file = _chunk_files(group, self._diff)
+        # the camera's own time of each frame (render(timing=...) with timestamps), from frame 0
+        self.timestamps = None
+        if "timestamps" in group:
+            ts = np.asarray(group["timestamps"][...], dtype=np.float64)
+            self.timestamps = ts - ts[0]
 
     def __len__(self) -> int:
         return self.shape[0]

@@ -35,6 +35,14 @@ case of ``rollfric validate``)::
                                #   center_px: the pinhole on the trough's axis)
     lens_distortion = [-0.18, 0.0, 0.0, 0.0, 0.0]   # OpenCV k1 k2 p1 p2 k3 (synth.lens)
     lens_matrix = [[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]]
+    [render.timing]            # the camera's timing (synth.timing), drawn with render.seed
+    jitter_us = 5.0            # each exposure's start about frame / fps: std. dev. (us)
+    drop_rate = 0.001          # each frame lost with this probability
+    dropped = [120, 640]       # camera frames lost (numbered as taken; on top of drop_rate)
+    timestamps = true          # the recording carries each frame's real time (default false)
+    [render.video]             # the recording measured as a compressed video (synth.video)
+    codec = "mjpeg"            # "mjpeg" (.avi, quality = JPEG quality 1..100) or "h264"
+    quality = 75               #   (.mp4, quality = x264's crf 0..51: lower is better)
 
     [lab]                      # blind mode: the lab's setup file (validation/lab.py)
     cylinder = { radius_mm = 85.3, radius_mm_u = 0.05 }   # nominal values the lab types
@@ -79,11 +87,14 @@ RENDER_KEYS = {
     "lighting": str, "intensity_scale": float, "lamp_spread": float, "lamp_dy_mm": float,
     "lamp_dz_mm": float, "ambient": float, "noise": str, "motion_blur": int,
     "supersample": int, "shadows": bool, "seed": int, "sensor": dict, "camera": dict,
-    "scene": dict, "lamps": list, "renderer": str,
+    "scene": dict, "lamps": list, "renderer": str, "timing": dict, "video": dict,
 }
 # render.camera angles in lab units: roll_deg (the trough bottom appears at +roll_deg), yaw_deg
 # and pitch_deg (the optical axis turned towards +x / +y about the ball plane's axis point)
 ANGLE_KEYS = {"roll_deg": "roll", "yaw_deg": "yaw", "pitch_deg": "pitch"}
+# render.timing (synth.timing.FrameTiming in lab units) and render.video (synth.video)
+TIMING_KEYS = {"jitter_us": float, "drop_rate": float, "dropped": list, "timestamps": bool}
+VIDEO_KEYS = {"codec": str, "quality": int}
 MEASURE_KEYS = {"locator": str, "fit": str, "offset": (bool, str), "oracle": bool,
                 "budget": bool}
 LOCATORS = ("subpixel", "thesis-large", "thesis-small")
@@ -333,6 +344,8 @@ class Case:
     data: dict  # the case dict it came from (merged over the defaults)
     oracle: bool = False  # rollfric gets the exact setup and center_px (else blind mode)
     lab: object = None  # validation.lab.Lab: the lab's nominal setup and the as-built truth
+    timing: object = None  # synth.timing.FrameTiming: the camera's jitter and dropped frames
+    video: object = None  # synth.video.VideoSpec: measured through a compressed video
 
     @property
     def mode(self) -> str:
@@ -484,9 +497,12 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
     name = d.get("name", "case")
     if not isinstance(name, str):
         raise CaseError(f"{source}: name must be a string")
+    timing = _timing(r.get("timing"), source)
+    video = _video(r.get("video"), source)
     case = Case(name=name, scenario=scenario, scene=scene, sensor=sensor, render_seed=seed,
                 locator=m.get("locator", "subpixel"), fit=m.get("fit", "lsq"),
-                offset=m.get("offset", "auto"), data=d, oracle=m.get("oracle", False), lab=lab)
+                offset=m.get("offset", "auto"), data=d, oracle=m.get("oracle", False), lab=lab,
+                timing=timing, video=video)
     from rollfric.setup import setup_from_dict
 
     try:
@@ -494,6 +510,38 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
     except InputError as exc:
         raise CaseError(str(exc)) from None
     return case
+
+
+def _timing(table, source: str):
+    """render.timing (lab units) -> synth.timing.FrameTiming, or None."""
+    if table is None:
+        return None
+    from synth.timing import FrameTiming
+
+    t = _check_types(table, TIMING_KEYS, f"{source}: render.timing")
+    dropped = t.get("dropped", [])
+    if not all(isinstance(v, int) and not isinstance(v, bool) for v in dropped):
+        raise CaseError(f"{source}: render.timing.dropped must be a list of frame numbers, "
+                        f"got {dropped!r}")
+    try:
+        return FrameTiming(jitter=t.get("jitter_us", 0.0) * 1e-6,
+                           drop_rate=t.get("drop_rate", 0.0), dropped=tuple(dropped),
+                           timestamps=t.get("timestamps", False))
+    except InputError as exc:
+        raise CaseError(f"{source}: render.timing: {exc}") from None
+
+
+def _video(table, source: str):
+    """render.video -> synth.video.VideoSpec, or None."""
+    if table is None:
+        return None
+    from synth.video import VideoSpec
+
+    v = _check_types(table, VIDEO_KEYS, f"{source}: render.video")
+    try:
+        return VideoSpec(**v)
+    except InputError as exc:
+        raise CaseError(f"{source}: render.video: {exc}") from None
 
 
 def _finite(v, where: str) -> float:

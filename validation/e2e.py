@@ -60,7 +60,11 @@ METRICS = frozenset((
     "stages", "locator_sigma_px",
     # budget_metrics
     "u_mu", "U_mu", "z_budget", "within_u", "within_U", "u_stat", "z_stat",
-    "budget_top_source", "budget_n_sources"))
+    "budget_top_source", "budget_n_sources",
+    # timing_metrics
+    "timing_jitter_us", "frames_dropped_true", "frames_dropped_found",
+    "frames_dropped_matched", "timing_irregular", "timestamps_used", "video_codec",
+    "video_quality"))
 # families of metrics named after a stage or a lab key: t_<stage>_s, asbuilt_/lab_/lab_err_<key>
 METRIC_PATTERNS = (r"t_[a-z_]+_s", r"(asbuilt|lab|lab_err)_[A-Za-z0-9_]+")
 
@@ -173,7 +177,7 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
         with _timer(timings, "render"):
             synth.render(traj, rec_path, scene=case.scene, sensor=case.sensor,
                          seed=case.render_seed, progress=progress, workers=render_workers,
-                         threads=render_threads, overwrite=True)
+                         threads=render_threads, overwrite=True, timing=case.timing)
         rec = synth.open_recording(rec_path)
         truth = rec.truth
         with _timer(timings, "measure"):
@@ -182,6 +186,7 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
         with _timer(timings, "metrics"):
             metrics = compute_metrics(case, traj, truth, track, fit, fit_truth, setup)
             metrics.update(mode_metrics(case, info, truth))
+            metrics.update(timing_metrics(case, rec.attrs, info))
             if case.data.get("measure", {}).get("budget", True):
                 metrics.update(budget_metrics(case, track, info, fit))
         timings["total"] = time.perf_counter() - t_start
@@ -215,7 +220,10 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
 
     Exactly what ``rollfric measure REC.zarr --setup SETUP.toml`` does: the recording opened
     through rollfric's reader (synth's Zarr entry point) with its background, the case's
-    locator and fit method (:func:`rollfric.track.measure`). Blind mode: SETUP.toml is the
+    locator and fit method (:func:`rollfric.track.measure`). With ``render.video`` the
+    recording is first exported as that video (:func:`synth.video.export_video`, to a
+    temporary folder) and rollfric reads the video file and the background's one-frame video
+    instead. Blind mode: SETUP.toml is the
     lab's (:meth:`validation.case.Case.lab_setup_dict`); oracle mode: the setup the recording
     carries (the renderer's exact geometry and center_px).
     """
@@ -230,8 +238,21 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
     else:
         setup_dict = case.lab_setup_dict()
         setup = setup_from_dict(setup_dict, source="the lab's setup")
-    track, info, fit = track_mod.measure(src, setup, method=case.locator, fit_method=case.fit,
-                                         offset=case.offset, progress=progress)
+    if case.video is None:
+        track, info, fit = track_mod.measure(src, setup, method=case.locator,
+                                             fit_method=case.fit, offset=case.offset,
+                                             progress=progress)
+        return track, info, fit, setup, setup_dict
+    from synth.video import export_video
+
+    with tempfile.TemporaryDirectory(prefix="rollfric-video-") as tmp:
+        # the lab's path: the camera software's video export and its background
+        files = export_video(path, tmp, case.video, progress=progress)
+        src = io.open_recording(files["frames"])
+        background = io.open_recording(files["background"])[0]
+        track, info, fit = track_mod.measure(src, setup, background, method=case.locator,
+                                             fit_method=case.fit, offset=case.offset,
+                                             progress=progress)
     return track, info, fit, setup, setup_dict
 
 
@@ -266,6 +287,31 @@ def mode_metrics(case: Case, info, truth) -> dict:
         m[f"lab_{name}"] = float(case.lab.nominal[key])
         m[f"lab_err_{name}"] = 0.0 if case.oracle else float(case.lab.nominal[key] - value)
     return m
+
+
+def timing_metrics(case: Case, attrs: dict, info) -> dict:
+    """The camera's timing and how rollfric saw it: the jitter (us), the camera frames lost
+    (``frames_dropped_true``), the ones rollfric found from the motion (``..._found``) and
+    how many of those sit where a frame was lost (``..._matched``), the irregular steps, whether
+    the recording's timestamps were used; the video codec and quality (or "none", -1)."""
+    lost = list((attrs.get("timing") or {}).get("dropped_frames", []))
+    # a camera frame lost between recorded frames k and k + 1: k = its number - the frames lost
+    # before it - 1
+    true_k = {}
+    for j, f in enumerate(lost):
+        k = int(f) - j - 1
+        true_k[k] = true_k.get(k, 0) + 1
+    found = {int(k): int(m) for k, m in info.frames_dropped}
+    matched = sum(min(m, true_k.get(k, 0)) for k, m in found.items())
+    t = case.timing
+    return {"timing_jitter_us": 0.0 if t is None else t.jitter * 1e6,
+            "frames_dropped_true": len(lost),
+            "frames_dropped_found": sum(found.values()),
+            "frames_dropped_matched": matched,
+            "timing_irregular": len(info.timing_irregular),
+            "timestamps_used": info.times != "frame / camera.fps",
+            "video_codec": "none" if case.video is None else case.video.codec,
+            "video_quality": -1 if case.video is None else case.video.quality}
 
 
 def budget_metrics(case: Case, track, info, fit) -> dict:
