@@ -82,15 +82,20 @@ class Gaps:
         return int(sum(m for _, m in self.dropped))
 
 
-def _fits(s: np.ndarray, u: np.ndarray, ok: np.ndarray, use: np.ndarray) -> np.ndarray:
+def _fits(s: np.ndarray, u: np.ndarray, ok: np.ndarray, use: np.ndarray,
+          coef: np.ndarray | None = None, only: np.ndarray | None = None) -> np.ndarray:
     """For each step k that is ``ok``: the coefficients (DEGREE + 1, 2) of a polynomial in the
     time (periods from u[k]) through the per-period steps ``s`` of its ``use`` neighbours
     2..HALF_WINDOW steps away on each side; NaN where fewer than DEGREE + 3 neighbours, or none
-    on one side, are usable."""
+    on one side, are usable. With ``coef`` and ``only`` (a mask), just those steps are fitted
+    again (in ``coef``, which is returned)."""
     n = len(s)
-    coef = np.full((n, DEGREE + 1, 2), np.nan)
+    if coef is None:
+        coef = np.full((n, DEGREE + 1, 2), np.nan)
     idx = np.nonzero(use)[0]
-    for k in np.nonzero(ok)[0]:
+    todo = ok if only is None else ok & only
+    for k in np.nonzero(todo)[0]:
+        coef[k] = np.nan
         lo, hi = np.searchsorted(idx, k - HALF_WINDOW), np.searchsorted(idx, k + HALF_WINDOW,
                                                                        side="right")
         nb = idx[lo:hi]
@@ -144,11 +149,12 @@ def find_gaps(x, y, found) -> Gaps:
     # (the largest |r| within HALF_WINDOW) predicts no other; when it is a whole number of
     # periods, the periods are counted in (later frames that much later) and the predictions
     # made again, until no new step is left out
+    changed = None  # the steps whose neighbourhood changed since the last pass (None: all)
     for _ in range(PASSES):
         periods = 1.0 + gaps
         pos = np.r_[0.0, np.cumsum(periods)]
         u = pos[:-1] + 0.5
-        coef = _fits(d / periods[:, None], u, ok, use)
+        coef = _fits(d / periods[:, None], u, ok, use, coef, changed)
         r = np.linalg.norm(d - _expected(coef, periods), axis=1)
         good = ok & np.isfinite(r)
         if good.sum() < 10:
@@ -164,6 +170,10 @@ def find_gaps(x, y, found) -> Gaps:
             m = _whole_periods(d[k], coef[k])
             if m is not None:
                 gaps[k] = m - 1
+        # a gap moves the times of every later step: those near it and beyond are fitted again
+        # (far beyond, all their neighbours moved alike and the fit, in relative time, is the
+        # same)
+        changed = maximum_filter1d(bad.astype(np.uint8), 2 * HALF_WINDOW + 3) > 0
     checked = ok & np.isfinite(r)
     z = np.where(checked, r / sigma, 0.0)
     dropped, irregular = [], []
@@ -195,3 +205,79 @@ def _whole_periods(step: np.ndarray, coef: np.ndarray) -> int | None:
     if not 2 <= m <= MAX_GAP:
         return None
     return m
+
+
+# -- gaps where the ball turns: found by the fit ---------------------------------------------
+# A frame lost where the ball turns leaves no step of its own, but every later frame is a period
+# later than frame / fps: the residual of a fit on frame / fps is then about theta_dot * dt after
+# that turning point. Each turning point of the fitted curve is scored by how well the residual
+# after it matches theta_dot * dt (a matched filter, screened without re-fitting), and the best
+# one is kept when the fit with that period counted in explains the data better by a likelihood
+# ratio of TURN_LR_MIN (chi-square with one degree of freedom: 1e-8 by chance).
+TURN_LR_MIN = 30.0
+TURN_MAX = 5  # gaps at turning points looked for at most
+TURN_TRIES = 3  # candidates re-fitted in each round, best score first
+
+
+def turning_gap_candidates(t, theta, curve, fps: float) -> list:
+    """The turning points of the fitted ``curve`` after which the residual looks like one lost
+    period, best first.
+
+    Parameters
+    ----------
+    t, theta : array_like
+        The track's times (s) and angles (rad; NaN where not found).
+    curve : array_like
+        The fitted model at ``t`` (rad).
+    fps : float
+        The frame rate (Hz).
+
+    Returns
+    -------
+    list of (int, float)
+        (k, z): one period lost after sample k, z > 0 the matched filter's signal-to-noise
+        ratio (the residual after k against theta_dot / fps), sorted by z, largest first.
+    """
+    t = np.asarray(t, dtype=float)
+    th = np.asarray(theta, dtype=float)
+    cv = np.asarray(curve, dtype=float)
+    ok = np.isfinite(th) & np.isfinite(cv)
+    if ok.sum() < 10:
+        return []
+    v = np.zeros(t.size)
+    v[ok] = np.gradient(cv[ok], t[ok])
+    r = np.where(ok, th - cv, 0.0)
+    g = v / fps
+    sigma = float(np.std(r[ok]))
+    if sigma <= 0:
+        return []
+    turns = np.nonzero(v[:-1] * v[1:] < 0)[0]
+    out = []
+    for k in turns:
+        gg = g[k + 1:]
+        den = math.sqrt(float(gg @ gg)) * sigma
+        if den > 0:
+            z = float(r[k + 1:] @ gg) / den
+            if z > 0:
+                out.append((int(k), z))
+    return sorted(out, key=lambda c: -c[1])
+
+
+def likelihood_ratio(ssr0: float, ssr1: float, n: int) -> float:
+    """n ln(ssr0 / ssr1): twice the log-likelihood ratio of two least-squares fits with Gaussian
+    residuals of unknown variance.
+
+    Parameters
+    ----------
+    ssr0, ssr1 : float
+        Sums of squared residuals without and with the change.
+    n : int
+        Samples.
+
+    Returns
+    -------
+    float
+    """
+    if ssr1 <= 0 or ssr0 <= 0:
+        return math.inf if ssr1 < ssr0 else 0.0
+    return n * math.log(ssr0 / ssr1)

@@ -943,7 +943,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             method: str = "subpixel", angle: str = "atan2", fit_method: str = "lsq",
             offset: bool | str = "auto", fit: bool = True, progress: bool = False,
             median_frames: int = 41, fit_kwargs: dict | None = None,
-            times: str = "auto"):
+            times: str = "auto", drops: bool = True):
     """Measure mu from a recording: (track DataFrame, TrackInfo, FitResult or None).
 
     ``recording``: a path (see :func:`rollfric.io.open_recording`) or a FrameSource.
@@ -955,6 +955,9 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     ``method``: "subpixel" (default), "thesis-large" or "thesis-small".
     ``times``: "auto" (the recording's per-frame timestamps when it has them, else frame /
     camera.fps) or "fps" (always frame / camera.fps); see :func:`frame_times`.
+    ``drops``: without timestamps, find dropped frames from the ball's steps
+    (:func:`rollfric.timing.find_gaps`) and, with the "lsq" fit, where it turns
+    (:func:`turning_gaps`), and move the later frames' t_s by the periods lost.
     ``offset``: fit the angle of the trough's bottom too (True), not (False), or "auto" (the
     default): where the data support it (:func:`offset_supported`), which corrects a camera
     rolled about its axis (0.5 deg of roll: mu +0.67 % without the offset).
@@ -984,6 +987,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         Frames in the median background when there is none.
     fit_kwargs : dict or None
         More keywords of :func:`rollfric.fit.fit_mu`.
+    drops : bool
+        Find and repair dropped frames (above).
 
     Returns
     -------
@@ -1071,7 +1076,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             contour_notes.append(note)
     df, info = track_recording(source, setup, bg, method=method, angle=angle, center=center,
                                progress=progress,
-                               times=None if times_desc == TIMES_FPS else t)
+                               times=None if times_desc == TIMES_FPS else t, drops=drops)
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,
@@ -1100,6 +1105,17 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                         f"{why}")
         result = fitmod.fit_mu(t_s, th, setup, method=fit_method, offset=use,
                                **(fit_kwargs or {}))
+        if info.times == TIMES_FPS and drops and fit_method == "lsq":
+            t_new, result, turned = turning_gaps(t_s, th, result, setup, use, fit_kwargs)
+            if turned:
+                df["t_s"] = t_new
+                dropped = tuple(sorted(info.frames_dropped + turned))
+                msg = (f"{len(turned)} dropped frame(s) found where the ball turns (after "
+                       f"frame(s) {', '.join(str(k) for k, _ in turned)}), by the fit: the "
+                       "later frames' t_s are moved by a period each")
+                logger.warning(msg)
+                info = dataclasses.replace(info, frames_dropped=dropped,
+                                           warnings=info.warnings + (msg,))
         coded = [("background_repaired", f"{msg}: a background image without the ball "
                   "(--background) rules out a trace of it") for msg in bg_notes]
         if ellipse is not None:
@@ -1148,6 +1164,75 @@ def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fi
             coded.append(("contour_ellipse", msg))
     return dataclasses.replace(info, contour_ellipse=out,
                                warnings=info.warnings + warns), coded
+def turning_gaps(t, theta, result, setup: Setup, offset: bool, fit_kwargs=None):
+    """Dropped frames where the ball turns, found by the fit (:mod:`rollfric.timing`).
+
+    A lost frame at a turning point leaves no step to see, but the later frames are a period
+    late: the best-scoring turning point (:func:`rollfric.timing.turning_gap_candidates`) gets a
+    period counted in and the fit is made again (the ``timing.TURN_TRIES`` best, in turn); it
+    is kept when the likelihood ratio (with the effective number of samples of a correlated
+    residual) exceeds ``timing.TURN_LR_MIN``, then the next is looked for (at most
+    ``timing.TURN_MAX``).
+
+    Parameters
+    ----------
+    t, theta : array_like
+        The track's times (s, frame / fps with the step-found gaps) and angles (rad).
+    result : rollfric.fit.FitResult
+        The "lsq" fit of them.
+    setup : Setup
+        The setup.
+    offset : bool
+        Whether the fit has the angle offset.
+    fit_kwargs : dict or None
+        More keywords of :func:`rollfric.fit.fit_mu`.
+
+    Returns
+    -------
+    t : numpy.ndarray
+        The times with the gaps found counted in.
+    result : rollfric.fit.FitResult
+        The fit of them.
+    gaps : tuple of (int, int)
+        (frame k, 1): a period lost after frame k, one entry a gap found.
+    """
+    from rollfric import fit as fitmod
+
+    t = np.asarray(t, dtype=float).copy()
+    th = np.asarray(theta, dtype=float)
+    finite = np.isfinite(th)
+
+    def ssr(res):
+        # over every located sample: the fitter may leave a whole stretch out as outliers
+        # (the frames before a gap it did not see), a repaired one takes it back
+        d = th[finite] - np.asarray(res.curve, dtype=float)[finite]
+        return float(np.mean(d[np.isfinite(d)] ** 2))
+
+    found = []
+    for _ in range(timing.TURN_MAX):
+        step = None
+        for k, _z in timing.turning_gap_candidates(t, th, result.curve,
+                                                   setup.fps)[:timing.TURN_TRIES]:
+            t2 = t.copy()
+            t2[k + 1:] += 1.0 / setup.fps
+            r2 = fitmod.fit_mu(t2, th, setup, method="lsq", offset=offset, **(fit_kwargs or {}))
+            # correlated residuals (a systematic misfit, not noise) hold fewer independent
+            # samples: n (1 - rho) / (1 + rho), rho the lag-1 autocorrelation of the new fit's
+            # residual over the samples it used
+            res2 = th - np.asarray(r2.curve, dtype=float)
+            if r2.used is not None and r2.used.shape == res2.shape:
+                res2 = np.where(r2.used, res2, np.nan)
+            rho = quality.lag1_autocorrelation(res2)
+            rho = min(max(rho, 0.0), 0.999) if math.isfinite(rho) else 0.999
+            n = int(finite.sum()) * (1.0 - rho) / (1.0 + rho)
+            if timing.likelihood_ratio(ssr(result), ssr(r2), n) >= timing.TURN_LR_MIN:
+                step = (k, t2, r2)
+                break
+        if step is None:
+            break
+        k, t, result = step
+        found.append((int(k), 1))
+    return t, result, tuple(found)
 
 
 OFFSET_MIN_TURNS = 3  # turning points inside the track before the offset is fitted by default

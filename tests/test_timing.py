@@ -226,3 +226,27 @@ def test_zarr_timestamps_are_the_times(tmp_path):
     assert info.times == "the recording's timestamps" and info.frames_dropped == ()
     assert info.flags == {}
     np.testing.assert_allclose(df["t_s"].to_numpy(), keep / 200.0, rtol=0, atol=1e-9)
+
+
+def test_a_frame_lost_where_the_ball_turns_is_found_by_the_fit():
+    """No step shows a frame lost at a turning point; the fit's residual after it does."""
+    from rollfric.track import turning_gaps
+
+    omega = math.sqrt(5 * 9.80665 / (7 * SETUP.track_radius))
+    turn = 3 * int(round(math.pi / omega * FPS))  # the third turning point, camera frame 1008
+    numbers = np.setdiff1d(np.arange(3000), [turn])
+    x, y, _ = camera_track(numbers, seed=1)
+    gaps = find_gaps(x, y, np.ones(x.size, bool))
+    assert gaps.dropped == ()  # too slow there for the steps
+    th = angles_of(x, y)
+    first = fit_mu(gaps.pos / FPS, th, SETUP)
+    t, res, found = turning_gaps(gaps.pos / FPS, th, first, SETUP, False)
+    assert len(found) == 1 and abs(found[0][0] - (turn - 1)) <= 10
+    # unrepaired: mu -0.12 %, a residual that is no noise (its stderr inflated 10-fold)
+    assert abs(first.mu - MU) / MU > 5e-4 and first.quality_reasons
+    assert abs(res.mu - MU) < 4 * res.mu_stderr and res.mu_stderr < first.mu_stderr / 5
+    # and none in a track without a lost frame
+    x, y, _ = camera_track(np.arange(3000), seed=1)
+    th = angles_of(x, y)
+    clean = fit_mu(np.arange(3000) / FPS, th, SETUP)
+    assert turning_gaps(np.arange(3000) / FPS, th, clean, SETUP, False)[2] == ()
