@@ -1108,7 +1108,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         if info.times == TIMES_FPS and drops and fit_method == "lsq":
             t_new, result, turned = turning_gaps(t_s, th, result, setup, use, fit_kwargs)
             if turned:
-                df["t_s"] = t_new
+                df["t_s"] = t_s = t_new
                 dropped = tuple(sorted(info.frames_dropped + turned))
                 msg = (f"{len(turned)} dropped frame(s) found where the ball turns (after "
                        f"frame(s) {', '.join(str(k) for k, _ in turned)}), by the fit: the "
@@ -1164,6 +1164,8 @@ def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fi
             coded.append(("contour_ellipse", msg))
     return dataclasses.replace(info, contour_ellipse=out,
                                warnings=info.warnings + warns), coded
+
+
 def turning_gaps(t, theta, result, setup: Setup, offset: bool, fit_kwargs=None):
     """Dropped frames where the ball turns, found by the fit (:mod:`rollfric.timing`).
 
