@@ -309,12 +309,7 @@ def main(argv=None) -> int:
     if args.merge:
         df = pd.concat([pd.read_csv(Path(d) / "coverage.csv") for d in args.merge],
                        ignore_index=True)
-        df.to_csv(out / "coverage.csv", index=False)
-        s = summarize(df)
-        (out / "coverage.json").write_text(json.dumps(s, indent=2) + "\n")
-        plot(df, out / "coverage.png")
-        print(json.dumps(s, indent=2))
-        return 0
+        return _write_study(df, out)
     rows = []
     for i in range(args.cases):
         rows.append(run_case(draw_case(args.seed + i), fit_length=args.fit_length,
@@ -323,7 +318,11 @@ def main(argv=None) -> int:
             df = pd.DataFrame(rows)
             df.to_csv(out / "coverage.csv", index=False)
             print(f"{i + 1} cases: {json.dumps(summarize(df))}", flush=True)
-    df = pd.DataFrame(rows)
+    return _write_study(pd.DataFrame(rows), out)
+
+
+def _write_study(df, out: Path) -> int:
+    """Write a study's table, summary and figure into ``out``, print the summary; exit 0."""
     df.to_csv(out / "coverage.csv", index=False)
     s = summarize(df)
     (out / "coverage.json").write_text(json.dumps(s, indent=2) + "\n")

@@ -32,6 +32,26 @@ def _profiles(rel, cx, cy, s0, ds, ns, n):
 
 
 @numba.njit(cache=True)
+def _rim_median(values, ok, min_count):
+    """Per ray, the median of ``values`` over the rays within 1/16 of the rim each side (about
+    1/8 of it, the ring wrapping round) where ``ok``; NaN where fewer than ``min_count``."""
+    n = values.shape[0]
+    out = np.full(n, np.nan)
+    half = max(2, n // 16)
+    buf = np.empty(2 * half + 1)
+    for i in range(n):
+        m = 0
+        for j in range(-half, half + 1):
+            q = (i + j) % n
+            if ok[q]:
+                buf[m] = values[q]
+                m += 1
+        if m >= min_count and m > 0:
+            out[i] = np.median(buf[:m])
+    return out
+
+
+@numba.njit(cache=True)
 def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out):
     """Per ray: the steepest step of the ball's polarity in [r - w, r + w], then the edge
     position from the integral of the normalised profile across a window of 2 ne + 2 samples
@@ -134,18 +154,7 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out):
     # the inside level next to the rim varies along it (a mirror ball's rim reflects the
     # bright backdrop on one side, the dark trough on the other): a ray's level is compared
     # with the median of its neighbours' over about 1/8 of the rim, not with one median
-    a_loc = np.full(n, np.nan)
-    mloc = max(2, n // 16)
-    buf = np.empty(2 * mloc + 1)
-    for i in range(n):
-        nb_ = 0
-        for j in range(-mloc, mloc + 1):
-            q = (i + j) % n
-            if fin[q]:
-                buf[nb_] = a_in[q]
-                nb_ += 1
-        if nb_ > 0:
-            a_loc[i] = np.median(buf[:nb_])
+    a_loc = _rim_median(a_in, fin, 1)
     a_med = np.median(a_in[fin])
     spoiled = np.zeros(n, np.bool_)
     for i in range(n):
@@ -477,17 +486,8 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor,
     # 1/8 of the rim (a mirror ball's rim: bright where it mirrors the backdrop)
     cref = np.full(n, cmed)
     if local:
-        mloc = max(2, n // 16)
-        buf = np.empty(2 * mloc + 1)
-        for i in range(n):
-            nb_ = 0
-            for j in range(-mloc, mloc + 1):
-                q = (i + j) % n
-                if valid[q]:
-                    buf[nb_] = con[q]
-                    nb_ += 1
-            if nb_ >= mloc:
-                cref[i] = np.median(buf[:nb_])
+        loc = _rim_median(con, valid, max(2, n // 16))
+        cref = np.where(np.isnan(loc), cref, loc)
     for tol in bands:
         cnt = 0
         for i in range(n):
