@@ -107,14 +107,13 @@ def _predict(i: int, x: np.ndarray, y: np.ndarray, ok: np.ndarray,
     if nb.size < DEGREE + 2:
         return math.nan, math.nan, math.nan
     u = (nb - i).astype(float) if pos is None else pos[nb] - pos[i]
-    px = np.polynomial.polynomial.polyfit(u, x[nb], DEGREE)
-    py = np.polynomial.polynomial.polyfit(u, y[nb], DEGREE)
+    xy = np.column_stack([x[nb], y[nb]])  # x and y share one least-squares solve
+    p0 = np.polynomial.polynomial.polyfit(u, xy, DEGREE)[0]
     model = 0.0
     if nb.size >= DEGREE + 4:
-        qx = np.polynomial.polynomial.polyfit(u, x[nb], DEGREE + 1)
-        qy = np.polynomial.polynomial.polyfit(u, y[nb], DEGREE + 1)
-        model = math.hypot(qx[0] - px[0], qy[0] - py[0])
-    return float(px[0]), float(py[0]), model
+        q0 = np.polynomial.polynomial.polyfit(u, xy, DEGREE + 1)[0]
+        model = math.hypot(q0[0] - p0[0], q0[1] - p0[1])
+    return float(p0[0]), float(p0[1]), model
 
 
 def innovations(x, y, ok, pos=None) -> tuple[np.ndarray, np.ndarray]:
