@@ -371,6 +371,17 @@ class Case:
         return dumps_case(self.data)
 
 
+def _case_seeded_lab(d: dict) -> dict:
+    """The case's ``[lab]`` table with ``seed = "case"`` resolved: the draws seeded by the
+    case's own id (the hash of everything else in the case), so that every case of a sweep
+    gets its own as-built setup instead of one draw per ``render.seed``."""
+    lab = d.get("lab", {})
+    if not isinstance(lab, dict) or lab.get("seed") != "case":
+        return lab
+    rest = {**d, "lab": {k: v for k, v in lab.items() if k != "seed"}}
+    return {**lab, "seed": int(case_id(rest), 16)}
+
+
 def _check_types(table: dict, schema: dict, where: str) -> dict:
     if not isinstance(table, dict):
         raise CaseError(f"{where} must be a table, got {table!r}")
@@ -425,7 +436,7 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
         if isinstance(cam_px, (int, float)) and not isinstance(cam_px, bool):
             as_toml["camera"]["pixel_size_mm"] = float(cam_px) * 1e3  # the camera's own
         seed0 = r.get("seed", 0)
-        lab, drawn = parse_lab(d.get("lab", {}), as_toml, source=source,
+        lab, drawn = parse_lab(_case_seeded_lab(d), as_toml, source=source,
                                default_seed=seed0 if isinstance(seed0, int) else 0)
         if drawn:
             scenario = sim.scenario_from_dict(apply_asbuilt(d.get("scenario", {}), drawn),

@@ -7,7 +7,8 @@ exactly)::
 
     [lab]
     draw = false               # true: draw the as-built values from the nominal +- their _u
-    seed = 0                   # seed of those draws (default: render.seed, the case seed)
+    seed = 0                   # seed of those draws (default: render.seed, the case seed;
+                               # "case": the case's own id, a different draw in every case)
     center_error_px = [0.3, -0.2]   # the lab measured the trough centre, with this error (px);
                                     # absent: no center_px, rollfric finds it from the contour
     center_px_u = [2.0, 2.0]   # the stated uncertainty of that measurement (px); with draw,
@@ -173,7 +174,8 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
         raise LabError(f"{source}: lab.draw must be true or false, got {draw!r}")
     seed = table.get("seed", default_seed)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise LabError(f"{source}: lab.seed must be a non-negative integer, got {seed!r}")
+        raise LabError(f"{source}: lab.seed must be a non-negative integer or \"case\", "
+                       f"got {seed!r}")
     ce = table.get("center_error_px")
     if ce is not None:
         if not isinstance(ce, (list, tuple)) or len(ce) != 2:
