@@ -618,6 +618,14 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     # radius and the centre are confounded (centres 0.1-0.15 px off on the harsh lamp's arcs
     # over half of the rim), the calibrated one pins the centre
     base = opts if opts is not None else locate.SubpixelOptions()
+    if setup.working_distance is not None and method == "subpixel" and base.pinhole is None:
+        # a pinhole at a stated working distance sees the ball as an ellipse
+        # (rollfric.locate.silhouette_stretch), stretched away from the principal point
+        pp = (lens.K[0, 2], lens.K[1, 2]) if lens is not None else ((w - 1) / 2.0,
+                                                                    (h - 1) / 2.0)
+        base = dataclasses.replace(base, pinhole=(float(pp[0]), float(pp[1]),
+                                                  setup.working_distance / setup.pixel_size))
+        opts = base
     opts_cal = dataclasses.replace(base, free_min_frac=max(base.free_min_frac, CAL_MIN_INLIER))
     revisit: dict[int, float] = {}  # frame -> radius its partial arc was fitted with
 

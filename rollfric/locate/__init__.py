@@ -20,7 +20,12 @@ One module per job:
 from rollfric.locate.location import Location, Locator
 from rollfric.locate.regions import LazyFrame, _crop, as_array, relative_image
 from rollfric.locate.search import coarse_candidates, coarse_find
-from rollfric.locate.subpixel import MIRROR, SubpixelOptions, locate_subpixel
+from rollfric.locate.subpixel import (
+    MIRROR,
+    SubpixelOptions,
+    locate_subpixel,
+    silhouette_stretch,
+)
 from rollfric.locate.thesis import locate_large_thesis, locate_small_thesis
 from rollfric.registry import LOCATORS
 
@@ -42,4 +47,5 @@ __all__ = [
     "locate_small_thesis",
     "locate_subpixel",
     "relative_image",
+    "silhouette_stretch",
 ]

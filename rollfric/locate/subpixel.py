@@ -68,6 +68,10 @@ class SubpixelOptions:
     steel_k: float = 3.0
     local_contrast: bool = False  # the contrast band about the neighbouring rays' contrast
     # (r_px >= 12), not one median
+    pinhole: tuple | None = None  # (principal x, principal y, focal length) px of a pinhole
+    # camera whose image plane is parallel to the ball's plane (rollfric.perspective): the
+    # ball's silhouette is then an ellipse (:func:`silhouette_stretch`), fitted as one; None:
+    # a circle (orthographic, or a camera far away)
 
 
 MIRROR = SubpixelOptions(mirror_rim=True, local_contrast=True)
@@ -89,6 +93,58 @@ def _fresnel_kappa(r_px: float, depth: float, eta: float, k: float) -> float:
                + np.abs((n2 * cos_i - root) / (n2 * cos_i + root)) ** 2)
     excess = np.clip(f / f[-1] - 1.0, 0.0, None)
     return float(np.sum(excess) * (d[1] - d[0]))
+
+
+def silhouette_stretch(center_px, r_px: float, pinhole) -> tuple[float, float, float]:
+    """How a pinhole camera stretches a sphere's silhouette: the ellipse's direction of
+    elongation and its axis ratio.
+
+    A sphere seen by a pinhole is bounded by the cone of sight lines tangent to it (half-angle
+    beta about the line to its centre, which makes the angle alpha with the optical axis); the
+    image plane cuts it in an ellipse whose major axis points away from the principal point,
+    a / b = cos(beta) / sqrt(cos(alpha)^2 - sin(beta)^2), about 1 / cos(alpha) (1.3 % for a
+    ball 600 px from the principal point at a focal length of 3700 px). For a ball in the
+    plane parallel to the image at the working distance, sin(beta) = r_px cos(alpha) / f with
+    r_px its radius over the pixel size at that plane, and b = r_px (1 + O(sin(beta)^2)).
+
+    Parameters
+    ----------
+    center_px : sequence of 2 floats
+        Where the ball is seen (px; the silhouette's centre will do: alpha changes by
+        1e-4 rad a pixel).
+    r_px : float
+        The ball's radius (px) at its plane.
+    pinhole : sequence of 3 floats
+        Principal point x, y and focal length (px).
+
+    Returns
+    -------
+    tuple of float
+        The unit vector (ux, uy) from the principal point to the ball and a / b (>= 1); (1,
+        0, 1) at the principal point.
+    """
+    px, py, f = (float(v) for v in pinhole)
+    vx, vy = float(center_px[0]) - px, float(center_px[1]) - py
+    rho = math.hypot(vx, vy)
+    if rho < 1e-9:
+        return 1.0, 0.0, 1.0
+    cos2a = 1.0 / (1.0 + (rho / f) ** 2)
+    sin2b = float(r_px) ** 2 * cos2a / f ** 2
+    k = math.sqrt((1.0 - sin2b) / (cos2a - sin2b))
+    return vx / rho, vy / rho, k
+
+
+def _squeeze(img, o, u, k):
+    """img resampled so that the stretch k along u about o (px, in img) is undone: the value
+    at p' is img's at o + A^-1 (p' - o), A = I + (1 / k - 1) u u^T (bilinear; NaN outside)."""
+    ux, uy = u
+    g = k - 1.0  # A^-1 = I + (k - 1) u u^T
+    m = np.array([[1.0 + g * ux * ux, g * ux * uy, 0.0],
+                  [g * ux * uy, 1.0 + g * uy * uy, 0.0]])
+    m[:, 2] = np.asarray(o) - m[:, :2] @ np.asarray(o)
+    return cv2.warpAffine(img, m, (img.shape[1], img.shape[0]),
+                          flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"))
 
 
 def _shift_circle(cx, cy, r, rays, n, shift, free):
@@ -259,14 +315,25 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
         m = (ne + 2 * nl + 3) * ds  # the inside levels at two depths
         s0 = max(0.5, r - w - m)
         ns = int(math.ceil((r + w + m - s0) / ds)) + 1
-        half = int(math.ceil(s0 + ns * ds)) + 2
+        stretch = None
+        if opts.pinhole is not None:
+            ux, uy, kst = silhouette_stretch((cx, cy), r_px, opts.pinhole)
+            stretch = ((ux, uy), kst) if kst > 1.0 + 1e-6 else None
+        grow = stretch[1] if stretch is not None else 1.0
+        half = int(math.ceil(grow * (s0 + ns * ds))) + 2
         x0, y0 = int(math.floor(cx)) - half, int(math.floor(cy)) - half
         fr, x0c, y0c = _crop(frame, x0, y0, x0 + 2 * half + 2, y0 + 2 * half + 2)
         if fr is None:
             return Location.missing("ball outside the frame")
         bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
         rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
+        bgr = bg.astype(np.float32)
         lcx, lcy = cx - x0c, cy - y0c
+        if stretch is not None:
+            # a pinhole's ellipse made a circle again about the current centre: everything
+            # below works on the squeezed crop, its centre is taken back at the end
+            rel = _squeeze(rel, (lcx, lcy), *stretch)
+            bgr = _squeeze(bgr, (lcx, lcy), *stretch)
         prof = _profiles(rel, lcx, lcy, s0, ds, ns, n)
         s_edge, con, out_sd, valid, a_lv, b_lv, spread = _edges(prof, s0, ds, r, w, ne, nl,
                                                         opts.level_smooth, opts.min_contrast_rel,
@@ -277,7 +344,7 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
         if opts.mirror_rim:
             inset = (ne + 0.5 * nl + 1) * ds
             kappa = _fresnel_kappa(round(r_px, 1), inset, opts.steel_eta, opts.steel_k)
-            rim_shift = _mirror_rim(s_edge, valid, a_lv, b_lv, bg.astype(np.float32), lcx, lcy,
+            rim_shift = _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, lcx, lcy,
                                     inset, kappa, 1.5)
         status, xs, ys, idx = _select(s_edge, con, out_sd, valid, lcx, lcy,
                                       opts.contrast_bands, opts.min_rays,
@@ -311,7 +378,6 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
         if fine and opts.pixel_fit:
             ray_ok = np.zeros(n, np.bool_)
             ray_ok[inl] = True
-            bgr = bg.astype(np.float32)
             pcx, pcy, pr, psig, npix = _pixel_fit(rel, bgr, fcx, fcy, fr_ if free_p else r_kn,
                                                   free_p, ray_ok, a_lv, b_lv,
                                                   (ne + 0.5 * nl + 1) * ds, 5)
@@ -327,6 +393,10 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
             # a known radius that is off by dr moves the centre of a partial arc by |b| dr,
             # b = (N^T N)^-1 N^T 1 over the arc's unit normals N (0 on the full rim)
             sigma = math.hypot(sigma, _arc_leverage(inl, n) * r_kn_sig * r_kn)
+        if stretch is not None:
+            (ux, uy), kst = stretch
+            along = (kst - 1.0) * ((fcx - lcx) * ux + (fcy - lcy) * uy)
+            fcx, fcy = fcx + along * ux, fcy + along * uy
         shift = math.hypot(fcx - lcx, fcy - lcy)
         cx, cy, r = fcx + x0c, fcy + y0c, float(r_seen)
         frac = n_in / n
