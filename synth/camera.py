@@ -38,6 +38,10 @@ A lens (``lens_distortion`` = OpenCV's [k1, k2, p1, p2, k3] with ``lens_matrix``
 fx = fy = focal_px at the frame centre) bends the ideal image (:mod:`synth.lens`); the
 projections here are the ideal ones, :meth:`CameraModel.recorded` maps them through the lens.
 
+A thin lens (``f_number``, ``focus_distance``, ``focal_length``) keeps these projections (the
+chief ray through the lens's centre is the pinhole's ray) and blurs each point by its circle
+of confusion (:mod:`synth.defocus`): the truth stays the ball centre's projection.
+
 All functions are plain numpy and exact (no rendering): they are the ground truth.
 """
 
@@ -70,6 +74,10 @@ class CameraModel:
     lens_distortion: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)  # OpenCV k1, k2, p1, p2, k3
     principal_px: tuple | None = None  # perspective: the optical axis in the image (px);
     # None: center_px (the pinhole on the cylinder axis)
+    f_number: float | None = None  # a thin lens at this f-number (synth.defocus); None: pinhole
+    focus_distance: float | None = None  # m from the lens to the plane in focus; None: the
+    # working distance (the ball's plane)
+    focal_length: float = 0.05  # m, the thin lens's (its aperture diameter is f / N)
 
     def __post_init__(self) -> None:
         if self.projection not in ("orthographic", "perspective"):
@@ -110,10 +118,38 @@ class CameraModel:
             raise InputError(f"camera lens_distortion must be [k1, k2, p1, p2, k3], got "
                              f"{self.lens_distortion!r}")
         object.__setattr__(self, "lens_distortion", d)
+        self._check_thin_lens()
         if self.lens_matrix is not None:
             from synth.lens import Lens
 
             object.__setattr__(self, "lens_matrix", Lens(self.lens_matrix, d).matrix)
+
+    def _check_thin_lens(self) -> None:
+        f = self.focal_length
+        if isinstance(f, bool) or not isinstance(f, (int, float)) or not math.isfinite(f) \
+                or not 0.001 <= f <= 1.0:
+            raise InputError(f"camera focal_length must be 1..1000 mm, got {f!r} m")
+        n = self.f_number
+        if n is None:
+            if self.focus_distance is not None:
+                raise InputError("camera focus_distance needs an f_number (a thin lens)")
+            return
+        if isinstance(n, bool) or not isinstance(n, (int, float)) or not math.isfinite(n) \
+                or not 0.5 <= n <= 128:
+            raise InputError(f"camera f_number must be 0.5..128, got {n!r}")
+        if self.working_distance <= f:
+            raise InputError(f"camera working_distance {self.working_distance * 1e3:g} mm must "
+                             f"exceed the focal length {f * 1e3:g} mm (a thin lens)")
+        s = self.focus_distance
+        if s is not None and (isinstance(s, bool) or not isinstance(s, (int, float))
+                              or not math.isfinite(s) or s <= f):
+            raise InputError(f"camera focus_distance must exceed the focal length "
+                             f"{f * 1e3:g} mm, got {s!r} m")
+
+    @property
+    def thin_lens(self) -> bool:
+        """True when the camera has a finite aperture (``f_number``): synth.defocus blurs."""
+        return self.f_number is not None
 
     @property
     def lens(self):
@@ -363,6 +399,9 @@ class CameraModel:
         """
         d = dataclasses.asdict(self) | {"center_px": list(self.center_px),
                                         "lens_distortion": list(self.lens_distortion)}
+        if self.f_number is None:  # a pinhole: stored as before the thin lens
+            for k in ("f_number", "focus_distance", "focal_length"):
+                d.pop(k)
         if self.principal_px is None:
             d.pop("principal_px")
         else:

@@ -129,6 +129,11 @@ class SceneConfig:
         if self.renderer not in RENDERERS:
             raise SynthError(f"renderer must be one of {', '.join(RENDERERS)}, got "
                              f"{self.renderer!r}")
+        if self.renderer == "mitsuba" and self.camera.thin_lens:
+            raise SynthError("a thin lens's defocus (camera f_number) is drawn by the pyrender "
+                             "backend's layers only: Mitsuba's thinlens sensor has no "
+                             "orthographic form and no principal-point offset; render it with "
+                             "renderer = \"pyrender\"")
         for name in ("mitsuba_spp", "mitsuba_background_spp"):
             v = getattr(self, name)
             # Mitsuba's low-discrepancy sampler takes powers of 4 (square powers of two)

@@ -140,13 +140,20 @@ def make_renderer(scene: SceneConfig, ball_radius: float, cylinder_radius: float
 
 
 def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads, oval=(0.0, 0.0),
-                 seed=0):
+                 seed=0, defocus=None):
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     import zarr
 
     cfg = SceneConfig.from_dict(scene_dict)
     lens = cfg.camera.lens
     _W["renderer"] = make_renderer(cfg, ball_radius, cylinder_radius, seed, threads, oval)
+    _W["defocus"] = None
+    if defocus is not None:  # (face, bore, sharp background) of the ideal frame
+        from synth.defocus import Defocus
+
+        face, bore, sharp = defocus
+        _W["defocus"] = (Defocus(cfg.replace(camera=cfg.camera.ideal()), face, bore,
+                                 ball_radius), np.asarray(sharp, dtype=np.int64))
     from synth.store import chunk_writer
 
     g = zarr.open_group(store_path, mode="r+")
@@ -168,17 +175,22 @@ def _worker_batch(indices, centres):
     bg = _W["bg"]
     k = centres.shape[1]
     lens = _W.get("lens")
+    dfc = _W.get("defocus")
     for n, i in enumerate(indices):
         poses = [sr.ball_pose(c) for c in centres[n]]
         tiles = sr.tiles_for(centres[n])
         patches = []
-        if tiles and lens is None:
+        if tiles and dfc is not None:  # rendered wider, blurred and cut back (synth.defocus)
+            regions = dfc[0].render_frame(sr, poses, centres[n], tiles, dfc[1], index=int(i))
+            tiles = [box for box, _ in regions]
+            rendered = [np.rint(img).astype(np.int64) for _, img in regions]
+        elif tiles:
             rendered = sr.render_tiles(poses, tiles, index=int(i))
+        if tiles and lens is None:
             patches = [((x0, y0, w, h), img.astype(np.int64) - k * bg[y0:y0 + h, x0:x0 + w])
                        for (x0, y0, w, h), img in zip(tiles, rendered, strict=True)]
         elif tiles:
-            patches = _through_lens(tiles, sr.render_tiles(poses, tiles, index=int(i)), bg, k,
-                                    lens)
+            patches = _through_lens(tiles, rendered, bg, k, lens)
         write(int(i), patches)
     return len(indices)
 
@@ -304,6 +316,15 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     with replacing(out, folder_ok=True) as tmp:
         sr = make_renderer(scene, r_ball, r_cyl, seed, oval=oval)
         bg = sr.render_full()
+        defocus = None
+        if cam.thin_lens:  # the layers' blur (synth.defocus), in the ideal frame
+            from synth.defocus import Defocus, layer_coverage
+
+            face, bore = layer_coverage(sr)
+            defocus = (face, bore, bg)
+            blurred = Defocus(scene.replace(camera=cam.ideal()), face, bore,
+                              r_ball).background(bg)
+            bg = np.clip(np.rint(blurred), 0, None).astype(bg.dtype)
         sr.close()
         bg_ideal = None
         if lens is not None:
@@ -339,7 +360,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             ts.attrs["description"] = "time of each frame's exposure (s), the camera's clock"
         batches = [np.arange(s, min(s + BATCH, n)) for s in range(0, n, BATCH)]
         bar = tqdm(total=n, unit="frame", desc="render", disable=not progress)
-        init = (scene.to_dict(), r_ball, r_cyl, str(tmp), threads, oval, int(seed))
+        init = (scene.to_dict(), r_ball, r_cyl, str(tmp), threads, oval, int(seed), defocus)
         if workers == 1:
             _worker_init(*init)
             try:

@@ -35,6 +35,9 @@ case of ``rollfric validate``)::
                                #   center_px: the pinhole on the trough's axis)
     lens_distortion = [-0.18, 0.0, 0.0, 0.0, 0.0]   # OpenCV k1 k2 p1 p2 k3 (synth.lens)
     lens_matrix = [[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]]
+    f_number = 8.0             # a thin lens (synth.defocus): blur varying with depth
+    focus_distance_mm = 485.0  #   in focus from the lens (default: working distance = ball)
+    focal_length_mm = 50.0     #   (default 50 mm; aperture diameter f / N)
     [render.timing]            # the camera's timing (synth.timing), drawn with render.seed
     jitter_us = 5.0            # each exposure's start about frame / fps: std. dev. (us)
     drop_rate = 0.001          # each frame lost with this probability
@@ -92,6 +95,10 @@ RENDER_KEYS = {
 # render.camera angles in lab units: roll_deg (the trough bottom appears at +roll_deg), yaw_deg
 # and pitch_deg (the optical axis turned towards +x / +y about the ball plane's axis point)
 ANGLE_KEYS = {"roll_deg": "roll", "yaw_deg": "yaw", "pitch_deg": "pitch"}
+# render.camera thin lens (synth.defocus) in lab units: f_number (a plain number) with the
+# distance in focus from the lens (default: the working distance, the ball's plane) and the
+# lens's focal length (default 50 mm), both in mm
+MM_KEYS = {"focus_distance_mm": "focus_distance", "focal_length_mm": "focal_length"}
 # render.timing (synth.timing.FrameTiming in lab units) and render.video (synth.video)
 TIMING_KEYS = {"jitter_us": float, "drop_rate": float, "dropped": list, "timestamps": bool}
 VIDEO_KEYS = {"codec": str, "quality": int}
@@ -480,14 +487,21 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
         cam = CameraModel(pixel_size=scenario.pixel_size)
         if "camera.pixel_size_mm" in drawn:
             cam_over.pop("pixel_size", None)  # the drawn as-built pixel size
-        _known({k: v for k, v in cam_over.items() if k not in ANGLE_KEYS}, cam,
-               f"{source}: render.camera")
+        _known({k: v for k, v in cam_over.items() if k not in ANGLE_KEYS and k not in MM_KEYS},
+               cam, f"{source}: render.camera")
         if "center_px" in cam_over:
             cam_over["center_px"] = tuple(cam_over["center_px"])
         for key, field in ANGLE_KEYS.items():  # lab units (deg) -> the camera's radians
             if key in cam_over:
                 cam_over[field] = math.radians(_finite(cam_over.pop(key),
                                                        f"{source}: render.camera.{key}"))
+        for key, field in MM_KEYS.items():  # lab units (mm) -> the camera's metres
+            if key in cam_over:
+                cam_over[field] = _finite(cam_over.pop(key),
+                                          f"{source}: render.camera.{key}") / 1000.0
+        if "f_number" in cam_over:
+            cam_over["f_number"] = _finite(cam_over["f_number"],
+                                           f"{source}: render.camera.f_number")
         cam = dataclasses.replace(cam, **cam_over)
         scene_over = dict(r.get("scene", {}))
         scene = sc.SceneConfig(camera=cam, lighting=lighting)

@@ -132,6 +132,21 @@ def _lens_calibrated(row) -> bool:
     return v is True or v == "true" or v == "True" or row.get("lab.camera.matrix") is not None
 
 
+def _aperture(at_ball: bool):
+    """Defocus (render.camera.f_number): the aperture's diameter f / N (mm), for a case focused
+    on the ball's plane (``at_ball``) or elsewhere (the trough's front face)."""
+    def f(row):
+        n = _num(row.get("render.camera.f_number"))
+        if n is None:
+            return None
+        wd = (_num(row.get("render.camera.working_distance")) or 0.5) * 1000.0
+        focus = _num(row.get("render.camera.focus_distance_mm"))
+        if (focus is None or abs(focus - wd) < 0.01) != at_ball:
+            return None
+        return (_num(row.get("render.camera.focal_length_mm")) or 50.0) / n
+    return f
+
+
 SOURCES: tuple[Source, ...] = (
     Source("trough radius as built - nominal", "mm",
            _lab_err("cylinder_radius_mm"),
@@ -160,6 +175,11 @@ SOURCES: tuple[Source, ...] = (
            _key("render.camera.working_distance",
                 when=lambda row: row.get("render.camera.projection") == "perspective"),
            "0.3 .. 1 m (the ball's plane 15 mm behind the trough's front face)", origin=False),
+    Source("defocus, focus on the trough's front face: aperture f / N", "mm", _aperture(False),
+           "f/2.8 .. f/16 of a 50 mm lens (17.9 .. 3.1 mm): a lab focuses on what it sees "
+           "sharpest, the contour 15 mm before the ball"),
+    Source("defocus, focus on the ball's plane: aperture f / N", "mm", _aperture(True),
+           "f/2.8 .. f/16 of a 50 mm lens (17.9 .. 3.1 mm)"),
     Source("air drag, Cd (room air 1.2 kg/m^3)", "1",
            _key("scenario.environment.air_cd",
                 when=lambda row: (_num(row.get("scenario.environment.air_density_kg_m3"))
