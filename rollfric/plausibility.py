@@ -26,6 +26,8 @@ import math
 
 import numpy as np
 
+from rollfric.localfit import polyfit_rows
+
 FLAGS = ("not_found", "off_track", "contrast", "residual", "radius", "occluded", "jump",
          "duplicate")
 
@@ -65,55 +67,90 @@ def _robust(v: np.ndarray) -> tuple[float, float]:
     return med, 1.4826 * float(np.median(np.abs(v - med)))
 
 
+def _row_median(vals: np.ndarray, use: np.ndarray) -> np.ndarray:
+    """The median of each row's used values (NaN for a row without any): the same number as
+    ``numpy.median`` of them (the middle one, or the mean of the two middle ones)."""
+    out = np.full(vals.shape[0], np.nan)
+    cnt = use.sum(axis=1)
+    rows = np.flatnonzero(cnt)
+    if rows.size:
+        s = np.sort(np.where(use[rows], vals[rows], np.inf), axis=1)
+        c = cnt[rows]
+        out[rows] = (s[np.arange(rows.size), (c - 1) // 2] + s[np.arange(rows.size), c // 2]) / 2
+    return out
+
+
+def _nearest(ok: np.ndarray, i: np.ndarray, k: int, sides: tuple[int, ...] = (-1, 1)):
+    """For each frame of ``i``: up to ``k`` of the ``ok`` frames nearest it on each side in
+    ``sides`` (-1 before, +1 after; itself left out), within MAX_GAP frames. Returns (j, use):
+    (len(i), k * len(sides)) frame numbers, nearest first on each side, and which are there."""
+    idx = np.flatnonzero(ok)
+    i = np.asarray(i, dtype=np.intp)
+    off = np.arange(k)
+    cols = []
+    for side in sides:
+        if side < 0:
+            cols.append(np.searchsorted(idx, i, side="left")[:, None] - 1 - off)
+        else:
+            cols.append(np.searchsorted(idx, i, side="right")[:, None] + off)
+    at = np.concatenate(cols, axis=1)
+    use = (at >= 0) & (at < idx.size)
+    j = idx[np.clip(at, 0, idx.size - 1)] if idx.size else np.zeros_like(at)
+    use &= np.abs(j - i[:, None]) <= MAX_GAP
+    return j, use
+
+
 def _neighbour_median(v: np.ndarray, ok: np.ndarray, half: int) -> np.ndarray:
     """For each frame, the median of ``v`` over the ok frames within +-half, itself left out."""
     n = v.size
     out = np.full(n, np.nan)
-    idx = np.nonzero(ok & np.isfinite(v))[0]
-    for i in np.nonzero(ok)[0]:
-        lo, hi = np.searchsorted(idx, i - half), np.searchsorted(idx, i + half, side="right")
-        nb = idx[lo:hi]
-        nb = nb[nb != i]
-        if nb.size:
-            out[i] = float(np.median(v[nb]))
+    i = np.flatnonzero(ok)
+    off = np.r_[-half:0, 1:half + 1]
+    j = i[:, None] + off
+    inside = (j >= 0) & (j < n)
+    j = np.clip(j, 0, n - 1)
+    use = inside & ok[j] & np.isfinite(v[j])
+    out[i] = _row_median(v[j], use)
     return out
 
 
 def _side_median(v: np.ndarray, ok: np.ndarray, k: int) -> np.ndarray:
     """For each frame, the median of ``v`` over the |k| ok frames just before it (k < 0) or just
     after it (k > 0), within MAX_GAP frames; NaN where there are none."""
-    n = v.size
-    out = np.full(n, np.nan)
-    step = 1 if k > 0 else -1
-    for i in np.nonzero(ok)[0]:
-        vals = [v[j] for j in range(i + step, i + step * (MAX_GAP + 1), step)
-                if 0 <= j < n and ok[j] and np.isfinite(v[j])][:abs(k)]
-        if vals:
-            out[i] = float(np.median(vals))
+    out = np.full(v.size, np.nan)
+    i = np.flatnonzero(ok)
+    j, use = _nearest(ok & np.isfinite(v), i, abs(k), (1 if k > 0 else -1,))
+    out[i] = _row_median(v[j], use)
     return out
 
 
-def _predict(i: int, x: np.ndarray, y: np.ndarray, ok: np.ndarray,
-             pos: np.ndarray | None = None) -> tuple[float, float, float]:
-    """(x, y, model error) at frame i from up to HALF_WINDOW ok frames on each side (i left
-    out): a quadratic in the frame number (or in ``pos``, the frames' times in periods: a
-    recording with dropped frames or its own timestamps), and how far a cubic's prediction
-    differs from it (the polynomial's own error where the neighbours are far or one-sided:
-    near a gap, at a low frame rate)."""
-    n = x.size
-    left = [j for j in range(i - 1, max(-1, i - MAX_GAP - 1), -1) if ok[j]][:HALF_WINDOW]
-    right = [j for j in range(i + 1, min(n, i + MAX_GAP + 1)) if ok[j]][:HALF_WINDOW]
-    nb = np.array(sorted(left + right))
-    if nb.size < DEGREE + 2:
-        return math.nan, math.nan, math.nan
-    u = (nb - i).astype(float) if pos is None else pos[nb] - pos[i]
-    xy = np.column_stack([x[nb], y[nb]])  # x and y share one least-squares solve
-    p0 = np.polynomial.polynomial.polyfit(u, xy, DEGREE)[0]
-    model = 0.0
-    if nb.size >= DEGREE + 4:
-        q0 = np.polynomial.polynomial.polyfit(u, xy, DEGREE + 1)[0]
-        model = math.hypot(q0[0] - p0[0], q0[1] - p0[1])
-    return float(p0[0]), float(p0[1]), model
+def _predict(i, x: np.ndarray, y: np.ndarray, ok: np.ndarray,
+             pos: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, y, model error) at each frame of ``i`` from up to HALF_WINDOW ok frames on each side
+    (the frame left out): a quadratic in the frame number (or in ``pos``, the frames' times in
+    periods: a recording with dropped frames or its own timestamps), and how far a cubic's
+    prediction differs from it (the polynomial's own error where the neighbours are far or
+    one-sided: near a gap, at a low frame rate); NaN where fewer than DEGREE + 2 neighbours,
+    model error 0 where fewer than DEGREE + 4. All frames in one batch of least-squares fits
+    (:func:`rollfric.localfit.polyfit_rows`)."""
+    i = np.asarray(i, dtype=np.intp)
+    px, py, model = (np.full(i.size, np.nan) for _ in range(3))
+    j, use = _nearest(ok, i, HALF_WINDOW)
+    cnt = use.sum(axis=1)
+    fit = cnt >= DEGREE + 2
+    if not fit.any():
+        return px, py, model
+    j, use, ii = j[fit], use[fit], i[fit]
+    u = (j - ii[:, None]).astype(float) if pos is None else pos[j] - pos[ii][:, None]
+    xy = np.stack([x[j], y[j]], axis=-1)  # x and y share one least-squares solve
+    p0 = polyfit_rows(u, xy, use, DEGREE)[:, 0]
+    m = np.zeros(ii.size)
+    cubic = cnt[fit] >= DEGREE + 4
+    if cubic.any():
+        q0 = polyfit_rows(u[cubic], xy[cubic], use[cubic], DEGREE + 1)[:, 0]
+        m[cubic] = np.hypot(q0[:, 0] - p0[cubic, 0], q0[:, 1] - p0[cubic, 1])
+    px[fit], py[fit], model[fit] = p0[:, 0], p0[:, 1], m
+    return px, py, model
 
 
 def innovations(x, y, ok, pos=None) -> tuple[np.ndarray, np.ndarray]:
@@ -122,12 +159,13 @@ def innovations(x, y, ok, pos=None) -> tuple[np.ndarray, np.ndarray]:
     too few neighbours); ``pos``: the frames' times in periods (None: the frame numbers)."""
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
+    ok = np.asarray(ok, dtype=bool)
     pos = None if pos is None else np.asarray(pos, dtype=float)
     e = np.full(x.size, np.nan)
     m = np.full(x.size, np.nan)
-    for i in np.nonzero(ok)[0]:
-        px, py, m[i] = _predict(i, x, y, ok, pos)
-        e[i] = math.hypot(x[i] - px, y[i] - py)
+    i = np.flatnonzero(ok)
+    px, py, m[i] = _predict(i, x, y, ok, pos)
+    e[i] = np.hypot(x[i] - px, y[i] - py)
     return e, m
 
 
@@ -209,8 +247,8 @@ def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlie
         flags[i] = "duplicate" if same else "jump"
         ok[i] = False
         e[i] = np.nan
-        for j in range(max(0, i - MAX_GAP), min(n, i + MAX_GAP + 1)):
-            if ok[j]:
-                px, py, model[j] = _predict(j, x, y, ok, pos)
-                e[j] = math.hypot(x[j] - px, y[j] - py)
+        lo = max(0, i - MAX_GAP)
+        js = lo + np.flatnonzero(ok[lo:i + MAX_GAP + 1])
+        px, py, model[js] = _predict(js, x, y, ok, pos)
+        e[js] = np.hypot(x[js] - px, y[js] - py)
     return flags

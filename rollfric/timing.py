@@ -36,6 +36,8 @@ import math
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
+from rollfric.localfit import polyfit_rows
+
 HALF_WINDOW = 8  # steps on each side that predict a step (2..HALF_WINDOW away)
 DEGREE = 2  # the steps are the velocity times dt: a quadratic over 16 ms of a 0.5 s swing
 DETECT_SIGMAS = 8.0  # |r| above this many sigma: a step that is no ordinary one
@@ -88,21 +90,22 @@ def _fits(s: np.ndarray, u: np.ndarray, ok: np.ndarray, use: np.ndarray,
     time (periods from u[k]) through the per-period steps ``s`` of its ``use`` neighbours
     2..HALF_WINDOW steps away on each side; NaN where fewer than DEGREE + 3 neighbours, or none
     on one side, are usable. With ``coef`` and ``only`` (a mask), just those steps are fitted
-    again (in ``coef``, which is returned)."""
+    again (in ``coef``, which is returned). All in one batch of least-squares fits
+    (:func:`rollfric.localfit.polyfit_rows`)."""
     n = len(s)
     if coef is None:
         coef = np.full((n, DEGREE + 1, 2), np.nan)
-    idx = np.nonzero(use)[0]
-    todo = ok if only is None else ok & only
-    for k in np.nonzero(todo)[0]:
-        coef[k] = np.nan
-        lo, hi = np.searchsorted(idx, k - HALF_WINDOW), np.searchsorted(idx, k + HALF_WINDOW,
-                                                                       side="right")
-        nb = idx[lo:hi]
-        nb = nb[np.abs(nb - k) >= 2]
-        if nb.size < DEGREE + 3 or not (np.any(nb < k) and np.any(nb > k)):
-            continue
-        coef[k] = np.polynomial.polynomial.polyfit(u[nb] - u[k], s[nb], DEGREE)
+    todo = np.flatnonzero(ok if only is None else ok & only)
+    coef[todo] = np.nan
+    off = np.r_[-HALF_WINDOW:-1, 2:HALF_WINDOW + 1]
+    nb = todo[:, None] + off
+    inside = (nb >= 0) & (nb < n)
+    nb = np.clip(nb, 0, n - 1)
+    sel = inside & use[nb]
+    fit = ((sel.sum(axis=1) >= DEGREE + 3) & sel[:, off < 0].any(axis=1)
+           & sel[:, off > 0].any(axis=1))
+    k, nb, sel = todo[fit], nb[fit], sel[fit]
+    coef[k] = polyfit_rows(u[nb] - u[k][:, None], s[nb], sel, DEGREE)
     return coef
 
 

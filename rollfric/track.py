@@ -26,6 +26,7 @@ from rollfric import io, locate, plausibility, quality, timing
 from rollfric.background import median_background
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
+from rollfric.locate.kernels import _ring_sums
 from rollfric.perspective import ball_plane_center, contour_depth_from_radius
 from rollfric.registry import LOCATORS
 from rollfric.setup import Setup, SetupError, setup_from_dict
@@ -408,13 +409,11 @@ def ring_gain(frame, background, x: float, y: float, r: float) -> float:
     if fr is None:
         return math.nan
     bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
-    yy, xx = np.mgrid[0:fr.shape[0], 0:fr.shape[1]]
-    d = np.hypot(xx + x0c - x, yy + y0c - y)
-    ring = (d >= r + 2) & (d <= r + 6)
-    den = float(bg[ring].sum(dtype=np.float64))
-    if ring.sum() < 8 or den <= 0:
+    num, den, count = _ring_sums(np.asarray(fr), np.asarray(bg), x0c, y0c, float(x), float(y),
+                                 r + 2, r + 6)
+    if count < 8 or den <= 0:
         return math.nan
-    return float(fr[ring].sum(dtype=np.float64)) / den
+    return num / den
 
 
 def same_pixels(frame, prev, x: float, y: float, r: float) -> bool:

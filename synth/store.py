@@ -41,6 +41,7 @@ and a render worker encodes only the chunks its tiles touch. The bytes are the s
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 
 import numpy as np
@@ -200,24 +201,32 @@ def _chunk_files(group, arr):
     layout = _layout(group, arr)
     if layout is None:
         return None
-    from numcodecs import Zstd
+    from numcodecs.zstd import decompress
 
     folder, encode, dtype, (ch, cw), _, _ = layout
-    zstd = Zstd()
+    root = str(folder)
 
     def read(i: int, roi) -> np.ndarray:
         y0, y1, x0, x1 = roi
         out = np.zeros((y1 - y0, x1 - x0), dtype=np.int32)
         for cy in range(y0 // ch, (y1 - 1) // ch + 1):
             for cx in range(x0 // cw, (x1 - 1) // cw + 1):
+                # os-level reads and numcodecs' zstd decompress (what Zstd.decode calls): a
+                # third of pathlib's read_bytes + Zstd.decode's CPU for a 32 kB chunk
                 try:
-                    data = (folder / encode((i, cy, cx))).read_bytes()
+                    fd = os.open(os.path.join(root, encode((i, cy, cx))), os.O_RDONLY)
                 except FileNotFoundError:  # a chunk never written: all fill value
                     continue
                 except OSError as exc:
                     raise SynthError(f"{folder}: cannot read frame {i}'s chunk ({exc})") from None
                 try:
-                    chunk = np.frombuffer(zstd.decode(data), dtype=dtype).reshape(ch, cw)
+                    data = os.read(fd, os.fstat(fd).st_size)
+                except OSError as exc:
+                    raise SynthError(f"{folder}: cannot read frame {i}'s chunk ({exc})") from None
+                finally:
+                    os.close(fd)
+                try:
+                    chunk = np.frombuffer(decompress(data), dtype=dtype).reshape(ch, cw)
                 except Exception as exc:
                     raise SynthError(f"{folder}: frame {i}'s chunk is corrupt ({exc})") from None
                 ya, yb = max(y0, cy * ch), min(y1, (cy + 1) * ch)

@@ -1,7 +1,10 @@
 """The sub-pixel locator's numba kernels: ray profiles, edge points, the robust circle fit and
-the pixel-level edge-model fit (compiled once, cached on disk)."""
+the pixel-level edge-model fit, and the ring sums of the tracker's contrast figure (compiled
+once, cached on disk)."""
 
 from __future__ import annotations
+
+import math
 
 import numba
 import numpy as np
@@ -554,3 +557,31 @@ def _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, cx, cy, inset, kappa, most):
         if valid[i]:
             s_edge[i] += shift[i]
     return shift
+
+
+@numba.njit(cache=True)
+def _ring_sums(fr, bg, x0, y0, cx, cy, r_in, r_out):
+    """(sum of ``fr``, sum of ``bg``, pixels) over the pixels of the crops ``fr``, ``bg`` (whose
+    top-left pixel is (x0, y0) of the frame) at a distance in [r_in, r_out] from (cx, cy), the
+    sums in float64 (:func:`rollfric.track.ring_gain`)."""
+    h, w = fr.shape
+    sf = 0.0
+    sb = 0.0
+    cnt = 0
+    # the squared distance screens out the pixels clearly off the ring (0.01 px: far beyond
+    # its rounding); the distance of the others is hypot's, as numpy.hypot's
+    lo2 = max(r_in - 0.01, 0.0) ** 2
+    hi2 = (r_out + 0.01) ** 2
+    for iy in range(h):
+        dy = (iy + y0) - cy
+        for ix in range(w):
+            dx = (ix + x0) - cx
+            d2 = dx * dx + dy * dy
+            if d2 < lo2 or d2 > hi2:
+                continue
+            d = math.hypot(dx, dy)
+            if d >= r_in and d <= r_out:
+                sf += np.float64(fr[iy, ix])
+                sb += np.float64(bg[iy, ix])
+                cnt += 1
+    return sf, sb, cnt

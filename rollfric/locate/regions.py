@@ -22,11 +22,14 @@ class LazyFrame:
     frame's. A crop outside the region read so far reads that crop grown by ``margin`` px a side
     (the sub-pixel locator's later passes move a little), clipped to the frame. Every crop holds
     the same pixels as the same crop of the full frame, so the locators give the same answers.
+    The default margin, 2 px, reads 20 % fewer pixels than 8 for the tracker's 98 px box and
+    still once a frame: the later passes, the contrast ring and the repeated-frame check of the
+    default 4 s validate case (4001 frames) all fell inside it.
     """
 
     ndim = 2
 
-    def __init__(self, read, full, shape, dtype, *, margin: int = 8) -> None:
+    def __init__(self, read, full, shape, dtype, *, margin: int = 2) -> None:
         self._read = read
         self._full = full
         self.shape = (int(shape[0]), int(shape[1]))
