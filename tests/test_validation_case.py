@@ -126,3 +126,20 @@ def test_shipped_sweeps_load(capsys):
     assert "noise" in capsys.readouterr().out
     assert main(["sweep", "noise", "--dry-run"]) == 0
     assert "16 case(s)" in capsys.readouterr().out
+
+
+def test_sweep_set_changes_every_case_and_its_id(capsys):
+    """rollfric sweep --set KEY=VALUE: the study's [base] with the key set, in every case."""
+    from validation import case as C
+
+    plain = S.load_sweep("coverage")
+    oracle = S.load_sweep("coverage", {"measure.oracle": True})
+    assert len(oracle.cases) == len(plain.cases)
+    assert all(c.case["measure"]["oracle"] is True for c in oracle.cases)
+    assert all(C.case_from_dict(c.case).mode == "oracle" for c in oracle.cases[:3])
+    assert not {c.case_id for c in oracle.cases} & {c.case_id for c in plain.cases}
+    assert "# run with --set measure.oracle=True" in oracle.text
+    assert main(["sweep", "coverage", "--set", "measure.oracle=true", "--dry-run"]) == 0
+    assert "216 case(s)" in capsys.readouterr().out
+    assert main(["sweep", "coverage", "--set", "measure.colour=1", "--dry-run"]) == 2
+    assert "measure.colour" in capsys.readouterr().err

@@ -102,6 +102,10 @@ def register(subparsers) -> None:
     s.add_argument("--retry-failed", action="store_true",
                    help="on resume, run again the cases recorded as failed")
     s.add_argument("--list", action="store_true", help="list the shipped example sweeps")
+    s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="set a case key in every case (the sweep's [base]), e.g. "
+                        "measure.oracle=true: the same study measured otherwise (other case "
+                        "ids: resume it with the same --set; repeatable)")
     s.add_argument("--dry-run", action="store_true",
                    help="print the cases (id and parameters) without running them")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -180,7 +184,7 @@ def handle_sweep(args) -> int:
         return 0
     if not args.sweep:
         raise InputError("give a SWEEP.toml (or a shipped study name, see --list)")
-    spec = sweep_mod.load_sweep(args.sweep)
+    spec = sweep_mod.load_sweep(args.sweep, _parse_set(args.set))
     if args.dry_run:
         for c in spec.cases:
             print(c.case_id, " ".join(f"{k}={v!r}" for k, v in c.params.items()))

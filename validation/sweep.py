@@ -116,8 +116,22 @@ def _find_sweep(path_or_name: str | Path) -> Path:
                      f"{', '.join(n for n, _, _ in shipped_sweeps())})")
 
 
-def load_sweep(path_or_name: str | Path) -> SweepSpec:
-    """Read a sweep file (or a shipped study by name) and expand its cases."""
+def load_sweep(path_or_name: str | Path, overrides: dict | None = None) -> SweepSpec:
+    """Read a sweep file (or a shipped study by name) and expand its cases.
+
+    Parameters
+    ----------
+    path_or_name : str or Path
+        A sweep TOML file, or the name of a shipped study.
+    overrides : dict, optional
+        Dotted case keys set in every case's ``[base]`` (``rollfric sweep --set``), e.g.
+        ``{"measure.oracle": True}``: the same study measured otherwise. They change the cases'
+        ids, and are recorded in the text copied to OUT/sweep.toml.
+
+    Returns
+    -------
+    SweepSpec
+    """
     from rollfric.tomlfile import read_text
 
     path = _find_sweep(path_or_name)
@@ -126,6 +140,11 @@ def load_sweep(path_or_name: str | Path) -> SweepSpec:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SweepError(f"{path}: not valid TOML: {exc}") from None
+    if overrides:
+        if not isinstance(data.get("base", {}), dict):
+            raise SweepError(f"{path}: [base] must be a table")
+        data = {**data, "base": apply_overrides(data.get("base", {}), overrides)}
+        text += "".join(f"\n# run with --set {k}={v!r}" for k, v in overrides.items()) + "\n"
     return sweep_from_dict(data, source=str(path), text=text)
 
 
