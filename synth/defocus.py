@@ -269,6 +269,11 @@ class Defocus:
         with np.errstate(invalid="ignore", divide="ignore"):
             out = np.where(den > 1e-6, num / np.maximum(den, 1e-300), 0.0)
         if a_bore.any():
+            # the coverages are shares of the pixel; "over" takes the bore's own coverage,
+            # its share of what the face leaves (none known where the face covers all)
+            rest = 1.0 - a_face
+            a_bore = np.where(rest > 1e-6, np.clip(a_bore / np.where(rest > 1e-6, rest, 1.0),
+                                                   0.0, 1.0), 0.0)
             out = _over(_blur(a_bore * s, k["bore"]), _blur(a_bore, k["bore"]), out)
         if ball_alpha is not None:
             # the ball's own light (alpha Ball): the sharp image is a_face F + (1 - a_face)
