@@ -144,3 +144,13 @@ def test_pinhole_ellipse_with_the_rim_over_the_dark_bore(f, chord):
     assert e.max() < 0.04  # measured 0.009-0.030 px (bilinear resampling of the squeeze)
     # the circle model on the same arcs is off by about the stretch (a - b)
     assert np.nanmin(errs_circle) > 5 * e.max()
+
+
+@pytest.mark.parametrize("chord_px", [20.0, 10.0, 5.0])
+def test_rim_over_the_dark_bore_in_the_balls_shadow(chord_px):
+    # the ball's shadow on the backdrop beside it leaves the top arc and the chord where
+    # frame - background steps at the bore's edge: that chord is the background's edge (the
+    # frame is the ball's level on both sides), not the ball's rim, and must not be fitted
+    # (it was: not found, "the ball's edge lies on a circle of 29.6 px")
+    rms, _, found = _errors(_scene(chord_px, 0.12, shadow=0.6, spot=0.0))
+    assert found.all() and rms < 0.02

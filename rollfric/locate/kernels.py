@@ -35,6 +35,33 @@ def _profiles(rel, cx, cy, s0, ds, ns, n):
 
 
 @numba.njit(cache=True)
+def _bilinear(img, x, y):
+    """img at (x, y) by bilinear interpolation; NaN outside."""
+    h, w = img.shape
+    if not (0.0 <= x <= w - 1 and 0.0 <= y <= h - 1):
+        return np.nan
+    ix = min(int(x), w - 2)
+    iy = min(int(y), h - 2)
+    fx = x - ix
+    fy = y - iy
+    return ((1 - fy) * ((1 - fx) * img[iy, ix] + fx * img[iy, ix + 1])
+            + fy * ((1 - fx) * img[iy + 1, ix] + fx * img[iy + 1, ix + 1]))
+
+
+@numba.njit(cache=True)
+def _bg_step(bgr, cx, cy, phi, s_in, s_out, nl, ds):
+    """The background's own change along a ray at angle phi from (cx, cy): the mean over nl
+    samples ending at s_in (inwards) minus the mean over nl samples from s_out outwards."""
+    c, sn = np.cos(phi), np.sin(phi)
+    a = 0.0
+    b = 0.0
+    for j in range(nl):
+        a += _bilinear(bgr, cx + c * (s_in - j * ds), cy + sn * (s_in - j * ds))
+        b += _bilinear(bgr, cx + c * (s_out + j * ds), cy + sn * (s_out + j * ds))
+    return (a - b) / nl
+
+
+@numba.njit(cache=True)
 def _rim_median(values, ok, min_count):
     """Per ray, the median of ``values`` over the rays within 1/16 of the rim each side (about
     1/8 of it, the ring wrapping round) where ``ok``; NaN where fewer than ``min_count``."""
@@ -55,13 +82,21 @@ def _rim_median(values, ok, min_count):
 
 
 @numba.njit(cache=True)
-def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out):
+def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx, cy):
     """Per ray: the steepest step of the ball's polarity in [r - w, r + w], then the edge
     position from the integral of the normalised profile across a window of 2 ne + 2 samples
     (exact for a sampled step), with the inside/outside levels from nl samples either side.
 
     Rays whose step is below ``min_rel`` x the 75th percentile of the rays' steps have no
-    usable contrast and are not valid.
+    usable contrast and are not valid. Nor are rays whose step is the background's own: where
+    the ball covers an edge of the background (the dark bore's edge behind a ball seen in
+    perspective), frame - background steps there although the frame does not (the ball's level
+    on both sides), a chord of the silhouette; such a ray's step in the frame itself (the step
+    of frame - background plus the background's step ``bgr`` across the same windows, rays
+    from (cx, cy)) is under a quarter of its step in frame - background, and it lies more than
+    1.5 px inside the expected rim (a contour touching the ball from outside, the trough at
+    the contact in the orthographic view, steps at the rim itself and keeps its rays). Where
+    the ball's rim lies over a region of its own level, it is not seen: no edge to find there.
 
     Returns s_edge, contrast (inside - outside, signed by polarity), outside std, valid,
     and the inside and outside levels used."""
@@ -138,6 +173,16 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out):
         a_in[i] = a
         b_out[i] = b
         osd[i] = np.sqrt(max(b2 / nl - b * b, 0.0))
+        # the background's own step across the same windows: the frame's step is this plus
+        # (a - b); a step of the ball's polarity that the frame does not have is the
+        # background's edge behind the ball, not the ball's rim
+        dbg = _bg_step(bgr, cx, cy, (i + 0.5) * (2.0 * np.pi / n), s0 + (kb - ne - 1) * ds,
+                       s0 + (kb + ne + 2) * ds, nl, ds)
+        # (only inside the rim: a trough of the ball's level whose contour touches the
+        # ball from outside, the orthographic view at the contact, steps at the rim itself)
+        if (s0 + kb * ds < r - 1.5 and np.isfinite(dbg)
+                and sgn * ((a - b) + dbg) < 0.25 * sgn * (a - b)):
+            a_in[i] = np.nan
     # rays with contrast: a step of at least min_rel x the typical strong ray's (the 75th
     # percentile); the others (the ball in front of a cast shadow or of anything of its own
     # level) carry no edge and are left out of the level statistics below

@@ -339,7 +339,7 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
                                                         opts.level_smooth, opts.min_contrast_rel,
                                                         opts.rim_levels,
                                                         opts.sharp_rays and r_px >= 12
-                                                        and w <= 3.0)
+                                                        and w <= 3.0, bgr, lcx, lcy)
         rim_shift = None
         if opts.mirror_rim:
             inset = (ne + 0.5 * nl + 1) * ds
