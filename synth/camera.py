@@ -164,18 +164,21 @@ class CameraModel:
         return np.asarray(uv, dtype=float) if lens is None else lens.distort(uv)
 
     def ideal(self) -> CameraModel:
-        """The camera without its lens whose frame covers everything the lens shows: the
-        render that :mod:`synth.lens` bends into this camera's frames (self when no lens)."""
+        """The camera without its lens whose frame covers everything the lens shows, at
+        :data:`synth.lens.FACTOR` x FACTOR pixels per frame pixel: the render that
+        :mod:`synth.lens` bends into this camera's frames (self when no lens)."""
         lens = self.lens
         if lens is None:
             return self
         from synth.lens import cached_window
 
         win = cached_window(lens, self.width, self.height)
+        pp = None if self.principal_px is None else tuple(win.to_render(self.principal_px))
         return dataclasses.replace(
             self, width=win.width, height=win.height, lens_matrix=None,
-            lens_distortion=(0.0,) * 5,
-            center_px=(self.center_px[0] - win.x0, self.center_px[1] - win.y0))
+            lens_distortion=(0.0,) * 5, pixel_size=self.pixel_size / win.factor,
+            center_px=tuple(float(c) for c in win.to_render(self.center_px)),
+            principal_px=None if pp is None else tuple(float(c) for c in pp))
 
     @property
     def rotation(self) -> np.ndarray:

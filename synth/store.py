@@ -15,7 +15,8 @@ Layout (a directory ``REC.zarr``)::
     timestamps        (T,)       float64        optional: each frame's time (s), the camera's
                                                 clock (render(timing=...), synth.timing)
     background_ideal_clean (H', W')             with a lens only: the ideal render the lens
-                                                bends into the frames (synth.lens)
+                                                bends into the frames (synth.lens: 4 x 4
+                                                of its pixels a frame pixel)
 
 Root attributes: ``format``, ``setup`` (the lab setup, TOML form), ``scene``, ``sensor``,
 ``sensor_noise`` (the noise generator, ``synth.sensor.NOISES``; absent: "tiles/1", the stores
