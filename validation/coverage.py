@@ -204,13 +204,15 @@ def summarize(df: pd.DataFrame) -> dict:
     s = {"cases": len(df), "contour_not_found": failed,
          "blind_within_U": frac(df["z"], 2.0), "blind_within_u": frac(df["z"], 1.0),
          "blind_z_rms": float(np.sqrt(np.mean(df["z"] ** 2))),
-         "oracle_within_2u_stat": frac(df["z_oracle"], 2.0),
-         "oracle_within_u_stat": frac(df["z_oracle"], 1.0),
-         "oracle_ordinary_within_2se": frac(df["z_oracle_ordinary"], 2.0),
-         "oracle_ordinary_within_se": frac(df["z_oracle_ordinary"], 1.0),
          "median_U_rel": float(np.median(df["U_mu"] / df["mu"])),
          "median_budget_seconds": float(np.median(df["budget_seconds"])),
          "median_fit_seconds": float(np.median(df["fit_seconds"]))}
+    if np.isfinite(df["z_oracle"].to_numpy(float)).any():  # an oracle run was given
+        s.update(oracle_cases=int(np.isfinite(df["z_oracle"].to_numpy(float)).sum()),
+                 oracle_within_2u_stat=frac(df["z_oracle"], 2.0),
+                 oracle_within_u_stat=frac(df["z_oracle"], 1.0),
+                 oracle_ordinary_within_2se=frac(df["z_oracle_ordinary"], 2.0),
+                 oracle_ordinary_within_se=frac(df["z_oracle_ordinary"], 1.0))
     for ar, g in df.groupby("ar") if df["ar"].nunique() > 1 else ():
         s[f"oracle_within_2u_stat_ar{ar:g}"] = frac(g["z_oracle"], 2.0)
         s[f"oracle_ordinary_within_2se_ar{ar:g}"] = frac(g["z_oracle_ordinary"], 2.0)
@@ -228,19 +230,20 @@ def from_sweep(results: pd.DataFrame, oracle: pd.DataFrame | None = None) -> pd.
     """The coverage table (z, z_oracle, z_oracle_ordinary, mu, U_mu, ...) of a ``coverage``
     sweep's results (its ok cases). ``oracle``: the same sweep run with ``measure.oracle =
     true``, matched case by case on the swept parameters (its z_stat: the statistical part
-    alone; its mu_stderr: the ordinary standard error); without it the blind run's own
-    statistical part stands in (z_stat)."""
+    alone; its mu_stderr: the ordinary standard error); without it the oracle columns are NaN
+    (a blind run's statistical part alone says nothing: its error is mostly the setup's)."""
     ok = results[results["status"] == "ok"].reset_index(drop=True)
     df = pd.DataFrame({"case_id": ok["case_id"], "z": ok["z_budget"], "mu": ok["mu_recovered"],
                        "U_mu": ok["U_mu"], "ar": 0.0, "budget_seconds": ok["t_budget_s"],
                        "fit_seconds": ok["t_measure_s"] if "t_measure_s" in ok else np.nan})
-    src = ok
-    if oracle is not None:
-        # the swept parameters (dotted case keys) name a case in both runs
-        keys = [c for c in ok.columns if "." in c and c in oracle.columns]
-        o = oracle[oracle["status"] == "ok"]
-        o = o.assign(**{k: o[k].astype(str) for k in keys})
-        src = ok[keys].astype(str).merge(o, on=keys, how="left")
+    if oracle is None:
+        df["z_oracle"] = df["z_oracle_ordinary"] = np.nan
+        return df
+    # the swept parameters (dotted case keys) name a case in both runs
+    keys = [c for c in ok.columns if "." in c and c in oracle.columns]
+    o = oracle[oracle["status"] == "ok"]
+    o = o.assign(**{k: o[k].astype(str) for k in keys})
+    src = ok[keys].astype(str).merge(o, on=keys, how="left")
     df["z_oracle"] = src["z_stat"].to_numpy(float)
     df["z_oracle_ordinary"] = ((src["mu_recovered"] - src["mu_true"])
                                / src["mu_stderr"]).to_numpy(float)
@@ -258,8 +261,9 @@ def plot(df: pd.DataFrame, path: Path) -> None:
             ("z_oracle_ordinary", "oracle: / ordinary standard error")]
     if "z_contour" in df:
         cols.insert(1, ("z_contour", "exact setup, contour centre:\n/ (statistical + centre) u"))
+    cols = [c for c in cols if np.isfinite(df[c[0]].to_numpy(float)).any()]
     fig = Figure(figsize=(4.4 * len(cols), 3.8))
-    axes = fig.subplots(1, len(cols))
+    axes = fig.subplots(1, len(cols), squeeze=False)[0]
     grid = np.linspace(-4, 4, 200)
     for ax, (col, title) in zip(axes, cols, strict=True):
         z = df[col].to_numpy(float)
