@@ -274,12 +274,12 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
     # of bright surroundings: its edge lies inside the silhouette) are left out, when enough
     # sharp ones remain
     nv = valid.sum()
-    if wide_out and nv >= 8:
+    if wide_out > 0 and nv >= 8:
         sp = np.sort(spread[valid])
         ref = sp[int(0.25 * (nv - 1))]
         low = sp[:max(2, nv // 2)]
         mad = np.median(np.abs(low - np.median(low)))
-        lim = ref + max(0.25, 6.0 * 1.4826 * mad)
+        lim = ref + max(wide_out, 6.0 * 1.4826 * mad)
         nsharp = 0
         for i in range(n):
             if valid[i] and spread[i] <= lim:
@@ -573,15 +573,18 @@ def _fit_stats(wts, res):
 
 
 @numba.njit(cache=True)
-def _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, cx, cy, inset, kappa, most):
+def _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, cx, cy, inset, kappa, most, relative):
     """Move each ray's edge out by the Fresnel rise of a mirror ball's rim: within a fraction
     of a pixel of the silhouette the ball reflects more (grazing incidence) than where its
     inside level ``a`` was measured, which moves the integral edge in by ``kappa`` x (the
-    frame's level there, a + background) / (a - b). In place; returns the shifts (0 for
-    rays not valid)."""
+    frame's level there, a + background) / (a - b). ``relative``: the level above the rim's
+    darkest (the 10th percentile over the valid rays): a level common to the whole rim moves
+    every edge alike (only the radius), and a matt ball's uniform level gets no correction.
+    In place; returns the shifts (0 for rays not valid)."""
     h, w = bgr.shape
     n = len(s_edge)
     shift = np.zeros(n)
+    level = np.zeros(n)
     for i in range(n):
         if not valid[i]:
             continue
@@ -590,13 +593,20 @@ def _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, cx, cy, inset, kappa, most):
         y = cy + np.sin(phi) * (s_edge[i] - inset)
         ix = min(max(int(np.rint(x)), 0), w - 1)
         iy = min(max(int(np.rint(y)), 0), h - 1)
+        level[i] = max(a_lv[i] + bgr[iy, ix], 0.0)
+    base = 0.0
+    nv = valid.sum()
+    if relative and nv > 0:
+        base = np.sort(level[valid])[int(0.1 * (nv - 1))]
+    for i in range(n):
+        if not valid[i]:
+            continue
         c = a_lv[i] - b_lv[i]
         if c == 0.0:
             continue
-        level = max(a_lv[i] + bgr[iy, ix], 0.0)
         # the inside level over the contrast, at most ``most`` (a rim that mirrors the
         # backdrop: about 1; above, a ball too faint against its background to judge)
-        q = min(level / abs(c), most)
+        q = min(max(level[i] - base, 0.0) / abs(c), most)
         shift[i] = -kappa * q * (1.0 if c > 0 else -1.0)
     for i in range(n):
         if valid[i]:

@@ -57,24 +57,27 @@ class SubpixelOptions:
     free_min_frac: float = 0.45  # free radius only when at least this fraction of the rim fits
     radius_sigma: float = 0.003  # relative uncertainty of r_px (centre error on partial arcs)
     max_sigma: float = 0.5  # px: a centre less certain than this is reported not found
-    # a steel ball's rim, a curved mirror (docs/how/locator.md, "A steel ball's rim"); the
-    # last two are off by default (they cost drawn matt balls' tests; MIRROR turns them on):
+    # a steel ball's rim, a curved mirror (docs/how/locator.md, "A steel ball's rim"):
     rim_levels: bool = True  # a ray's inside level is checked against its neighbours' (and
     # its own further in), not against one median: the rim mirrors bright and dark surroundings
     sharp_rays: bool = True  # rays whose edge is much wider than the rim's sharpest are left
     # out (r_px >= 12): a rim that mirrors a narrow band of bright surroundings
-    mirror_rim: bool = False  # correct each ray's edge for the Fresnel rise at the rim
+    sharp_excess: float = 0.25  # px: how much wider than the rim's sharpest quarter
+    mirror_rim: bool = True  # correct each ray's edge for the Fresnel rise at the rim
+    mirror_relative: bool = True  # ... for the inside level above the rim's darkest only (its
+    # variation along the rim; a matt ball's uniform level gets none); False: the whole level
+    # (the radius then comes out as the sphere's on a mirror ball, a matt ball's too small)
     steel_eta: float = 2.9  # the ball's complex refractive index (steel, green)
     steel_k: float = 3.0
-    local_contrast: bool = False  # the contrast band about the neighbouring rays' contrast
-    # (r_px >= 12), not one median
+    local_contrast: bool = True  # the contrast band about the neighbouring rays' contrast
+    # (r_px >= 12), not one median: a mirror ball's rim is bright where it mirrors the backdrop
     pinhole: tuple | None = None  # (principal x, principal y, focal length) px of a pinhole
     # camera whose image plane is parallel to the ball's plane (rollfric.perspective): the
     # ball's silhouette is then an ellipse (:func:`silhouette_stretch`), fitted as one; None:
     # a circle (orthographic, or a camera far away)
 
 
-MIRROR = SubpixelOptions(mirror_rim=True, local_contrast=True)
+MIRROR = SubpixelOptions(mirror_relative=False)
 """The sub-pixel locator's options for a polished steel ball whose rim mirrors its surroundings
 (the Fresnel correction and the contrast band along the rim)."""
 
@@ -338,14 +341,15 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
         s_edge, con, out_sd, valid, a_lv, b_lv, spread = _edges(prof, s0, ds, r, w, ne, nl,
                                                         opts.level_smooth, opts.min_contrast_rel,
                                                         opts.rim_levels,
-                                                        opts.sharp_rays and r_px >= 12
-                                                        and w <= 3.0, bgr, lcx, lcy)
+                                                        opts.sharp_excess if opts.sharp_rays
+                                                        and r_px >= 12 and w <= 3.0 else 0.0,
+                                                        bgr, lcx, lcy)
         rim_shift = None
         if opts.mirror_rim:
             inset = (ne + 0.5 * nl + 1) * ds
             kappa = _fresnel_kappa(round(r_px, 1), inset, opts.steel_eta, opts.steel_k)
             rim_shift = _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, lcx, lcy,
-                                    inset, kappa, 1.5)
+                                    inset, kappa, 1.5, opts.mirror_relative)
         status, xs, ys, idx = _select(s_edge, con, out_sd, valid, lcx, lcy,
                                       opts.contrast_bands, opts.min_rays,
                                       -1.0 if noise is None else float(noise),
