@@ -515,10 +515,13 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
 
 
 @numba.njit(cache=True)
-def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor, local):
+def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor, local, b_lv):
     """Edge points of the clean rays: the ball's typical contrast (a tight band first, widened
     only when too few rays pass: real balls vary around the rim) and a flat outside (shadow
-    gradients, spots, the trough contact and occluders fail). Returns status, xs, ys, ray index."""
+    gradients, spots, the trough contact and occluders fail). ``local``: the typical contrast
+    of a ray whose outside is the background itself (``b_lv`` about 0: the contrast varies
+    with the ball's inside only) is that of its neighbours. Returns status, xs, ys, ray
+    index."""
     n = len(s_edge)
     empty = np.empty(0)
     iempty = np.empty(0, np.int64)
@@ -531,11 +534,15 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor,
         return 2, empty, empty, iempty
     keep = np.zeros(n, np.bool_)
     # the typical contrast: the median, or (``local``) that of the ray's neighbours over about
-    # 1/8 of the rim (a mirror ball's rim: bright where it mirrors the backdrop)
+    # 1/8 of the rim (a mirror ball's rim: bright where it mirrors the backdrop) where the ray's
+    # outside is the background (a shadow, a glitch or an occluder changes the outside: those
+    # rays keep the median)
     cref = np.full(n, cmed)
     if local:
         loc = _rim_median(con, valid, max(2, n // 16))
-        cref = np.where(np.isnan(loc), cref, loc)
+        for i in range(n):
+            if np.isfinite(loc[i]) and abs(b_lv[i]) <= 0.05 * cmed + 3.0 * nz:
+                cref[i] = loc[i]
     for tol in bands:
         cnt = 0
         for i in range(n):

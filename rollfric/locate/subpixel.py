@@ -354,7 +354,7 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
                                       opts.contrast_bands, opts.min_rays,
                                       -1.0 if noise is None else float(noise),
                                       0.004 * _full_scale(frame.dtype),
-                                      opts.local_contrast and r_px >= 12)
+                                      opts.local_contrast and r_px >= 12, b_lv)
         if status:
             return Location.missing(_SELECT_FAIL[status])
         # a free radius only on most of the rim: on a partial arc (the rest of the rim without
