@@ -78,8 +78,9 @@ class SubpixelOptions:
 
 
 MIRROR = SubpixelOptions(mirror_relative=False)
-"""The sub-pixel locator's options for a polished steel ball whose rim mirrors its surroundings
-(the Fresnel correction and the contrast band along the rim)."""
+"""The sub-pixel locator's options for a polished steel ball whose rim mirrors its surroundings:
+the Fresnel correction for the whole inside level, not only its part above the rim's darkest
+(the default), so that the radius comes out as the sphere's (a matt ball's too large)."""
 
 
 @functools.lru_cache(maxsize=64)
