@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from rollfric.locate import MIRROR, SubpixelOptions, locate_subpixel
-from validation.drawn_frames import Scene, make_frames
 from validation.mirror_frames import (
     MirrorScene,
     background,
@@ -106,43 +105,38 @@ def test_mirror_options_hold_on_a_mirror_rim(kw):
 
 
 def test_fresnel_correction_restores_the_silhouette_radius():
-    # the rim's Fresnel rise moves every edge in; corrected for the whole inside level (MIRROR),
-    # the radius is the sphere's; for the level above the rim's darkest (the default), only
-    # the bright half's edges move: the same centre, the radius short by the dark half's share
+    # the rim's Fresnel rise moves every edge in; corrected, the radius is the sphere's
     rng = np.random.default_rng(5)
     th = 0.12
     tx, ty = 100 + rng.uniform(-0.5, 0.5), 100 + rng.uniform(-0.5, 0.5)
     sc = _scene_at(th, tx, ty)
     bg, (f,) = make_mirror_frames(sc, [(tx, ty)], seed=5)
-    g = (tx + 0.8, ty - 0.6)
-    plain = locate_subpixel(f, bg, sc.r_px, guess=g, opts=SubpixelOptions(mirror_rim=False))
-    fixed = locate_subpixel(f, bg, sc.r_px, guess=g, opts=MIRROR)
-    default = locate_subpixel(f, bg, sc.r_px, guess=g)
+    plain = locate_subpixel(f, bg, sc.r_px, guess=(tx + 0.8, ty - 0.6))
+    fixed = locate_subpixel(f, bg, sc.r_px, guess=(tx + 0.8, ty - 0.6), opts=MIRROR)
     assert plain.r < sc.r_px - 0.1
     assert abs(fixed.r - sc.r_px) < 0.04
-    assert fixed.r - 0.03 < default.r <= fixed.r + 1e-9
-    assert math.hypot(default.x - tx, default.y - ty) < 0.05
-
-
-def test_fresnel_correction_leaves_a_matt_ball_alone():
-    # a ball of one uniform level (no mirror): the correction relative to the rim's darkest
-    # level moves no edge; the absolute one (MIRROR) moves every edge out by
-    # kappa x level / contrast
-    sc = Scene(width=200, height=200, center=(100.0, -500.0), R_px=640.0, r_px=37.23,
-               spot=0.0, ball=0.4)
-    bg, (f,) = make_frames(sc, [(100.31, 99.72)])
-    off = locate_subpixel(f, bg, sc.r_px, guess=(101, 99), opts=SubpixelOptions(mirror_rim=False))
-    on = locate_subpixel(f, bg, sc.r_px, guess=(101, 99))
-    absolute = locate_subpixel(f, bg, sc.r_px, guess=(101, 99), opts=MIRROR)
-    assert abs(on.r - off.r) < 0.002
-    assert math.hypot(on.x - off.x, on.y - off.y) < 0.002
-    assert absolute.r > off.r + 0.05
 
 
 def test_the_median_inside_level_lost_the_mirror_rim():
     # the locator before the rim's levels were compared along it: the bright half of the rim
     # outvoted or was outvoted by the dark half, and the centre moved by a pixel
-    old = SubpixelOptions(rim_levels=False, sharp_rays=False, mirror_rim=False,
-                          local_contrast=False)
+    old = SubpixelOptions(rim_levels=False, sharp_rays=False)
     e = _errors(opts=old)
     assert np.sqrt(np.mean(e[:, 0] ** 2)) > 0.3
+
+
+def test_relative_fresnel_correction_leaves_a_matt_ball_alone():
+    # a ball of one uniform level (no mirror): the correction for the level above the rim's
+    # darkest moves no edge; the absolute one (MIRROR) moves every edge out by
+    # kappa x level / contrast
+    from validation.drawn_frames import Scene, make_frames
+    sc = Scene(width=200, height=200, center=(100.0, -500.0), R_px=640.0, r_px=37.23,
+               spot=0.0, ball=0.4)
+    bg, (f,) = make_frames(sc, [(100.31, 99.72)])
+    off = locate_subpixel(f, bg, sc.r_px, guess=(101, 99))
+    on = locate_subpixel(f, bg, sc.r_px, guess=(101, 99),
+                         opts=SubpixelOptions(mirror_rim=True, local_contrast=True))
+    absolute = locate_subpixel(f, bg, sc.r_px, guess=(101, 99), opts=MIRROR)
+    assert abs(on.r - off.r) < 0.002
+    assert math.hypot(on.x - off.x, on.y - off.y) < 0.002
+    assert absolute.r > off.r + 0.05
