@@ -316,20 +316,10 @@ class Defocus:
         m = self.margin
         boxes = [(max(x - m, 0), max(y - m, 0), min(x + w + m, W), min(y + h + m, H))
                  for x, y, w, h in tiles]
-        merged = True
-        while merged and len(boxes) > 1:
-            merged = False
-            for i in range(len(boxes)):
-                for j in range(i + 1, len(boxes)):
-                    a, b = boxes[i], boxes[j]
-                    if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
-                        boxes[i] = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]),
-                                    max(a[3], b[3]))
-                        del boxes[j]
-                        merged = True
-                        break
-                if merged:
-                    break
+        from synth.scene import merge_boxes
+
+        boxes = merge_boxes(boxes, lambda a, b, u: a[0] < b[2] and b[0] < a[2]
+                            and a[1] < b[3] and b[1] < a[3])
         return [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in boxes]
 
     def input_box(self, box, size):

@@ -728,20 +728,8 @@ class SceneRenderer:
             x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
             if x1 > x0 and y1 > y0:
                 clipped.append((x0, y0, x1, y1))
-        merged = True
-        while merged and len(clipped) > 1:
-            merged = False
-            for i in range(len(clipped)):
-                for j in range(i + 1, len(clipped)):
-                    a, b = clipped[i], clipped[j]
-                    u = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
-                    if _area(u) - (_area(a) + _area(b)) <= MERGE_PX:
-                        clipped[i] = u
-                        del clipped[j]
-                        merged = True
-                        break
-                if merged:
-                    break
+        clipped = merge_boxes(clipped, lambda a, b, u: _area(u) - (_area(a) + _area(b))
+                              <= MERGE_PX)
         return [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
 
 
@@ -783,6 +771,40 @@ def _box(pts: np.ndarray):
 
 def _area(b) -> int:
     return max(b[2] - b[0], 0) * max(b[3] - b[1], 0)
+
+
+def merge_boxes(boxes: list, joinable) -> list:
+    """Merge boxes (x0, y0, x1, y1) pairwise into their union while ``joinable(a, b, union)``
+    holds for some pair, until no pair is left to merge.
+
+    Parameters
+    ----------
+    boxes : list of tuple
+        Boxes (x0, y0, x1, y1), px.
+    joinable : callable
+        ``joinable(a, b, union) -> bool``.
+
+    Returns
+    -------
+    list of tuple
+        The merged boxes (a new list).
+    """
+    boxes = list(boxes)
+    merged = True
+    while merged and len(boxes) > 1:
+        merged = False
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                a, b = boxes[i], boxes[j]
+                u = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
+                if joinable(a, b, u):
+                    boxes[i] = u
+                    del boxes[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return boxes
 
 
 def _camera_class():

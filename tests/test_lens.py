@@ -207,15 +207,11 @@ class _DrawnThroughLens:
         return np.rint(img).astype(np.uint16)
 
 
-def test_located_ball_undistorted_lands_on_the_true_centre():
-    """The target's lens (k1 = -0.18 at fx = 2400 px, 3.2 px at the bottom of the ball's
-    path): the ball drawn exactly through it along the thesis's path; the track's
-    undistorted centres are the true ones to << 0.01 px (measured 0.004 px). Undistorting
-    the located centre alone was off by up to 0.034 px along the path and 0.06 px across
-    it (the bent outline is not round: its fitted circle is not centred on the bent
-    centre)."""
+def _target_lens_path(n: int):
+    """The lens target (k1 = -0.18 at fx = 2400 px), its exact setup with the calibration and
+    n ball centres along the thesis's path over +-24 deg: (lens, setup, theta, truth px,
+    L px, r px)."""
     from rollfric.setup import Setup
-    from rollfric.track import track_recording
 
     lens = Lens([[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]],
                 [-0.18, 0.0, 0.0, 0.0, 0.0])
@@ -224,8 +220,21 @@ def test_located_ball_undistorted_lands_on_the_true_centre():
                   fps=1000.0, pixel_size=pix, center_px=centre,
                   calibration=Calibration(lens.matrix, lens.distortion))
     L, r = (85.3e-3 - 5e-3) / pix, 5e-3 / pix
-    th = np.radians(np.linspace(-24.0, 24.0, 9))
+    th = np.radians(np.linspace(-24.0, 24.0, n))
     truth = np.column_stack([centre[0] + L * np.sin(th), centre[1] + L * np.cos(th)])
+    return lens, setup, th, truth, L, r
+
+
+def test_located_ball_undistorted_lands_on_the_true_centre():
+    """The target's lens (k1 = -0.18 at fx = 2400 px, 3.2 px at the bottom of the ball's
+    path): the ball drawn exactly through it along the thesis's path; the track's
+    undistorted centres are the true ones to << 0.01 px (measured 0.004 px). Undistorting
+    the located centre alone was off by up to 0.034 px along the path and 0.06 px across
+    it (the bent outline is not round: its fitted circle is not centred on the bent
+    centre)."""
+    from rollfric.track import track_recording
+
+    lens, setup, th, truth, L, r = _target_lens_path(9)
     src = _DrawnThroughLens(lens, truth, r)
     df, info = track_recording(src, setup, src.background, progress=False)
     assert info.undistorted and df["found"].all()
@@ -277,18 +286,9 @@ def test_synth_lens_rendering_is_the_ball_bent_exactly():
     max, 0.0014 px rms); one bilinear sample of a frame-resolution ideal image (synth's
     rendering before) was 0.06 px off, as the pixel fit reads its kernel (1 - f, f) that
     follows the lens's fractional displacement f."""
-    from rollfric.setup import Setup
     from rollfric.track import track_recording
 
-    lens = Lens([[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]],
-                [-0.18, 0.0, 0.0, 0.0, 0.0])
-    pix, centre = 0.1343e-3, (640.0, 380.0)
-    setup = Setup(cylinder_radius=85.3e-3, ball_diameter=10e-3, ball_mass=4.07612e-3,
-                  fps=1000.0, pixel_size=pix, center_px=centre,
-                  calibration=Calibration(lens.matrix, lens.distortion))
-    L, r = (85.3e-3 - 5e-3) / pix, 5e-3 / pix
-    th = np.radians(np.linspace(-24.0, 24.0, 13))
-    truth = np.column_stack([centre[0] + L * np.sin(th), centre[1] + L * np.cos(th)])
+    lens, setup, th, truth, L, r = _target_lens_path(13)
     exact = _DrawnThroughLens(lens, truth, r)
     exact.SS = 24
 
