@@ -101,7 +101,8 @@ def frame_times(n: int, fps: float, timing: FrameTiming, seed: int = 0):
     Returns
     -------
     times : numpy.ndarray
-        (M,) real time of each recorded frame (s), M = n - the dropped frames.
+        (M,) real time of each recorded frame (s), within 0..(n - 1) / fps: M = n - the
+        dropped frames (- the last, when its jitter puts it after the record's end).
     numbers : numpy.ndarray
         (M,) the camera's frame number of each recorded frame.
 
@@ -128,7 +129,10 @@ def frame_times(n: int, fps: float, timing: FrameTiming, seed: int = 0):
     times = numbers / fps + jitter[numbers] - jitter[0]  # frame 0 at t = 0
     if np.any(np.diff(times) <= 0):  # cannot happen below MAX_JITTER_PERIODS, checked anyway
         raise SynthError("the timing's jitter put two frames out of order")
-    return times, numbers
+    # the motion is known over n periods: a last exposure the jitter puts after its end is not
+    # recorded (the camera stopped with it)
+    inside = times <= (n - 1) / fps
+    return times[inside], numbers[inside]
 
 
 def resample(traj, times):

@@ -70,6 +70,20 @@ def test_frame_times_jitter_has_the_stated_spread_and_the_seed_fixes_it():
         not np.array_equal(frame_times(20000, FPS, timing, seed=8)[0], t1)
 
 
+def test_frame_times_stay_within_the_motions_span():
+    """A jittered last exposure after the simulated span is not recorded (a 2 s case with
+    50 us jitter failed to render: times 0..2.0001 s outside the trajectory's 0..2 s)."""
+    from synth.timing import FrameTiming, frame_times
+
+    late = 0
+    for seed in range(40):
+        t, n = frame_times(2001, FPS, FrameTiming(jitter=50e-6), seed=seed)
+        assert t[0] == 0.0 and t[-1] <= 2.0
+        assert n.size in (2000, 2001) and np.array_equal(n, np.arange(n.size))
+        late += n.size == 2000
+    assert 5 < late < 35  # about half of the seeds put the last frame late
+
+
 @pytest.mark.parametrize("bad", [dict(jitter=-1e-6), dict(drop_rate=0.6),
                                  dict(dropped=(0,))])
 def test_frame_timing_refuses_bad_values(bad):
