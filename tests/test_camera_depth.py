@@ -12,8 +12,6 @@ from rollfric.errors import InputError
 from rollfric.perspective import ball_plane_center, contour_depth_from_radius
 from rollfric.setup import SetupError, dumps_setup, setup_from_dict, thesis_setup
 from synth.camera import CameraModel
-from synth.config import SceneConfig
-from synth.scene import SceneRenderer
 
 R_CYL, R_BALL = 0.0853, 0.005
 D = 0.4
@@ -67,18 +65,12 @@ def test_rendered_bore_and_ball_seen_from_an_off_axis_pinhole():
     """The backdrop seen through the bore is bounded by its far end: its centroid is there
     (0.1 px), and rollfric moves it onto the ball's plane's axis; the ball's silhouette is
     where the exact projection puts it."""
-    import pyrender
+    from synth_frames import flat_ring_render
 
     c, pp = (97.3, 100.6), (95.5, 140.6)  # the far edge nested in the near one
     cam = CameraModel(width=192, height=200, pixel_size=1.2e-3, projection="perspective",
                       working_distance=D, center_px=c, principal_px=pp)
-    cfg = SceneConfig(camera=cam, trough_opening=math.pi, supersample=2, shadows=False)
-    sr = SceneRenderer(cfg, R_BALL, R_CYL)
-    try:
-        sr.flags = pyrender.RenderFlags.FLAT  # unlit: paper white, anodised face dark
-        img = sr.render_full().astype(float) / sr.scale
-    finally:
-        sr.close()
+    img, cfg = flat_ring_render(cam, R_BALL, R_CYL)
     zb = -cfg.trough_length / 2
     want = np.array(pp) + (np.array(c) - pp) * D / (D - zb)
     hole = R_CYL * D / (D - zb) / 1.2e-3

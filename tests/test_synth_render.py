@@ -59,17 +59,11 @@ def test_rendered_ball_centroid_and_radius_match_truth(projection):
 def test_cylinder_centre_is_the_centre_of_the_bore():
     """A full ring trough in perspective: the backdrop seen through the bore is a disk whose
     centroid is the cylinder centre of the truth."""
+    from synth_frames import flat_ring_render
+
     cam = CameraModel(width=192, height=160, pixel_size=1.2e-3, projection="perspective",
                       working_distance=0.4, center_px=(97.3, 80.6))
-    cfg = SceneConfig(camera=cam, trough_opening=math.pi, supersample=2, shadows=False)
-    sr = SceneRenderer(cfg, R_BALL, R_CYL)
-    try:
-        import pyrender
-
-        sr.flags = pyrender.RenderFlags.FLAT  # unlit: paper white, anodised face dark
-        img = sr.render_full().astype(float) / sr.scale
-    finally:
-        sr.close()
+    img, cfg = flat_ring_render(cam, R_BALL, R_CYL)
     yy, xx = np.mgrid[0:cam.height, 0:cam.width]
     rho = np.hypot(xx - 97.3, yy - 80.6)
     hole = R_CYL * 0.4 / (0.4 + cfg.trough_length / 2) / 1.2e-3  # far end of the bore, px
