@@ -14,7 +14,12 @@ what the recording itself says (no camera-specific threshold):
 - ``jump``: the centre is far from where its neighbours on both sides (up to ``HALF_WINDOW``
   frames each) put the ball at that frame's time, by a polynomial through them; a swapped
   frame, or one located on something else, stands out;
-- ``duplicate``: a ``jump`` whose centre equals the previous frame's (a repeated frame).
+- ``duplicate``: a ``jump`` whose centre equals the previous frame's (a repeated frame);
+- ``off_path``: the centre is off the path the other frames trace about the trough centre
+  (its distance from the centre against a + b sin(theta) + c cos(theta) fitted to all frames:
+  the trough's circle seen about a centre that may be off by a few pixels). It catches a
+  frame located on something else where too few neighbours are near to predict it (a lone
+  frame between runs the locator lost).
 
 A frame that fails is reported not found with its flag; ``not_found`` (the locator found no
 ball) and ``off_track`` (a ball found off the trough's circle) are the tracker's own flags.
@@ -29,7 +34,7 @@ import numpy as np
 from rollfric.localfit import polyfit_rows
 
 FLAGS = ("not_found", "off_track", "contrast", "residual", "radius", "occluded", "jump",
-         "duplicate")
+         "duplicate", "off_path")
 
 # jump: the both-sided prediction's residual |e| of a frame, for Gaussian centre errors of
 # sigma per axis, is Rayleigh-distributed: P(|e| > k sigma_e) = exp(-k^2 / 2), so at 6 sigma
@@ -57,6 +62,12 @@ RADIUS_SIGMAS = 8.0
 # before it or of the 3 just after it (an object entering or leaving the ball)
 OCCLUDED_RATIO = 0.7
 OCCLUDED_WINDOW = 3
+# off_path: the distance from the trough centre more than OFF_PATH_SIGMAS robust sigmas of the
+# track's own scatter about its fitted path, and more than OFF_PATH_FLOOR of the ball's radius
+# (the scatter of a clean track is the locator's, ~0.02 px: a lens or a pinhole bends the path
+# by more than that, a ball located on something else is off by a good part of its radius)
+OFF_PATH_SIGMAS = 8.0
+OFF_PATH_FLOOR = 0.1
 
 
 def _robust(v: np.ndarray) -> tuple[float, float]:
@@ -169,17 +180,68 @@ def innovations(x, y, ok, pos=None) -> tuple[np.ndarray, np.ndarray]:
     return e, m
 
 
+def off_path(x, y, ok, center, r_ball: float) -> np.ndarray:
+    """Which ``ok`` frames' centres lie off the path the track traces about ``center``.
+
+    The distance d of each centre from ``center`` is fitted with a + b sin(theta) +
+    c cos(theta) (theta = atan2(x - cx, y - cy)): a circle seen about a centre that is off by
+    a few pixels, to first order. Twice: the frames beyond the tolerance of the first fit are
+    left out of the second.
+
+    Parameters
+    ----------
+    x, y : array_like
+        Centres (px).
+    ok : array_like of bool
+        The frames to judge (and to fit the path with).
+    center : sequence of 2 floats
+        The trough centre (px) the angles are taken about.
+    r_ball : float
+        The ball's apparent radius (px): the floor of the tolerance is OFF_PATH_FLOOR of it.
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        True for an ``ok`` frame more than max(OFF_PATH_SIGMAS robust sigmas,
+        OFF_PATH_FLOOR * r_ball) off the fitted path.
+    """
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    ok = np.asarray(ok, dtype=bool) & np.isfinite(x) & np.isfinite(y)
+    out = np.zeros(x.size, dtype=bool)
+    if ok.sum() < 10:
+        return out
+    dx, dy = x - center[0], y - center[1]
+    d = np.hypot(dx, dy)
+    th = np.arctan2(dx, dy)
+    A = np.stack([np.ones_like(d), np.sin(th), np.cos(th)], axis=1)
+    use = ok.copy()
+    floor = OFF_PATH_FLOOR * float(r_ball)
+    for _ in range(2):
+        coef = np.linalg.lstsq(A[use], d[use], rcond=None)[0]
+        res = d - A @ coef
+        _, s = _robust(res[use])
+        tol = max(OFF_PATH_SIGMAS * s, floor) if math.isfinite(s) else floor
+        out = ok & (np.abs(res) > tol)
+        use = ok & ~out
+        if use.sum() < 10:
+            return np.zeros(x.size, dtype=bool)
+    return out
+
+
 def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlier_frac=None,
                 gain=None, r_ref: float | None = None,
-                r_rel_sigma: float | None = None, pos=None) -> np.ndarray:
+                r_rel_sigma: float | None = None, pos=None, center=None,
+                r_ball: float | None = None) -> np.ndarray:
     """The flag of every frame ('' for a good one) from the located centres and the locator's
     per-frame figures (any may be None: that check is skipped). ``found``: frames the tracker
     located; ``same_pixels``: frames whose ball pixels equal the previous frame's; ``r_ref``:
     the calibrated apparent radius (px) and ``r_rel_sigma`` its relative frame-to-frame
     scatter; ``pos``: each frame's time in camera periods (None: its number; see
-    :mod:`rollfric.timing`: after a dropped frame the later ones are a period later). Frames
-    already not found keep an empty flag here (the tracker
-    names them)."""
+    :mod:`rollfric.timing`: after a dropped frame the later ones are a period later);
+    ``center`` and ``r_ball``: the trough centre and the ball's apparent radius (px) for the
+    ``off_path`` check (:func:`off_path`; skipped when either is None). Frames already not
+    found keep an empty flag here (the tracker names them)."""
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     found = np.asarray(found, dtype=bool)
@@ -215,6 +277,8 @@ def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlie
         after = _side_median(f, ok, OCCLUDED_WINDOW)
         ref = np.fmax(before, after)
         reject(np.isfinite(f) & np.isfinite(ref) & (f < OCCLUDED_RATIO * ref), "occluded")
+    if center is not None and r_ball:
+        reject(off_path(x, y, ok, center, r_ball), "off_path")
     # a repeated frame: the ball's pixels equal the frame before's (``same_pixels``; without
     # it the same centre to 1e-4 px: a locator's answers for two exposures differ by its
     # noise), while the ball moved between the frames around it (the frames of a resting ball

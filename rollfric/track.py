@@ -721,7 +721,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         # the rim's share and the radius are the sub-pixel locator's own figures
         inlier_frac=rows[:, 4] if method == "subpixel" else None,
         gain=rows[:, 6], radius=rows[:, 2] if method == "subpixel" else None,
-        r_ref=r_cal, r_rel_sigma=cal.rel_sigma if r_cal is not None else None, pos=pos)
+        r_ref=r_cal, r_rel_sigma=cal.rel_sigma if r_cal is not None else None, pos=pos,
+        center=center, r_ball=r_cal if r_cal is not None else r_px)
     flags[~found] = np.where(lost[~found], "off_track", "not_found")
     rejected = found & (flags != "")
     rows[rejected, :5] = np.nan
