@@ -18,7 +18,9 @@ for ball bearings) is selected with ``mu1 != 0``; sticking then uses mu0.
 Two integrators with one meaning:
 
 - :func:`solve_reference`: SciPy's DOP853 with events, to a relative tolerance of 1e-10
-  (the ground truth of the validation suite).
+  (the ground truth of the validation suite). Its segment-and-stick loop is
+  :func:`solve_segments`, which takes any right-hand side theta'' = f(theta, theta', s) (the
+  validation suite's equation with losses the fitter does not assume uses it).
 - :func:`solve`: a compiled fixed-step RK4 with exact turning-point location, about
   100x faster, for fitting (agreement with the reference is a test).
 """
@@ -138,12 +140,17 @@ def _direction_from_rest(theta: float) -> float:
     return -1.0 if math.sin(theta) > 0 else 1.0
 
 
-def _check_inputs(t, track_radius, gravity, mu, mu1):
+def _check_times(t):
     t = np.asarray(t, dtype=float)
     if t.ndim != 1 or t.size == 0:
         raise ValueError("t must be a non-empty 1-D array of times")
     if t.size > 1 and np.any(np.diff(t) <= 0):
         raise ValueError("t must be strictly increasing")
+    return t
+
+
+def _check_inputs(t, track_radius, gravity, mu, mu1):
+    t = _check_times(t)
     if not track_radius > 0:
         raise ValueError(f"track_radius (R - r) must be positive, got {track_radius}")
     if not gravity > 0:
@@ -159,7 +166,8 @@ def solve_reference(theta0: float, omega0: float, mu: float, t, *, track_radius:
     """Integrate the equation of motion with DOP853 and turning-point events.
 
     The state at ``t[0]`` is (theta0, omega0). Returns ``(theta, theta_dot, t_stop)`` sampled at
-    ``t``; ``t_stop`` is the time the ball came to rest for good (inf if it never did).
+    ``t``; ``t_stop`` is the time the ball came to rest for good (inf if it never did). The
+    loop is :func:`solve_segments` with this module's right-hand side.
 
     Parameters
     ----------
@@ -199,6 +207,56 @@ def solve_reference(theta0: float, omega0: float, mu: float, t, *, track_radius:
     """
     t = _check_inputs(t, track_radius, gravity, mu, mu1)
     k = 5.0 / (7.0 * track_radius)
+
+    def accel(th, om, s):
+        mu_v = mu + mu1 * abs(om)
+        return -k * (gravity * math.sin(th) + s * mu_v * (gravity * math.cos(th)
+                                                          + track_radius * om**2))
+
+    return solve_segments(theta0, omega0, t, accel, mu_static=mu, rtol=rtol, atol=atol)
+
+
+def solve_segments(theta0: float, omega0: float, t, accel, *, mu_static: float,
+                   rtol: float = 1e-10, atol: float = 1e-13):
+    """Integrate theta'' = accel(theta, theta', s) from turning point to turning point.
+
+    The loop of :func:`solve_reference`, with the right-hand side left to the caller (an
+    equation of motion with losses of its own, e.g. a speed-dependent mu or air drag): DOP853
+    with an event at every turning point (theta' = 0), where the ball sticks for good when
+    :func:`sticks` holds for ``mu_static``, else restarts towards the bottom. Within a segment
+    the sign s of theta' is fixed and handed to ``accel``, so there is no smoothed sign
+    function and no chattering.
+
+    Parameters
+    ----------
+    theta0, omega0 : float
+        The state at the first sample time ``t[0]``: angle (rad), angular velocity (rad/s).
+    t : array_like
+        Strictly increasing sample times, s.
+    accel : callable
+        ``accel(theta, theta_dot, s) -> float``: theta'' (rad/s^2) at the state with the
+        resistance acting against the motion of sign ``s`` (+1.0 or -1.0).
+    mu_static : float
+        Static rolling-resistance coefficient of the sticking rule, >= 0.
+    rtol, atol : float
+        Tolerances passed to :func:`scipy.integrate.solve_ivp`.
+
+    Returns
+    -------
+    tuple of (numpy.ndarray, numpy.ndarray, float)
+        theta (rad) and theta_dot (rad/s) at ``t``, and the time the ball came to rest for
+        good (s; inf if it never did), as :func:`solve_reference`.
+
+    Raises
+    ------
+    ValueError
+        If ``t`` is empty, not 1-D or not strictly increasing, or ``mu_static`` is negative.
+    RuntimeError
+        If the integrator fails.
+    """
+    t = _check_times(t)
+    if not mu_static >= 0:
+        raise ValueError(f"mu must not be negative, got mu={mu_static}")
     theta_out = np.empty_like(t)
     omega_out = np.empty_like(t)
     t_now, th, om = float(t[0]), float(theta0), float(omega0)
@@ -206,7 +264,7 @@ def solve_reference(theta0: float, omega0: float, mu: float, t, *, track_radius:
     t_stop = math.inf
     while True:
         if om == 0.0:
-            if sticks(th, mu):
+            if sticks(th, mu_static):
                 t_stop = t_now
                 sel = t >= t_now
                 theta_out[sel] = th
@@ -217,9 +275,7 @@ def solve_reference(theta0: float, omega0: float, mu: float, t, *, track_radius:
             s = math.copysign(1.0, om)
 
         def rhs(_t, y, s=s):
-            mu_v = mu + mu1 * abs(y[1])
-            return (y[1], -k * (gravity * math.sin(y[0])
-                                + s * mu_v * (gravity * math.cos(y[0]) + track_radius * y[1]**2)))
+            return (y[1], accel(y[0], y[1], s))
 
         def turning(_t, y):
             return y[1]

@@ -22,10 +22,12 @@ With both, the equation of motion of :mod:`rollfric.eom` becomes::
     theta'' = -(5 / (7 L)) [g sin(theta) + s ((mu + mu_speed L |theta'|) (g cos(theta)
               + L theta'^2) + k L^2 theta'^2)],   s = sign(theta'), k = rho Cd pi r^2 / (2 m)
 
-and :func:`solve` integrates it like :func:`rollfric.eom.solve_reference` (DOP853 to 1e-10,
-an event at every turning point, the ball sticks for good where |tan(theta)| <= mu: at rest
-neither the speed term nor the drag acts). It is written here, apart from rollfric, because
-the truth of a study of what the fitter does not assume must not share the fitter's code.
+and :func:`solve` integrates it with the loop of :func:`rollfric.eom.solve_reference`,
+:func:`rollfric.eom.solve_segments` (DOP853 to 1e-10, an event at every turning point, the ball
+sticks for good where |tan(theta)| <= mu: at rest neither the speed term nor the drag acts).
+The right-hand side is written here, apart from rollfric, because the truth of a study of what
+the fitter does not assume must not share the fitter's model; the loop it shares is the
+reference integrator's, not the fitter's compiled one (:func:`rollfric.eom.solve`).
 
 Small-angle checks (tests): with mu = 0 and drag only, each half-swing loses
 (4/3) c A^2 of its amplitude A, c = 5 k L / 7 (quadratic damping of a harmonic oscillator);
@@ -39,7 +41,8 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy.integrate import solve_ivp
+
+from rollfric.eom import solve_segments
 
 AIR_VISCOSITY = 1.81e-5  # Pa s, air at 20 C (for the Reynolds number only)
 ROOM_AIR_DENSITY = 1.204  # kg/m^3, dry air at 20 C and 1013 hPa
@@ -159,10 +162,6 @@ def theta_ddot(theta, theta_dot, mu, losses: Losses, *, track_radius, ball_radiu
     return -(5.0 / (7.0 * L)) * (gravity * np.sin(th) + np.sign(om) * resist)
 
 
-def _sticks(theta: float, mu: float) -> bool:
-    return abs(math.sin(theta)) <= mu * math.cos(theta) or math.sin(theta) == 0.0
-
-
 def solve(theta0: float, omega0: float, mu: float, t, losses: Losses, *, track_radius: float,
           ball_radius: float, ball_mass: float, gravity: float, rtol: float = 1e-10,
           atol: float = 1e-13):
@@ -202,9 +201,6 @@ def solve(theta0: float, omega0: float, mu: float, t, losses: Losses, *, track_r
     RuntimeError
         The integrator failed.
     """
-    t = np.asarray(t, dtype=float)
-    if t.ndim != 1 or t.size == 0 or (t.size > 1 and np.any(np.diff(t) <= 0)):
-        raise ValueError("t must be a non-empty, strictly increasing 1-D array")
     if min(track_radius, ball_radius, ball_mass, gravity) <= 0:
         raise ValueError("track_radius, ball_radius, ball_mass and gravity must be positive")
     if min(mu, losses.mu_speed, losses.air_density, losses.air_cd) < 0:
@@ -213,49 +209,12 @@ def solve(theta0: float, omega0: float, mu: float, t, losses: Losses, *, track_r
     kq = losses.drag_per_mass(ball_radius, ball_mass) * L * L
     m1 = losses.mu_speed * L
     a = 5.0 / (7.0 * L)
-    th_out = np.empty_like(t)
-    om_out = np.empty_like(t)
-    t_now, th, om = float(t[0]), float(theta0), float(omega0)
-    t_end = float(t[-1])
-    t_stop = math.inf
-    while True:
-        if om == 0.0:
-            if _sticks(th, mu):
-                t_stop = t_now
-                sel = t >= t_now
-                th_out[sel], om_out[sel] = th, 0.0
-                break
-            s = -1.0 if math.sin(th) > 0 else 1.0
-        else:
-            s = math.copysign(1.0, om)
 
-        def rhs(_t, y, s=s):
-            w = y[1]
-            resist = (mu + m1 * abs(w)) * (gravity * math.cos(y[0]) + L * w * w) + kq * w * w
-            return (w, -a * (gravity * math.sin(y[0]) + s * resist))
+    def accel(th, w, s):
+        resist = (mu + m1 * abs(w)) * (gravity * math.cos(th) + L * w * w) + kq * w * w
+        return -a * (gravity * math.sin(th) + s * resist)
 
-        def turning(_t, y):
-            return y[1]
-
-        turning.terminal = True
-        turning.direction = -s
-        if t_now >= t_end:
-            th_out[-1], om_out[-1] = th, om
-            break
-        sol = solve_ivp(rhs, (t_now, t_end), [th, om], method="DOP853", rtol=rtol, atol=atol,
-                        events=turning, dense_output=True)
-        if not sol.success:
-            raise RuntimeError(f"equation of motion with losses: {sol.message}")
-        sel = (t >= t_now) & (t <= sol.t[-1])
-        if np.any(sel):
-            y = sol.sol(t[sel])
-            th_out[sel], om_out[sel] = y[0], y[1]
-        if sol.status == 1 and sol.t_events[0].size:
-            t_now = float(sol.t_events[0][0])
-            th, om = float(sol.y_events[0][0][0]), 0.0
-        else:
-            break
-    return th_out, om_out, t_stop
+    return solve_segments(theta0, omega0, t, accel, mu_static=mu, rtol=rtol, atol=atol)
 
 
 def applied_force(velocity, losses: Losses, ball_radius: float, ball_mass: float) -> np.ndarray:
