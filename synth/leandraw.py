@@ -11,12 +11,22 @@ Everything but the ball's pose is the same in every frame of a recording, so her
 - the camera's and lamps' uniforms are then set once per program by pyrender's own functions
   (the same values: a GL program keeps its uniforms), again whenever pyrender drew in between
   (a full-frame render sets other projections) or the lamps' shadow cameras change;
+- the scene without the ball (the static layer: its multisampled colour and depth, shaded with
+  the cached trough-only shadow maps) is drawn once, into a framebuffer of its own, in 32 px
+  blocks the first time a tile needs them, and drawn again only when the static scene
+  changes (camera, lamps, static meshes' poses or materials: a fingerprint taken whenever the
+  uniforms are set);
 - each frame then makes only the calls that draw: per lamp, the ball's depth into the
-  scissored box of its shadow map over the cached trough; the forward pass scissored to each
-  tile, the primitives in pyrender's order with the model matrix and material uniforms at
-  locations looked up once, in the GL state pyrender's draw sets; the box resolved and read.
+  scissored box of its shadow map over the cached trough; per tile, the static layer's samples
+  copied in (a multisample blit), the static surfaces drawn again only in the boxes of the
+  ball's shadows (:meth:`synth.scene.SceneRenderer.shadow_boxes`: outside them the ball
+  changes no shadow lookup) and the ball in its own box, with the model matrix and material
+  uniforms at locations looked up once, in the GL state pyrender's draw sets; the tile
+  resolved and read.
 
-The same programs, buffers, uniform values, draw order and GL state as pyrender's path, so the
+The same programs, buffers, uniform values and GL state as pyrender's path; the static
+surfaces are drawn before the ball instead of in pyrender's order by distance, which changes
+nothing with the depth test and opaque surfaces (no two of them at the same depth), so the
 same pixels (tests/test_synth_render.py compares the two bit for bit and both with stock
 pyrender). What this path does not draw (textured materials, point or directional lamps, the
 flat silhouette mode) is drawn by pyrender's path: :func:`unsupported` says why.
@@ -29,6 +39,8 @@ import ctypes
 import numpy as np
 
 from synth import pyrender_adapter as pa
+
+STATIC_BLOCK = 32  # px: the static layer is drawn where tiles first need it, in such blocks
 
 
 def unsupported(sr) -> str | None:
@@ -175,7 +187,20 @@ class LeanDraw:
         self.units: list = []  # (texture unit, GL texture) of each lamp's shadow map
         self._light_mats = None
         self.ready = False
+        self._static = None  # (framebuffer, renderbuffers) of the static layer
+        self._valid = None  # (rows, cols) of STATIC_BLOCK px blocks drawn into it
+        self._static_key = None
         self._build(self._order())
+
+    def close(self) -> None:
+        """Free the static layer's framebuffer (the renderer's context current)."""
+        from OpenGL import GL
+
+        if self._static is not None:
+            fb, rbs, _ = self._static
+            GL.glDeleteFramebuffers(1, [fb])
+            GL.glDeleteRenderbuffers(len(rbs), rbs)
+            self._static = None
 
     def _order(self) -> list:
         return [n for n in pa.sorted_mesh_nodes(self.inner, self.sr.scene) if n.mesh.is_visible]
@@ -205,6 +230,8 @@ class LeanDraw:
                     "cull": not m.doubleSided,
                     "boxes": None if node is self.ball else self._triangle_boxes(node, prim),
                     **_drawing(prim)})
+        self.static_draws = [d for d in self.draws if d["node"] is not self.ball]
+        self.ball_draws = [d for d in self.draws if d["node"] is self.ball]
         self.depth = []
         if self.shadows:
             for prim in self.ball.mesh.primitives:
@@ -278,7 +305,44 @@ class LeanDraw:
         if self.shadows:
             self.units = [(k, pa.texture_id(ln.light.shadow_texture))
                           for k, ln in enumerate(self.lamps)]
+            self.static_units = [(k, pa.texture_id(self.sr._shadow_cache[ln.name]))
+                                 for k, ln in enumerate(self.lamps)]
+        else:
+            self.units = self.static_units = []
+        key = self._static_fingerprint(V, P, cam_pos)
+        if key != self._static_key:  # the static scene changed: draw its layer again
+            self._static_key = key
+            self._valid = None
         self.ready = True
+
+    def _static_fingerprint(self, V, P, cam_pos) -> bytes:
+        """Everything the static layer's pixels depend on besides the programs: camera, frame
+        size, lamps (poses, light, shadow cameras), background, the static meshes' poses,
+        materials and buffers, the cached shadow maps."""
+        sr, scene = self.sr, self.sr.scene
+        parts = [np.asarray(V, float).tobytes(), np.asarray(P, float).tobytes(),
+                 np.asarray(cam_pos, float).tobytes(),
+                 repr((sr.camera.width, sr.camera.height, sr.ss, self.flags,
+                       np.asarray(scene.ambient_light, float).tolist(),
+                       np.asarray(scene.bg_color, float).tolist())).encode()]
+        for ln in self.lamps:
+            lt = ln.light
+            parts.append(scene.get_pose(ln).tobytes())
+            parts.append(repr((np.asarray(lt.color, float).tolist(), lt.intensity,
+                               getattr(lt, "innerConeAngle", None),
+                               getattr(lt, "outerConeAngle", None))).encode())
+        for V_l, P_l in self._light_mats or ():
+            parts += [np.asarray(V_l).tobytes(), np.asarray(P_l).tobytes()]
+        for d in self.draws:
+            if d["node"] is self.ball:
+                continue
+            parts.append(scene.get_pose(d["node"]).tobytes())
+            parts.append(repr((d["pid"], d["vao"], d["count"], d["cull"],
+                               [(getattr(fn, "__name__", repr(fn)),
+                                 [np.asarray(a).tolist() for a in args])
+                                for fn, args in d["material"]])).encode())
+        parts.append(repr(self.static_units).encode())
+        return b"|".join(parts)
 
     # -- a frame -----------------------------------------------------------------------------
 
@@ -287,7 +351,8 @@ class LeanDraw:
         over the poses (as :meth:`synth.scene.SceneRenderer.render_tiles`).
 
         ``timings`` (the benchmark's): a dict to which the wall seconds of each stage are
-        added ("set-up", "shadow maps", "draw", "read back"), the GL work finished
+        added ("set-up", "shadow maps", "static layer", "draw: shadowed surfaces",
+        "draw: ball", "read back"), the GL work finished
         (glFinish) at the end of each, which costs a little more than not waiting.
         """
         import time
@@ -305,8 +370,9 @@ class LeanDraw:
         sr = self.sr
         W, H, s = sr.camera.width, sr.camera.height, sr.ss
         inner = self.inner
-        gl_box = [(x0 * s, (H - y0 - h) * s, w * s, h * s) for x0, y0, w, h in tiles]
+        gl_box = [self._gl_box(t) for t in tiles]
         out = [None] * len(tiles)
+        ball_box, shadow_boxes = self._footprint(poses)
         pa.make_current(sr._offscreen)
         try:
             inner.viewport_width, inner.viewport_height = W * s, H * s
@@ -328,16 +394,27 @@ class LeanDraw:
                     a[0] is b[0] and a[1] is b[1]
                     for a, b in zip(mats, self._light_mats, strict=True))
                 if not (self.ready and same):
-                    self._set_static()
                     self._light_mats = mats
+                    self._set_static()
                 M = np.asarray(pose, dtype=float)
                 t0 = lap("set-up", t0)
                 if self.shadows:
                     self._shadow_pass(M, mats)
                     t0 = lap("shadow maps", t0)
-                for k in range(len(tiles)):
-                    self._forward(M, gl_box[k], tiles[k])
-                    t0 = lap("draw", t0)
+                for k, tile in enumerate(tiles):
+                    self._restore(tile)
+                    t0 = lap("static layer", t0)
+                    for box in shadow_boxes:
+                        part = _meet(tile, box)
+                        if part is not None:  # the static surfaces the shadows fall on
+                            self._forward(M, self._gl_box(part), part, self.static_draws,
+                                          self.units, clear=True)
+                    t0 = lap("draw: shadowed surfaces", t0)
+                    part = _meet(tile, ball_box)
+                    if part is not None:
+                        self._forward(M, self._gl_box(part), part, self.ball_draws,
+                                      self.units, clear=False)
+                    t0 = lap("draw: ball", t0)
                     c = sr._reduce(read_region(inner, *gl_box[k]))
                     t0 = lap("read back", t0)
                     out[k] = c if out[k] is None else out[k] + c
@@ -345,6 +422,82 @@ class LeanDraw:
         finally:
             pa.make_uncurrent(sr._offscreen)
         return out
+
+    def _gl_box(self, tile) -> tuple:
+        """Frame pixels (x0, y0, w, h) -> GL window box of the supersampled viewport."""
+        x0, y0, w, h = tile
+        s, H = self.sr.ss, self.sr.camera.height
+        return (x0 * s, (H - y0 - h) * s, w * s, h * s)
+
+    def _footprint(self, poses) -> tuple:
+        """The ball's box and the shadows' boxes (x0, y0, x1, y1) over all ``poses``: those
+        :meth:`synth.scene.SceneRenderer.tiles_for` found for the same centres, or found
+        again."""
+        sr = self.sr
+        centres = np.array([np.asarray(p, float)[:3, 3] for p in poses])
+        last = sr._footprint
+        if last is not None and last[0].shape == centres.shape and np.array_equal(last[0],
+                                                                                  centres):
+            return last[2], last[3]
+        shadows = sr.shadow_boxes(centres) if self.shadows else []
+        return sr.ball_box(centres), shadows
+
+    def _static_layer(self):
+        """The static layer's multisampled framebuffer (made on first use, the main
+        framebuffer's formats and size): the scene without the ball, shaded with the cached
+        trough-only shadow maps, drawn block by block where tiles need it."""
+        from OpenGL import GL
+
+        inner = self.inner
+        W, H = inner.viewport_width, inner.viewport_height
+        if self._static is not None and self._static[2] != (W, H):
+            self.close()
+        if self._static is None:
+            cb, db = GL.glGenRenderbuffers(2)
+            GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, cb)
+            GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, 4, GL.GL_RGBA, W, H)
+            GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, db)
+            GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, 4, GL.GL_DEPTH_COMPONENT24,
+                                                W, H)
+            fb = GL.glGenFramebuffers(1)
+            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, fb)
+            GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0,
+                                         GL.GL_RENDERBUFFER, cb)
+            GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT,
+                                         GL.GL_RENDERBUFFER, db)
+            self._static = (fb, [cb, db], (W, H))
+            self._valid = None
+        if self._valid is None:
+            self._valid = np.zeros((-(-self.sr.camera.height // STATIC_BLOCK),
+                                    -(-self.sr.camera.width // STATIC_BLOCK)), dtype=bool)
+        return self._static[0]
+
+    def _restore(self, tile) -> None:
+        """Copy the static layer's samples (colour and depth) of ``tile`` into the main
+        multisampled framebuffer, drawing first the blocks of the layer not drawn yet."""
+        from OpenGL import GL
+
+        fb = self._static_layer()
+        x0, y0, w, h = tile
+        b = STATIC_BLOCK
+        r0, r1, c0, c1 = y0 // b, (y0 + h - 1) // b + 1, x0 // b, (x0 + w - 1) // b + 1
+        missing = ~self._valid[r0:r1, c0:c1]
+        if missing.any():
+            rows = np.flatnonzero(missing.any(axis=1)) + r0
+            cols = np.flatnonzero(missing.any(axis=0)) + c0
+            W, H = self.sr.camera.width, self.sr.camera.height
+            bx0, by0 = cols[0] * b, rows[0] * b
+            bx1, by1 = min((cols[-1] + 1) * b, W), min((rows[-1] + 1) * b, H)
+            box = (bx0, by0, bx1 - bx0, by1 - by0)
+            self._forward(None, self._gl_box(box), box, self.static_draws, self.static_units,
+                          clear=True, fb=fb)
+            self._valid[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] = True
+        fb_ms, _ = pa.main_framebuffers(self.inner)
+        x, y, w, h = self._gl_box(tile)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, fb_ms)
+        GL.glBlitFramebuffer(x, y, x + w, y + h, x, y, x + w, y + h,
+                             GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT, GL.GL_NEAREST)
 
     def _shadow_pass(self, M, mats) -> None:
         """Each lamp's shadow map: its box the ball covered last or covers now restored from
@@ -408,14 +561,17 @@ class LeanDraw:
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)
 
-    def _forward(self, M, box, tile) -> None:
-        """The forward pass scissored to ``box`` (GL window coordinates) of ``tile`` (frame
-        pixels), into the multisampled framebuffer (:func:`read_region` reads it)."""
+    def _forward(self, M, box, tile, draws, units, *, clear: bool, fb=None) -> None:
+        """``draws`` (the ball's at pose ``M``, the static ones at their poses) scissored to
+        ``box`` (GL window coordinates) of ``tile`` (frame pixels), with the shadow maps
+        ``units`` [(texture unit, GL texture)], into the main multisampled framebuffer (or
+        ``fb``), the box cleared first with ``clear``; :func:`read_region` reads it."""
         from OpenGL import GL
 
         inner, scene = self.inner, self.sr.scene
-        fb_ms, _ = pa.main_framebuffers(inner)
-        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, fb_ms)
+        if fb is None:
+            fb, _ = pa.main_framebuffers(inner)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, fb)
         GL.glViewport(0, 0, inner.viewport_width, inner.viewport_height)
         GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glDepthMask(GL.GL_TRUE)
@@ -424,10 +580,11 @@ class LeanDraw:
         GL.glEnable(GL.GL_SCISSOR_TEST)
         try:
             GL.glScissor(*box)
-            GL.glClearColor(*scene.bg_color)
-            GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+            if clear:
+                GL.glClearColor(*scene.bg_color)
+                GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
             GL.glEnable(GL.GL_MULTISAMPLE)
-            for unit, tex in self.units:
+            for unit, tex in units:
                 GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
                 GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
             GL.glEnable(GL.GL_BLEND)
@@ -435,7 +592,7 @@ class LeanDraw:
             GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
             GL.glDisable(GL.GL_PROGRAM_POINT_SIZE)
             current = None
-            for d in self.draws:
+            for d in draws:
                 if d["pid"] != current:
                     GL.glUseProgram(d["pid"])
                     current = d["pid"]
@@ -453,3 +610,11 @@ class LeanDraw:
             GL.glFlush()
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)
+
+
+def _meet(tile, box):
+    """The part (x0, y0, w, h) of ``tile`` (x0, y0, w, h) inside ``box`` (x0, y0, x1, y1),
+    or None."""
+    x0, y0 = max(tile[0], box[0]), max(tile[1], box[1])
+    x1, y1 = min(tile[0] + tile[2], box[2]), min(tile[1] + tile[3], box[3])
+    return (x0, y0, x1 - x0, y1 - y0) if x1 > x0 and y1 > y0 else None

@@ -265,6 +265,7 @@ class SceneRenderer:
         self._shadow_cache = None
         self._shadow_prev: dict = {}  # lamp -> texel box the ball covered last
         self._lean = None  # synth.leandraw.LeanDraw, once pyrender has drawn a tile frame
+        self._footprint = None  # (centres, tiles, ball box, shadow boxes) of the last tiles_for
 
     def silhouette_mode(self) -> None:
         """Switch to an unlit white ball on black (no trough, no backdrop, no shadows): the
@@ -276,7 +277,7 @@ class SceneRenderer:
         for prim in self._ball_mesh.primitives:
             prim.material = pr.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0])
         self.flags = pr.RenderFlags.FLAT
-        self._lean = None  # the lean path does not draw the flat mode
+        self._drop_lean()  # the lean path does not draw the flat mode
         self.config = self.config.replace(shadows=False)
 
     # -- low level -------------------------------------------------------------------------
@@ -597,7 +598,7 @@ class SceneRenderer:
 
     def close(self) -> None:
         """Free the renderer's OpenGL resources (cached shadow maps, offscreen context)."""
-        self._lean = None
+        self._drop_lean()
         if self._offscreen is not None:
             if self._shadow_cache:
                 pyrender_adapter.make_current(self._offscreen)
@@ -606,6 +607,16 @@ class SceneRenderer:
                 self._shadow_cache = None
             self._offscreen.delete()
             self._offscreen = None
+
+    def _drop_lean(self) -> None:
+        """Forget the lean draw path, freeing its static layer."""
+        if self._lean is not None and self._offscreen is not None:
+            pyrender_adapter.make_current(self._offscreen)
+            try:
+                self._lean.close()
+            finally:
+                pyrender_adapter.make_uncurrent(self._offscreen)
+        self._lean = None
 
     # -- footprint -------------------------------------------------------------------------
 
@@ -719,9 +730,9 @@ class SceneRenderer:
     def tiles_for(self, centres: np.ndarray) -> list:
         """Tiles (x0, y0, w, h) inside the frame covering ball and shadows; boxes whose union
         adds at most MERGE_PX pixels are merged."""
-        boxes = [self.ball_box(centres)]
-        if self.config.shadows:
-            boxes += self.shadow_boxes(centres)
+        ball = self.ball_box(centres)
+        shadows = self.shadow_boxes(centres) if self.config.shadows else []
+        boxes = [ball, *shadows]
         W, H = self.camera.width, self.camera.height
         clipped = []
         for x0, y0, x1, y1 in boxes:
@@ -730,7 +741,12 @@ class SceneRenderer:
                 clipped.append((x0, y0, x1, y1))
         clipped = merge_boxes(clipped, lambda a, b, u: _area(u) - (_area(a) + _area(b))
                               <= MERGE_PX)
-        return [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
+        tiles = [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
+        # what the lean path redraws inside these tiles (synth.leandraw: the ball in its box,
+        # the static surfaces in the shadows' boxes; the rest is the static layer)
+        self._footprint = (np.array(centres, dtype=float, copy=True).reshape(-1, 3),
+                           tuple(tiles), ball, tuple(shadows))
+        return tiles
 
 
 def _cache_light_matrices(inner) -> None:

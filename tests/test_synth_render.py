@@ -193,6 +193,33 @@ def test_lean_draw_path_equals_pyrenders(projection):
         sr.close()
 
 
+def test_lean_static_layer_follows_a_changed_scene():
+    """The lean path keeps the scene without the ball as a layer drawn once; when the static
+    scene changes (here the backdrop's colour, then a lamp's intensity) the layer is drawn again:
+    its tiles stay pyrender's path's bit for bit."""
+    cam = CameraModel(width=160, height=128, center_px=(80.0, -520.0))
+    sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
+    try:
+        c = _centre(0.01)
+        pose, tiles = sr.ball_pose(c), sr.tiles_for(c[None])
+        sr.render_tiles([pose], tiles)  # pyrender's path; the lean path is built
+        first = sr.render_tiles([pose], tiles)
+        lamp = next(iter(sr.scene.light_nodes))
+        for change in ("backdrop", "lamp"):
+            if change == "backdrop":
+                sr._backdrop_mesh.primitives[0].material.baseColorFactor = [0.5, 0.5, 0.5, 1.0]
+            else:
+                lamp.light.intensity *= 1.5
+            ref = sr.render_tiles([pose], tiles, draw="pyrender")
+            got = sr.render_tiles([pose], tiles)
+            for x, y in zip(got, ref, strict=True):
+                np.testing.assert_array_equal(x, y)
+            assert any(np.any(x != y) for x, y in zip(got, first, strict=True)), change
+            first = got
+    finally:
+        sr.close()
+
+
 def test_lean_draw_falls_back_to_pyrender_for_what_it_does_not_draw():
     from synth.leandraw import unsupported
 
