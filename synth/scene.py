@@ -643,9 +643,7 @@ class SceneRenderer:
         R = self.cylinder_radius
         zb = -self.config.backdrop_distance
         zlo, zhi = -self.config.trough_length / 2, self.config.trough_length / 2
-        ang = np.linspace(0, 2 * np.pi, 64, endpoint=False)
-        rings = np.concatenate([np.full(64, 1.03), np.full(64, 0.7), np.full(64, 0.35)])
-        angs = np.concatenate([ang, ang + 0.05, ang + 0.1])
+        rings, cos_a, sin_a = _SHADOW_RAYS
         boxes = []
         for lamp in self.lamps:
             P = np.asarray(lamp.position)
@@ -657,11 +655,10 @@ class SceneRenderer:
                 u = d_vec / d
                 off = C - u * (r * r / d)
                 rho = r * math.sqrt(1 - (r / d) ** 2)
-                a = np.cross(u, [0.0, 0.0, 1.0] if abs(u[2]) < 0.9 else [1.0, 0.0, 0.0])
+                a = _cross(u, (0.0, 0.0, 1.0) if abs(u[2]) < 0.9 else (1.0, 0.0, 0.0))
                 a /= np.linalg.norm(a)
-                b = np.cross(u, a)
-                circ = off + (rho * rings)[:, None] * (np.cos(angs)[:, None] * a
-                                                      + np.sin(angs)[:, None] * b)
+                b = _cross(u, a)
+                circ = off + (rho * rings)[:, None] * (cos_a[:, None] * a + sin_a[:, None] * b)
                 dirs = circ - P
                 # backdrop hit
                 t_hit = (zb - P[2]) / dirs[:, 2]
@@ -778,6 +775,27 @@ def _cache_light_matrices(inner) -> None:
         return cache[light_node]
 
     pyrender_adapter.set_light_cam_matrices(inner, cached)
+
+
+def _shadow_rays():
+    """(rings, cos, sin) of the rays shadow_boxes follows through the ball: 64 angles on each
+    of three rings (1.03, 0.7 and 0.35 of the tangent circle's radius), each ring turned a
+    little."""
+    ang = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    rings = np.concatenate([np.full(64, 1.03), np.full(64, 0.7), np.full(64, 0.35)])
+    angs = np.concatenate([ang, ang + 0.05, ang + 0.1])
+    return rings, np.cos(angs), np.sin(angs)
+
+
+_SHADOW_RAYS = _shadow_rays()
+
+
+def _cross(a, b) -> np.ndarray:
+    """Cross product of two 3-vectors, as numpy.cross computes it (the same products and
+    differences) without its array overhead."""
+    a0, a1, a2 = (float(x) for x in a)
+    b0, b1, b2 = (float(x) for x in b)
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def _box(pts: np.ndarray):
