@@ -40,6 +40,7 @@ pixel. Each render is seeded from (seed, frame, sub-frame): same seed, same byte
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import sys
@@ -55,9 +56,12 @@ UNIT = 4080  # integer levels of display value 1.0 per channel (16 x 255)
 WINDOW_STEP = 16  # px: window sizes are rounded up to multiples of this
 PASS_SAMPLES = 1 << 22  # samples per Mitsuba call (memory bound of one wavefront)
 VARIANT = "llvm_ad_rgb"
+FALLBACK = "scalar_rgb"  # when Dr.Jit's LLVM backend cannot start (no LLVM >= 16)
+VARIANT_ENV = "ROLLFRIC_MITSUBA_VARIANT"  # forces one of the two (e.g. to test the fallback)
 AMBIENT_WEIGHT = 0.05  # next-event estimation's weight of the ambient light (lamps: 1)
 
 _STATE: dict = {}
+log = logging.getLogger(__name__)
 
 
 def available() -> str | None:
@@ -97,8 +101,26 @@ def find_llvm() -> str | None:
     return best[1] if best else None
 
 
+def variant() -> str:
+    """The Mitsuba variant this process renders with (:func:`load` chooses it).
+
+    Returns
+    -------
+    str
+        ``llvm_ad_rgb`` (Dr.Jit's CPU JIT, synth's own path tracer), or ``scalar_rgb`` (the
+        fallback: Mitsuba's ``path`` integrator in C++ threads, caustics of the ball on the
+        trough and backdrop included).
+    """
+    load()
+    return _STATE["variant"]
+
+
 def load():
-    """Import Mitsuba, select its LLVM variant and register :class:`RimPath` (once a process).
+    """Import Mitsuba, select its variant and register :class:`RimPath` (once a process).
+
+    ``llvm_ad_rgb`` when Dr.Jit's LLVM backend starts (LLVM >= 16), else ``scalar_rgb`` with a
+    warning naming what is missing; the environment variable ``ROLLFRIC_MITSUBA_VARIANT``
+    (``llvm_ad_rgb`` or ``scalar_rgb``) forces one.
 
     Returns
     -------
@@ -108,11 +130,15 @@ def load():
     Raises
     ------
     SynthError
-        Mitsuba is not installed, or Dr.Jit has no usable LLVM (needs LLVM >= 16; Debian 12's
-        default LLVM 15 fails to compile its kernels).
+        Mitsuba is not installed, ``ROLLFRIC_MITSUBA_VARIANT`` names another variant, or it
+        forces ``llvm_ad_rgb`` where Dr.Jit has no usable LLVM (Debian 12's default LLVM 15
+        fails to compile its kernels).
     """
     if "mi" in _STATE:
         return _STATE["mi"]
+    forced = os.environ.get(VARIANT_ENV, "").strip()
+    if forced not in ("", VARIANT, FALLBACK):
+        raise SynthError(f"{VARIANT_ENV}={forced!r}: must be {VARIANT} or {FALLBACK}")
     if "DRJIT_LIBLLVM_PATH" not in os.environ and "drjit" not in sys.modules:
         found = find_llvm()
         if found:
@@ -123,19 +149,36 @@ def load():
     except ImportError:
         raise SynthError("render.renderer = \"mitsuba\" needs Mitsuba 3: pip install "
                          "\"rollfric[mitsuba]\"") from None
+    chosen = forced or VARIANT
+    if chosen == VARIANT:
+        problem = _llvm_problem(dr)
+        if problem and forced:
+            raise SynthError(f"{VARIANT_ENV}={VARIANT}: {problem}")
+        if problem:
+            log.warning("Mitsuba's %s variant cannot start: %s. Rendering with %s instead: "
+                        "Mitsuba's own path tracer in C++ threads, several times slower, with "
+                        "the ball's caustics on the trough and backdrop (rare bright pixels)",
+                        VARIANT, problem, FALLBACK)
+            chosen = FALLBACK
+    mi.set_variant(chosen)
+    if chosen == VARIANT:
+        mi.register_integrator("synth_rim_path", lambda props: _rim_path_class()(props))
+    _STATE["variant"] = chosen
+    _STATE["mi"] = mi
+    return mi
+
+
+def _llvm_problem(dr) -> str | None:
+    """Why Dr.Jit's LLVM backend cannot run here (None when it can)."""
     hint = ("Dr.Jit's CPU backend needs LLVM >= 16 (Debian: apt-get install libllvm19; "
             "then DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so)")
     if not dr.has_backend(dr.JitBackend.LLVM):
-        raise SynthError(f"Mitsuba found no LLVM library: {hint}")
+        return f"no LLVM library found ({hint})"
     version = tuple(dr.detail.llvm_version())
     if version < (16,):
-        raise SynthError(f"Mitsuba found LLVM {'.'.join(map(str, version))} "
-                         f"(DRJIT_LIBLLVM_PATH={os.environ.get('DRJIT_LIBLLVM_PATH', '')!r}): "
-                         f"{hint}")
-    mi.set_variant(VARIANT)
-    mi.register_integrator("synth_rim_path", lambda props: _rim_path_class()(props))
-    _STATE["mi"] = mi
-    return mi
+        return (f"LLVM {'.'.join(map(str, version))} found "
+                f"(DRJIT_LIBLLVM_PATH={os.environ.get('DRJIT_LIBLLVM_PATH', '')!r}; {hint})")
+    return None
 
 
 def _rim_path_class():
@@ -271,7 +314,8 @@ class MitsubaRenderer:
         light = config.lighting
         tc = config.trough_color
         scene = {"type": "scene",
-                 "integrator": {"type": "synth_rim_path",
+                 # the fallback variant (scalar_rgb) cannot run a Python integrator
+                 "integrator": {"type": "synth_rim_path" if variant() == VARIANT else "path",
                                 "max_depth": int(config.mitsuba_max_depth)},
                  # next-event estimation picks an emitter by weight: the dim ambient light
                  # seldom (its light reaches the surfaces by BSDF sampling as well)
@@ -283,10 +327,12 @@ class MitsubaRenderer:
             m = mi.Mesh(f"trough{k}", len(mesh.vertices), len(mesh.faces),
                         has_vertex_normals=smooth)
             p = mi.traverse(m)
-            p["vertex_positions"] = mi.Float(np.ravel(mesh.vertices).astype(np.float32))
-            p["faces"] = mi.UInt32(np.ravel(mesh.faces).astype(np.uint32))
+            # the buffers' own types (Dr.Jit arrays; scalar_rgb: dynamic scalar arrays)
+            p["vertex_positions"] = type(p["vertex_positions"])(
+                np.ravel(mesh.vertices).astype(np.float32))
+            p["faces"] = type(p["faces"])(np.ravel(mesh.faces).astype(np.uint32))
             if smooth:
-                p["vertex_normals"] = mi.Float(
+                p["vertex_normals"] = type(p["vertex_normals"])(
                     np.ravel(mesh.vertex_normals).astype(np.float32))
             p.update()
             m.set_bsdf(mi.load_dict({"type": "diffuse",

@@ -137,3 +137,64 @@ def test_short_case_end_to_end_on_the_mitsuba_backend():
     assert m["n_frames"] == 61
     assert m["center_rms_px"] < 0.5, m["center_rms_px"]
     assert m["theta_rms_rad"] < 2e-3, m["theta_rms_rad"]
+
+
+_VARIANT_SCRIPT = """
+import logging, sys
+import numpy as np
+logging.basicConfig(level=logging.WARNING)
+sys.path.insert(0, sys.argv[2])
+import test_synth_mitsuba as t
+cfg, c = t._tiny_scene(mitsuba_spp=16, mitsuba_background_spp=16)
+sr = t.ms.MitsubaRenderer(cfg, t.R_BALL, t.R_CYL, seed=3)
+np.save(sys.argv[1], sr.render_window_rgb(c, (0, 0, 144, 112), 16, seed=12))
+print(t.ms.variant())
+"""
+
+
+def _in_subprocess(tmp_path, **env):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parent
+    e = dict(os.environ, PYTHONPATH=os.pathsep.join([str(here.parent),
+                                                     os.environ.get("PYTHONPATH", "")]), **env)
+    out = tmp_path / "img.npy"
+    p = subprocess.run([sys.executable, "-c", _VARIANT_SCRIPT, str(out), str(here)], env=e,
+                       capture_output=True, text=True, timeout=600)
+    return p, (np.load(out) if out.exists() else None)
+
+
+def test_scalar_fallback_renders_the_same_image_within_monte_carlo_noise(tmp_path):
+    # forced by the environment, as where Dr.Jit's LLVM backend cannot start: Mitsuba's own
+    # path tracer (C++) in the scalar variant gives the frame synth's path tracer gives
+    p, img = _in_subprocess(tmp_path, ROLLFRIC_MITSUBA_VARIANT="scalar_rgb")
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split()[-1] == "scalar_rgb"
+    cfg, c = _tiny_scene(mitsuba_spp=16, mitsuba_background_spp=16)
+    sr = ms.MitsubaRenderer(cfg, R_BALL, R_CYL, seed=3)
+    a = sr.render_window_rgb(c, (0, 0, 144, 112), 16, seed=13)
+    b = sr.render_window_rgb(c, (0, 0, 144, 112), 16, seed=14)
+    a, b, img = (np.clip(x, 0.0, 1.0) for x in (a, b, img))
+    d_ref = (a - b).mean(axis=2)
+    d = (img - a).mean(axis=2)
+    ratio = (d ** 2).sum() / (d_ref ** 2).sum()
+    assert 0.8 < ratio < 1.25, ratio
+    assert abs(d.mean()) < 4 * d_ref.std() / math.sqrt(d.size), (d.mean(), d_ref.std())
+
+
+def test_without_llvm_the_backend_says_so_and_falls_back(tmp_path):
+    p, img = _in_subprocess(tmp_path, DRJIT_LIBLLVM_PATH=str(tmp_path / "no-libLLVM.so"))
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split()[-1] == "scalar_rgb"
+    assert "llvm_ad_rgb variant cannot start: no LLVM library found" in p.stderr
+    assert "libllvm19" in p.stderr and "Rendering with scalar_rgb" in p.stderr
+    assert img.shape == (112, 144, 3) and np.isfinite(img).all()
+    # forcing the LLVM variant there, or naming another variant, is an error that says why
+    p, _ = _in_subprocess(tmp_path, DRJIT_LIBLLVM_PATH=str(tmp_path / "no-libLLVM.so"),
+                          ROLLFRIC_MITSUBA_VARIANT="llvm_ad_rgb")
+    assert p.returncode != 0 and "no LLVM library found" in p.stderr
+    p, _ = _in_subprocess(tmp_path, ROLLFRIC_MITSUBA_VARIANT="cuda_ad_rgb")
+    assert p.returncode != 0 and "must be llvm_ad_rgb or scalar_rgb" in p.stderr
