@@ -197,6 +197,8 @@ def _run(args) -> int:
                                     for k, m in info.frames_dropped],
                  "timing_irregular": [{"frame": int(k), "step_ratio": float(r)}
                                       for k, r in info.timing_irregular],
+                 "located_irregular": [{"frame": int(k), "step_ratio": float(r)}
+                                       for k, r in info.located_irregular],
                  "warnings": list(info.warnings),
                  "median_sigma_px": float(track["sigma_px"].median())
                  if track["sigma_px"].notna().any() else None,

@@ -19,7 +19,9 @@ Reason codes:
 - ``half_swings``: too few half-swings for the parameters fitted.
 - track checks: ``center`` (the ball's path is not a circle about the centre used),
   ``track_radius`` (the path's radius differs from L = R - r in pixels), ``flagged_frames``
-  (many frames rejected), ``background_repaired``, ``ball_radius``.
+  (many frames rejected), ``background_repaired``, ``ball_radius``, ``timing`` (steps that fit
+  no whole number of frame periods), ``located_frames`` (such steps among frames the locator
+  lost or got wrong: the located centres', not the timing's).
 """
 
 from __future__ import annotations

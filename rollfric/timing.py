@@ -198,6 +198,38 @@ def find_gaps(x, y, found) -> Gaps:
                 min_step_px=DETECT_SIGMAS * sigma, n_steps=int(checked.sum()))
 
 
+def split_irregular(irregular, distrusted) -> tuple[tuple, tuple]:
+    """Irregular steps the timing is to blame for, and those among frames the locator got wrong.
+
+    :func:`find_gaps` runs before the per-frame plausibility checks (they need its frame
+    times), so it judges every located centre. A ball leaving a deep shadow is located half
+    shadowed: its centres jump, the plausibility checks reject them (``residual``,
+    ``contrast``, ...) and a step between them fits no whole number of periods although the
+    camera kept time. A step with a ``distrusted`` frame at either end, or just before or
+    after it (a frame lost next to the step: the shadow's edge), is the locator's.
+
+    Parameters
+    ----------
+    irregular : sequence of (int, float)
+        (k, ratio) of :attr:`Gaps.irregular` (the step from frame k to k + 1).
+    distrusted : array_like of bool
+        (T,) frames the locator lost or whose centre a check that does not depend on the
+        frame times rejected.
+
+    Returns
+    -------
+    timing, located : tuple of (int, float)
+        The steps among trusted frames (the timing's) and the others (the locator's).
+    """
+    bad = np.asarray(distrusted, dtype=bool)
+    n = bad.size
+    timing, located = [], []
+    for k, ratio in irregular:
+        near = bad[max(0, k - 1):min(n, k + 3)].any()
+        (located if near else timing).append((int(k), float(ratio)))
+    return tuple(timing), tuple(located)
+
+
 def _whole_periods(step: np.ndarray, coef: np.ndarray) -> int | None:
     """The whole number m >= 2 of periods a step spans by its neighbours' fit, or None."""
     v = coef[0]

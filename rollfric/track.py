@@ -40,6 +40,10 @@ TIMES = ("auto", "fps")
 TIMES_RATE_TOL = 1e-3  # relative: a median interval further from 1 / camera.fps is reported
 TIMES_JITTER_TOL = 0.01  # relative: an interval further from the median one is reported
 TIMES_FPS = "frame / camera.fps"  # TrackInfo.times when the times are not the recording's
+# the frame flags that do not depend on the frame times (the tracker's and the plausibility
+# checks' but jump and duplicate, which a timing error also raises): an irregular step at or
+# next to such a frame is the locator's (rollfric.timing.split_irregular)
+LOCATOR_FLAGS = tuple(f for f in plausibility.FLAGS if f not in ("jump", "duplicate"))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,6 +126,11 @@ class TrackInfo:
     timing_irregular : tuple of (int, float)
         (frame k, step ratio): steps of the ball that fit no whole number of frame periods
         (timing that cannot be repaired: a quality reason "timing").
+    located_irregular : tuple of (int, float)
+        The same, for steps at or next to frames the locator lost or whose centre a check
+        that does not depend on the frame times rejected (:data:`LOCATOR_FLAGS`; a ball
+        leaving a deep shadow): the located centres', not the timing's (a quality reason
+        "located_frames").
     """
 
     setup: Setup
@@ -151,6 +160,7 @@ class TrackInfo:
     contour_ellipse: dict | None = None
     frames_dropped: tuple = ()
     timing_irregular: tuple = ()
+    located_irregular: tuple = ()
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -711,7 +721,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     elif drops:
         gaps = timing.find_gaps(rows[:, 0], rows[:, 1], found)
         pos = gaps.pos
-        for msg in timing_messages(gaps):
+        if gaps.dropped:
+            msg = dropped_message(gaps)
             logger.warning(msg)
             warnings.append(msg)
     else:
@@ -729,6 +740,15 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     rows[rejected, 5] = 0.0
     found = rows[:, 5] == 1.0
     counts = {f: int(np.sum(flags == f)) for f in plausibility.FLAGS if np.any(flags == f)}
+    irregular, located_irregular = (), ()
+    if gaps is not None and gaps.irregular:
+        # steps among frames the locator lost or got wrong are its, not the camera's timing
+        irregular, located_irregular = timing.split_irregular(
+            gaps.irregular, np.isin(flags, LOCATOR_FLAGS))
+        for msg in ([irregular_message(irregular)] if irregular else []) + (
+                [located_irregular_message(located_irregular)] if located_irregular else []):
+            logger.warning(msg)
+            warnings.append(msg)
     if rejected.any():
         logger.warning(f"{int(rejected.sum())} located frame(s) failed the plausibility checks "
                        "and are left out: " + ", ".join(f"{k} {v}" for k, v in counts.items()
@@ -768,33 +788,12 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                      n_refitted=len(redo) if r_cal is not None else 0, flags=counts,
                      warnings=tuple(warnings), warnings_radius=tuple(warnings_radius),
                      frames_dropped=() if gaps is None else gaps.dropped,
-                     timing_irregular=() if gaps is None else gaps.irregular)
+                     timing_irregular=irregular, located_irregular=located_irregular)
     return df, info
 
 
-def timing_messages(gaps) -> list[str]:
-    """What to tell about the dropped frames and irregular steps found in a track.
-
-    Parameters
-    ----------
-    gaps : rollfric.timing.Gaps
-        The result of :func:`rollfric.timing.find_gaps`.
-
-    Returns
-    -------
-    list of str
-        One message for the dropped frames (repaired), one for the irregular steps.
-    """
-    out = []
-    if gaps.dropped:
-        out.append(dropped_message(gaps))
-    if gaps.irregular:
-        out.append(irregular_message(gaps.irregular))
-    return out
-
-
 def dropped_message(gaps) -> str:
-    """The message of the dropped frames found (:func:`timing_messages`).
+    """The message of the dropped frames found (:func:`rollfric.timing.find_gaps`).
 
     Parameters
     ----------
@@ -827,6 +826,44 @@ def irregular_message(irregular) -> str:
     return (f"{len(irregular)} step(s) of the ball fit no whole number of frame periods "
             f"({where}): the timing is irregular there and cannot be repaired from the motion; "
             "a recording with timestamps would tell")
+
+
+def located_irregular_message(located_irregular) -> str:
+    """The message of irregular steps among frames the locator lost or got wrong.
+
+    Parameters
+    ----------
+    located_irregular : sequence of (int, float)
+        (frame, step ratio) pairs (:attr:`TrackInfo.located_irregular`).
+
+    Returns
+    -------
+    str
+    """
+    where = ", ".join(f"frame {k} ({r:.2f} x)" for k, r in located_irregular[:8])
+    return (f"{len(located_irregular)} step(s) of the ball fit no whole number of frame periods "
+            f"({where}) at frames the locator lost or that failed the plausibility checks: "
+            "the located centres are off there (a ball in shadow, half lit), not the timing")
+
+
+def located_frames_reason(info: TrackInfo) -> str:
+    """The quality reason "located_frames": what the locator lost or got wrong, with the
+    irregular steps it caused (:attr:`TrackInfo.located_irregular`).
+
+    Parameters
+    ----------
+    info : TrackInfo
+
+    Returns
+    -------
+    str
+    """
+    bad = ", ".join(f"{k} {v}" for k, v in info.flags.items() if k in LOCATOR_FLAGS)
+    return (f"the ball was located and accepted in {info.n_found} of {info.n_frames} frames "
+            f"({100.0 * info.n_found / max(info.n_frames, 1):.1f} %; {bad}); "
+            + located_irregular_message(info.located_irregular)
+            + ": the centres next to the lost and rejected frames may be off too (check the "
+            "lighting, the shadows, the overlays)")
 
 
 def check_track_fits(df: pd.DataFrame, setup: Setup) -> None:
@@ -1133,6 +1170,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         coded += [("ball_radius", msg) for msg in info.warnings_radius]
         if info.timing_irregular:
             coded.append(("timing", irregular_message(info.timing_irregular)))
+        if info.located_irregular:
+            coded.append(("located_frames", located_frames_reason(info)))
         track_reasons = quality.check_track(df, setup, center, warnings=coded,
                                             flag_counts=info.flags)
         result = dataclasses.replace(

@@ -264,3 +264,67 @@ def test_a_frame_lost_where_the_ball_turns_is_found_by_the_fit():
     th = angles_of(x, y)
     clean = fit_mu(np.arange(3000) / FPS, th, SETUP)
     assert turning_gaps(np.arange(3000) / FPS, th, clean, SETUP, False)[2] == ()
+
+
+# -- irregular steps: the timing's or the locator's ------------------------------------------
+
+
+def _judged(x, y, found, sigma):
+    """The tracker's chain: the gaps, the plausibility flags (with the gaps' frame times), the
+    lost frames flagged, and the irregular steps split (rollfric.track.track_recording)."""
+    from rollfric import plausibility
+    from rollfric.timing import split_irregular
+    from rollfric.track import LOCATOR_FLAGS
+
+    gaps = find_gaps(x, y, found)
+    flags = plausibility.flag_frames(x, y, found, sigma=sigma, pos=gaps.pos)
+    flags[~found] = "not_found"
+    return gaps, flags, split_irregular(gaps.irregular, np.isin(flags, LOCATOR_FLAGS))
+
+
+def test_an_irregular_step_where_the_ball_leaves_a_shadow_is_the_locators():
+    # frames 800-829 lost in a deep shadow; leaving it, half lit, the ball is located 1 px
+    # towards its lit side (rim sigma 15x) until the rim is whole again at frame 850: the step
+    # 849 -> 850 (mid-swing, 1.9 px a frame) fits no whole number of periods
+    x, y, _ = camera_track(np.arange(1500), seed=3)
+    found = np.ones(x.size, bool)
+    sigma = np.full(x.size, 0.02)
+    found[800:830] = False
+    x[800:830] = y[800:830] = np.nan
+    x[830:850] -= 1.0
+    sigma[830:850] = 0.3
+    gaps, flags, (timing_steps, located) = _judged(x, y, found, sigma)
+    assert [k for k, _ in gaps.irregular] == [849]  # what the timing check alone says
+    assert set(flags[830:850]) == {"residual"}
+    assert timing_steps == () and [k for k, _ in located] == [849]
+
+
+def test_a_frame_half_a_period_late_stays_the_timings_after_the_plausibility_checks():
+    numbers = np.arange(1500, dtype=float)
+    numbers[850:] += 0.5
+    x, y, _ = camera_track(numbers)
+    gaps, flags, (timing_steps, located) = _judged(x, y, np.ones(x.size, bool),
+                                                   np.full(x.size, 0.02))
+    assert [k for k, _ in timing_steps] == [849] and located == ()
+    # the late frames may look like a jump: a timing error's flag, which does not excuse it
+    assert set(flags[845:855]) <= {"", "jump"}
+
+
+def test_measure_reports_frames_taken_half_a_period_late_as_timing(tmp_path):
+    """rollfric measure end to end on drawn frames taken at 200 Hz, from frame 150 on a
+    quarter period late: the quality reason is the timing's, not the located frames'."""
+    import tifffile
+
+    from rollfric import track as track_mod
+    from tests.measure_data import make_recording
+
+    fine = make_recording(1200, mu=0.02, theta0=0.5, fps=800.0, noise=1.0, seed=2)
+    keep = np.r_[np.arange(0, 600, 4), np.arange(601, 1200, 4)]  # 150 on: 1/4 period late
+    tifffile.imwrite(tmp_path / "rec.tif", np.stack([fine.frames[i] for i in keep]))
+    setup = fine.setup.replace(fps=200.0)
+    _, info, res = track_mod.measure(tmp_path / "rec.tif", setup, fine.background)
+    assert [k for k, r in info.timing_irregular] == [149]
+    assert info.timing_irregular[0][1] == pytest.approx(1.25, abs=0.05)
+    assert info.located_irregular == ()
+    codes = [r.code for r in res.quality_reasons]
+    assert "timing" in codes and "located_frames" not in codes
