@@ -96,7 +96,8 @@ def check_roi(roi, frame_shape) -> tuple[int, int, int, int]:
         The region is empty or reaches outside the frame.
     """
     try:
-        y0, y1, x0, x1 = (int(v) for v in roi)
+        y0, y1, x0, x1 = roi
+        y0, y1, x0, x1 = int(y0), int(y1), int(x0), int(x1)
     except (TypeError, ValueError):
         raise TypeError(f"roi must be (y0, y1, x0, x1) integers, got {roi!r}") from None
     h, w = frame_shape

@@ -637,6 +637,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         opts = base
     opts_cal = dataclasses.replace(base, free_min_frac=max(base.free_min_frac, CAL_MIN_INLIER))
     revisit: dict[int, float] = {}  # frame -> radius its partial arc was fitted with
+    locator = LOCATORS.load(method)  # as locate_frame, looked up once (not once a frame)
 
     def frame_at(i, guess):
         if read is not None and guess is not None:
@@ -660,9 +661,9 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         frame = frame_at(i, guess)
         search = min(0.3 * r_px + 2.0, max(2.0, 4.0 * pred_err + 1.0))
         r_kn = cal.value
-        loc = locate_frame(frame, background, r_px, method, guess, center,
-                           opts=opts if r_kn is None else opts_cal, search=search,
-                           r_known=r_kn, r_known_sigma=cal.rel_sigma)
+        loc = locator(frame, background, r_px, guess, center,
+                      opts=opts if r_kn is None else opts_cal, search=search,
+                      r_known=r_kn, r_known_sigma=cal.rel_sigma)
         if guess is not None and loc.found:
             pred_err = math.hypot(loc.x - guess[0], loc.y - guess[1])
         else:
@@ -704,9 +705,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         for i in tqdm(redo, desc="partial arcs, calibrated radius", unit="frame",
                       disable=not progress or not redo, file=sys.stderr, mininterval=0.5):
             guess = (rows[i, 0], rows[i, 1])
-            loc = locate_frame(frame_at(i, guess), background, r_px, method, guess, center,
-                               opts=opts_cal, search=2.0, r_known=r_cal,
-                               r_known_sigma=cal.rel_sigma)
+            loc = locator(frame_at(i, guess), background, r_px, guess, center,
+                          opts=opts_cal, search=2.0, r_known=r_cal, r_known_sigma=cal.rel_sigma)
             if accept(loc):
                 rows[i, :5] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac)
     warnings = [cal.warning()] if cal.warning() else []

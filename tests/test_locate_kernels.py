@@ -1,0 +1,53 @@
+"""The sub-pixel locator's kernels against plain NumPy: the same numbers, not close ones."""
+
+import numpy as np
+import pytest
+
+from rollfric.locate.kernels import _rim_median, _rim_median_plain
+
+
+def _rim_median_numpy(values, ok, min_count):
+    """The rim median as its docstring says: np.median of each wrapped window of ok rays."""
+    n = len(values)
+    half = max(2, n // 16)
+    out = np.full(n, np.nan)
+    for i in range(n):
+        q = [(i + j) % n for j in range(-half, half + 1)]
+        w = [values[k] for k in q if ok[k]]
+        if len(w) >= min_count and len(w) > 0:
+            out[i] = np.median(w)
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_rim_median_is_the_windows_median(seed):
+    # the sliding sorted window gives each window's np.median exactly: ties, zeros, windows
+    # longer than the ring (few rays), rays left out, odd and even counts (a median of 0.0 may
+    # come out as -0.0 or the reverse where both are in the window: equal as numbers, and the
+    # kernels only compare and subtract it)
+    rng = np.random.default_rng(seed)
+    for n in (1, 2, 3, 5, 17, 48, 93, 232, 360):
+        for frac in (0.0, 0.3, 0.8, 1.0):
+            v = rng.normal(size=n) * 10.0 ** rng.integers(-3, 4)
+            if seed % 2:
+                v = np.round(v, 1)  # many equal values
+            v[rng.random(n) < 0.1] = 0.0
+            ok = rng.random(n) < frac
+            for min_count in (0, 1, 3):
+                got = _rim_median(v, ok, min_count)
+                want = _rim_median_numpy(v, ok, min_count)
+                assert np.array_equal(got, want, equal_nan=True), (n, frac, min_count)
+                nz = want != 0.0
+                assert got[nz].tobytes() == want[nz].tobytes()
+
+
+def test_rim_median_with_nan_values_window_by_window():
+    # a NaN among the rays (none of the locator's calls pass one) takes the window-by-window
+    # path: numba's np.median of each window, as before the sliding window
+    v = np.linspace(0.0, 1.0, 64)
+    v[10] = np.nan
+    ok = np.ones(64, bool)
+    got = _rim_median(v, ok, 1)
+    assert np.array_equal(got, _rim_median_plain(v, ok, 1, 4), equal_nan=True)
+    assert np.isfinite(got[40])
+    assert np.array_equal(got[20:50], _rim_median_numpy(v, ok, 1)[20:50])
