@@ -97,12 +97,16 @@ class Budget:
     monte_carlo: dict | None = None
     seconds: float = 0.0
     n_refits: int = 0
+    order: int = 1  # of the law of propagation: 1, or 2 with the next-order terms
 
     def to_json(self) -> dict:
         """The fit.json keys: u_mu, U_mu, coverage_factor, uncertainty_budget, and details."""
         out = {"u_mu": self.u_mu, "U_mu": self.U_mu, "coverage_factor": self.coverage_factor,
                "uncertainty_budget": [r.to_dict() for r in self.rows],
-               "uncertainty": {"method": "GUM (JCGM 100) first order, inputs uncorrelated",
+               "uncertainty": {"method": "GUM (JCGM 100) " + (
+                                   "first order" if self.order == 1 else
+                                   "with the second-order terms of 5.1.2") +
+                               ", inputs uncorrelated",
                                "mu": self.mu, "statistical": dict(self.statistical),
                                "exact_inputs": list(self.exact), "seconds": self.seconds,
                                "n_refits": self.n_refits}}
@@ -353,10 +357,73 @@ def _acts(meas: Measurement, field: str) -> str:
     return ""
 
 
+# -- beyond first order: GUM 5.1.2, note ----------------------------------------------------
+
+def second_order(evaluate, n: int) -> tuple[float, list]:
+    """The next-order terms of the law of propagation for ``n`` independent normal inputs
+    (JCGM 100, 5.1.2, note): sum over i, j of [(1/2) (d2f/dxi dxj)^2 + df/dxi d3f/dxi dxj^2]
+    u^2(xi) u^2(xj), the derivatives by finite differences over steps of one and two standard
+    uncertainties.
+
+    ``evaluate(k)`` is the measurand with input i moved by ``k[i]`` of its standard
+    uncertainties (k a tuple of n integers, 0 the estimate). With df_i = f_i u_i, d2_i =
+    f_ii u_i^2 and so on, all in the measurand's unit: a pair (i, j), counted for (i, j) and
+    (j, i), is m_ij^2 + df_i t_ijj + df_j t_jii (m_ij = f_ij u_i u_j from the four corners
+    +-u_i +-u_j, t_ijj = f_ijj u_i u_j^2 from the same corners); a pure term (i = j) is
+    d2_i^2 / 2 + (2/3) df_i d3_i (d3 from the steps of +-2 u): the first-order rows are
+    secants over +-u, (f_i + f_iii u_i^2 / 6) u_i, whose square already holds a third of
+    f_i f_iii u_i^4. So first-order secant rows plus these terms give the variance to the
+    fourth order in u, exactly for a polynomial of degree 3 in each input with interactions
+    of degree 2 (x_i x_j, x_i x_j^2). The sum may be negative (a curvature that narrows
+    the distribution).
+
+    Parameters
+    ----------
+    evaluate : callable
+        k -> the measurand (float) with the inputs moved by k standard uncertainties.
+    n : int
+        Number of inputs.
+
+    Returns
+    -------
+    variance : float
+        The sum of the terms (the measurand's unit squared).
+    terms : list of tuple
+        (i, j, term) for every pure (i == j) and pair (i < j) term.
+    """
+    def f(*moves):
+        k = [0] * n
+        for i, step in moves:
+            k[i] += step
+        return float(evaluate(tuple(k)))
+
+    f0 = f()
+    df, d2, terms = [], [], []
+    for i in range(n):
+        hi, lo = f((i, 1)), f((i, -1))
+        hi2, lo2 = f((i, 2)), f((i, -2))
+        df.append(0.5 * (hi - lo))
+        d2.append(hi + lo - 2.0 * f0)
+        d3 = 0.5 * (hi2 - 2.0 * hi + 2.0 * lo - lo2)
+        terms.append((i, i, 0.5 * d2[i] ** 2 + (2.0 / 3.0) * df[i] * d3))
+    for i in range(n):
+        for j in range(i + 1, n):
+            c = {(a, b): f((i, a), (j, b)) for a in (1, -1) for b in (1, -1)}
+            m = 0.25 * (c[1, 1] - c[1, -1] - c[-1, 1] + c[-1, -1])
+            # the curvature along j at x_i +- u_i, and along i at x_j +- u_j
+            t_ijj = 0.5 * ((c[1, 1] + c[1, -1] - 2.0 * f((i, 1)))
+                           - (c[-1, 1] + c[-1, -1] - 2.0 * f((i, -1))))
+            t_jii = 0.5 * ((c[1, 1] + c[-1, 1] - 2.0 * f((j, 1)))
+                           - (c[1, -1] + c[-1, -1] - 2.0 * f((j, -1))))
+            terms.append((i, j, m * m + df[i] * t_ijj + df[j] * t_jii))
+    return float(sum(t for _, _, t in terms)), terms
+
+
 # -- the budget -----------------------------------------------------------------------------
 
 def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: int = 0,
-           seed: int = 0, coverage_factor: float = COVERAGE_FACTOR) -> Budget:
+           seed: int = 0, coverage_factor: float = COVERAGE_FACTOR,
+           order: int = 2) -> Budget:
     """The uncertainty budget of ``result`` (a least-squares FitResult of ``meas``).
 
     ``fit_length``: fit L = R - r as well (self-calibration; mu and the budget then use the
@@ -377,6 +444,9 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
         Seed of the draws.
     coverage_factor : float
         k of the expanded uncertainty U = k u.
+    order : int
+        1: the first-order law of propagation; 2 (default): with the next-order terms of
+        :func:`second_order` (the inputs' interactions and curvature), a row of their own.
 
     Returns
     -------
@@ -390,6 +460,8 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     """
     if result.method != "lsq":
         raise InputError(f"the uncertainty budget needs the lsq fit, not {result.method!r}")
+    if order not in (1, 2):
+        raise InputError(f"the budget's order must be 1 or 2, got {order!r}")
     start = time.perf_counter()
     meas, contour = _contour_centre_as_input(meas)
     setup = meas.setup
@@ -416,6 +488,7 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
                 "least-squares standard error, corrected for correlated residuals (HAC)")]
     exact = []
     length = None
+    active = []  # the inputs that act: (source, field, component, u, factor)
     u_l2 = 0.0  # variance of the fitted L (m^2)
     if fit_length:
         i_l = names.index("length")
@@ -434,6 +507,7 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
         hi = refit.fit(_moved(setup, field, comp, u, factor))[0]
         lo = refit.fit(_moved(setup, field, comp, -u, factor))[0]
         c = (hi["mu"] - lo["mu"]) / (2 * u)
+        active.append((source, field, comp, u, factor))
         rows.append(Row(source, value, u, c, abs(c) * u,
                         CONTOUR_NOTE if contour and field == "center_px" else ""))
         if fit_length:
@@ -448,6 +522,8 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
                   "L_nominal_mm": setup.track_radius * 1e3,
                   "u_L_nominal_mm": None if u_nom is None else u_nom * 1e3,
                   "mu_nominal_L": result.mu, "mu_fitted_L": mu}
+    if order == 2 and active:
+        rows.append(_second_order_row(refit, setup, active))
     u_mu = math.sqrt(sum(r.u_mu**2 for r in rows))
     rows.sort(key=lambda r: -r.u_mu)
     mc = None
@@ -457,7 +533,33 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     return Budget(mu=mu, u_mu=u_mu, U_mu=coverage_factor * u_mu,
                   coverage_factor=coverage_factor, rows=tuple(rows), statistical=statistical,
                   exact=tuple(exact), length=length, monte_carlo=mc,
-                  seconds=time.perf_counter() - start, n_refits=refit.count)
+                  seconds=time.perf_counter() - start, n_refits=refit.count, order=order)
+
+
+SECOND_ORDER = "second order"
+
+
+def _second_order_row(refit: _Refitter, setup: Setup, active: list) -> Row:
+    """The row of the next-order terms (:func:`second_order`) over the acting inputs, each
+    evaluation a re-fit with the inputs moved together; its u_mu the root of their sum when
+    positive, 0 when the curvature narrows the distribution (the first-order rows are then
+    kept as they are: on the safe side). Its note names the largest terms."""
+    def evaluate(k):
+        s = setup
+        for (_, field, comp, u, factor), ki in zip(active, k, strict=True):
+            if ki:
+                s = _moved(s, field, comp, ki * u, factor)
+        return refit.mu(s)
+
+    var, terms = second_order(evaluate, len(active))
+    names = [a[0] for a in active]
+    top = sorted(terms, key=lambda t: -abs(t[2]))[:3]
+    sign = lambda v: "-" if v < 0 else ""  # noqa: E731
+    note = "GUM 5.1.2 note: inputs' interactions and curvature; largest: " + ", ".join(
+        (f"{names[i]}" if i == j else f"{names[i]} x {names[j]}")
+        + f" {sign(t)}{math.sqrt(abs(t)):.2g}" for i, j, t in top if t != 0.0)
+    return Row(SECOND_ORDER, None, math.sqrt(max(var, 0.0)), 1.0, math.sqrt(max(var, 0.0)),
+               note)
 
 
 CONTOUR_NOTE = "found from the background's contour; u: its circle fit and edge definition"
@@ -514,16 +616,18 @@ def format_budget(b: Budget) -> str:
         The table, lines joined by newlines (no trailing newline).
     """
     rel = (lambda v: f"{100 * v / b.mu:6.3f} %") if b.mu > 0 else (lambda v: "      -")
-    lines = [f"uncertainty budget of mu = {b.mu:.6g} (GUM, first order):",
+    lines = [f"uncertainty budget of mu = {b.mu:.6g} (GUM, "
+             f"{'first order' if b.order == 1 else 'second order'}):",
              f"  {'source':<26} {'value':>11} {'u':>10} {'sensitivity':>12} {'u(mu)':>10}"
              f" {'rel.':>8}"]
     for r in b.rows:
         value = "" if r.value is None else f"{r.value:.6g}"
-        sens = "" if r.sensitivity is None or r.source == "statistical" else \
+        sens = "" if r.sensitivity is None or r.source in ("statistical", SECOND_ORDER) else \
             f"{r.sensitivity:+.3e}"
         lines.append(f"  {r.source:<26} {value:>11} {r.u:>10.3g} {sens:>12} {r.u_mu:>10.3g}"
                      f" {rel(r.u_mu):>8}" + (f"  ({r.note})" if r.note and (
-                         r.u_mu == 0 or r.note == CONTOUR_NOTE) else ""))
+                         r.u_mu == 0 or r.note == CONTOUR_NOTE or r.source == SECOND_ORDER)
+                         else ""))
     lines.append(f"  combined u(mu) = {b.u_mu:.3g} ({rel(b.u_mu).strip()}), expanded U(mu) = "
                  f"{b.U_mu:.3g} ({rel(b.U_mu).strip()}, k = {b.coverage_factor:g})")
     st = b.statistical
@@ -556,7 +660,8 @@ def add_arguments(parser) -> None:
     Parameters
     ----------
     parser : argparse.ArgumentParser
-        The command's parser; ``--fit-length``, ``--monte-carlo`` and ``--seed`` are added.
+        The command's parser; ``--fit-length``, ``--monte-carlo``, ``--seed`` and
+        ``--first-order`` are added.
     """
     parser.add_argument("--fit-length", action="store_true",
                         help="self-calibration: also fit L = R - r (the radius of the ball "
@@ -565,6 +670,9 @@ def add_arguments(parser) -> None:
                         help="check the budget by N Monte-Carlo draws of the uncertain inputs "
                              "(JCGM 101), each a re-fit")
     parser.add_argument("--seed", type=int, default=0, help="seed of the Monte-Carlo draws")
+    parser.add_argument("--first-order", action="store_true",
+                        help="the budget by the first-order law of propagation alone (no "
+                             "second-order row: fewer re-fits)")
 
 
 def run_budget(meas: Measurement, result, args):
@@ -603,7 +711,7 @@ def run_budget(meas: Measurement, result, args):
         return {"u_mu": None, "U_mu": None, "coverage_factor": None,
                 "uncertainty_budget": []}, None
     b = budget(meas, result, fit_length=args.fit_length, monte_carlo=args.monte_carlo,
-               seed=args.seed)
+               seed=args.seed, order=1 if getattr(args, "first_order", False) else 2)
     print(format_budget(b))
     keys = b.to_json()
     if args.fit_length:

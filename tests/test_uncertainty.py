@@ -117,7 +117,7 @@ def test_budget_rows_follow_the_geometry(tmp_path):
     rows = {r.source: r for r in b.rows}
     assert set(rows) == {"statistical", "cylinder.radius_mm", "cylinder.center_px[x]",
                          "cylinder.center_px[y]", "ball.diameter_mm", "camera.fps",
-                         "camera.pixel_size_mm"}
+                         "camera.pixel_size_mm", "second order"}
     assert b.exact == ("ball.mass_g", "environment.gravity_m_s2")
     assert b.mu == pytest.approx(result.mu, rel=1e-7)  # the local re-fit is the fit
     # radius and diameter act only through L = R - d/2: their sensitivities are -2 : 1 (the
@@ -294,7 +294,8 @@ def test_contour_centre_is_a_source_and_its_sensitivity_is_the_finite_difference
     meas = Measurement(setup=true, frames=frames, x=x, y=y, center=found, center_u=u)
     b = budget(meas, fit_mu(*meas.series(true), true))
     rows = {r.source: r for r in b.rows}
-    assert set(rows) == {"statistical", "cylinder.center_px[x]", "cylinder.center_px[y]"}
+    assert set(rows) == {"statistical", "cylinder.center_px[x]", "cylinder.center_px[y]",
+                         "second order"}
     for i, axis in enumerate("xy"):
         row = rows[f"cylinder.center_px[{axis}]"]
         assert row.value == found[i] and row.u == u[i] and "contour" in row.note
@@ -372,3 +373,74 @@ def test_track_level_coverage_case_with_the_contour_centre():
     s = summarize(pd.DataFrame([row, {**row, "contour_error": "not found"}]).assign(
         z_oracle=np.nan, z_oracle_ordinary=np.nan))
     assert s["cases"] == 1 and s["contour_not_found"] == 1
+
+
+def test_second_order_terms_are_exact_for_a_known_interaction():
+    """GUM 5.1.2's next-order terms by the finite differences of ``second_order``: for
+    y = a x1 + b x2 + c x1 x2 + d x1^2 with independent normal inputs (sd u1, u2) the exact
+    variance is a^2 u1^2 + b^2 u2^2 + c^2 u1^2 u2^2 + 2 d^2 u1^4; the first-order law gives
+    the first two terms, the next-order terms the rest (exactly: no higher derivatives)."""
+    from rollfric.uncertainty import second_order
+
+    a, b, c, d, u1, u2 = 3.0, -2.0, 1.5, 0.7, 0.4, 1.3
+
+    def f(x1, x2):
+        return a * x1 + b * x2 + c * x1 * x2 + d * x1 * x1
+
+    var2, terms = second_order(lambda k: f(k[0] * u1, k[1] * u2), 2)
+    assert var2 == pytest.approx(c**2 * u1**2 * u2**2 + 2 * d**2 * u1**4, rel=1e-12)
+    by = {(i, j): t for i, j, t in terms}
+    assert by[(0, 1)] == pytest.approx(c**2 * u1**2 * u2**2, rel=1e-12)
+    assert by[(0, 0)] == pytest.approx(2 * d**2 * u1**4, rel=1e-12) and by[(1, 1)] == 0.0
+    # against the distribution itself
+    rng = np.random.default_rng(1)
+    x1, x2 = rng.normal(0, u1, 2_000_000), rng.normal(0, u2, 2_000_000)
+    first = a**2 * u1**2 + b**2 * u2**2
+    assert np.var(f(x1, x2)) == pytest.approx(first + var2, rel=5e-3)
+    assert np.var(f(x1, x2)) > 1.05 * first  # the first-order law alone falls short
+
+
+def test_second_order_terms_of_a_cubic_and_of_a_mixed_third_derivative():
+    """y = a x + e x^3 (normal x, sd u): variance a^2 u^2 + 6 a e u^4 + 15 e^2 u^6. The
+    first-order row is the secant over +-u, (a + e u^2) u; with the next-order terms the sum
+    is exact to u^4 (a^2 u^2 + 6 a e u^4, + 5 e^2 u^6 of the 15), smaller than the secant's
+    square when the cubic narrows the distribution. y = a x1 + b x2 + g x1 x2^2: the pair's
+    f_i f_ijj term is 2 a g u1^2 u2^2 (the exact variance adds 3 g^2 u1^2 u2^4 beyond)."""
+    from rollfric.uncertainty import second_order
+
+    a, e, u = 2.0, -0.3, 0.5
+    var2, _ = second_order(lambda k: a * k[0] * u + e * (k[0] * u) ** 3, 1)
+    secant = (a + e * u**2) * u
+    assert secant**2 + var2 == pytest.approx(a**2 * u**2 + 6 * a * e * u**4
+                                             + 5 * e**2 * u**6, rel=1e-12)
+    assert var2 < 0
+    b, g, u1, u2 = 1.0, 0.8, 0.3, 0.6
+    var2, terms = second_order(lambda k: a * k[0] * u1 + b * k[1] * u2
+                               + g * (k[0] * u1) * (k[1] * u2) ** 2, 2)
+    assert var2 == pytest.approx(2 * a * g * u1**2 * u2**2, rel=1e-9)
+
+
+def test_second_order_row_is_that_of_independent_full_fits(tmp_path):
+    """The budget's second-order row (default) against :func:`second_order` evaluated with
+    independent full fits at every moved setup (trough radius +- 0.5 mm and the lab's centre
+    x +- 2 px, 2 px off), and the first-order budget (order=1) is the same without it."""
+    from rollfric.uncertainty import SECOND_ORDER, second_order
+
+    lab = _lab_setup(tmp_path).replace(uncertainty=(("cylinder_radius", 5e-4),
+                                                    ("center_px", (2.0, 0.0))))
+    frames, x, y = _lab_track(seconds=1.0)
+    meas = Measurement(setup=lab, frames=frames, x=x, y=y, center=lab.center_px)
+    result = fit_mu(*meas.series(lab), lab)
+    b2, b1 = budget(meas, result), budget(meas, result, order=1)
+    row = {r.source: r for r in b2.rows}[SECOND_ORDER]
+    assert SECOND_ORDER not in {r.source for r in b1.rows}
+    assert b2.u_mu == pytest.approx(math.hypot(b1.u_mu, row.u_mu), rel=1e-9)
+
+    def full(k):
+        moved = lab.replace(cylinder_radius=lab.cylinder_radius + k[0] * 5e-4,
+                            center_px=(lab.center_px[0] + 2.0 * k[1], lab.center_px[1]))
+        return fit_mu(*meas.series(moved), moved).mu
+
+    var, terms = second_order(full, 2)
+    assert var > 0 and row.u_mu == pytest.approx(math.sqrt(var), rel=0.05)
+    assert "cylinder.radius_mm x cylinder.center_px[x]" in row.note

@@ -221,3 +221,98 @@ def test_overwrite_starts_a_sweep_afresh(client, tmp_path):
     assert (out / "notes.txt").read_text() == "mine"
     with pytest.raises(S.SweepError, match="holds the results of sweep 'fresh'"):
         S.run_sweep(_mu_spec([0.005], name="other"), out, client=client, progress=False)
+
+
+def test_recordings_measured_again_blind_and_oracle(client, tmp_path):
+    """A sweep's kept recordings measured again without rendering (``--from-recordings``):
+    blind, the same code gives the same metrics as the run that rendered them; oracle, the
+    same recordings with the setup from the recording (the as-built draws stay the
+    recording's); the recorded folder is left as it was."""
+    from validation.case import small_case_dict
+
+    base = small_case_dict(seconds=0.2)
+    base["render"]["shadows"] = False
+    base["lab"] = {"draw": True, "seed": "case", "center_px_u": [2.0, 2.0],
+                   "cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.5}}
+    base["measure"] = {"budget": True}
+    spec = S.sweep_from_dict({"sweep": {"name": "rec", "metrics": ["z_budget"]}, "base": base,
+                              "grid": {"scenario.motion.mu": [0.005, 0.0079]}})
+    src = tmp_path / "src"
+    S.run_sweep(spec, src, client=client, progress=False, keep_recordings=True)
+    first = pd.read_parquet(src / "results.parquet")
+    assert (first["status"] == "ok").all(), first["error"].tolist()
+    before = sorted((p.relative_to(src), p.stat().st_mtime_ns) for p in src.rglob("*"))
+
+    blind = S.recorded_sweep(src)
+    assert sorted(c.case_id for c in blind.cases) == sorted(first["case_id"])
+    S.run_sweep(blind, tmp_path / "blind", client=client, progress=False)
+    again = pd.read_parquet(tmp_path / "blind" / "results.parquet")
+    assert (again["status"] == "ok").all(), again["error"].tolist()
+    cols = ["case_id", "scenario.motion.mu", "mu_recovered", "u_mu", "z_budget",
+            "trough_center_err_x_px", "lab_err_cylinder_radius_mm"]
+    pd.testing.assert_frame_equal(first[cols], again[cols])
+    assert "t_render_s" not in again.columns  # nothing rendered
+
+    oracle = S.recorded_sweep(src, {"measure.oracle": True})
+    S.run_sweep(oracle, tmp_path / "oracle", client=client, progress=False)
+    o = pd.read_parquet(tmp_path / "oracle" / "results.parquet")
+    assert (o["status"] == "ok").all(), o["error"].tolist()
+    assert (o["mode"] == "oracle").all() and (first["mode"] == "blind").all()
+    m = first.merge(o, on="scenario.motion.mu", suffixes=("", "_o"))
+    assert len(m) == 2 and (m["case_id"] != m["case_id_o"]).all()
+    assert (m["recording"].map(lambda p: Path(p).stem) == m["case_id"]).all()
+    # the recording's as-built setup, the exact trough centre
+    assert (m["asbuilt_cylinder_radius_mm_o"] == m["asbuilt_cylinder_radius_mm"]).all()
+    assert (m["lab_err_cylinder_radius_mm"] != 0).all()
+    assert (m["trough_center_err_x_px_o"].abs() < 1e-9).all()
+    assert (m["lab_err_cylinder_radius_mm_o"] == 0).all()
+    assert sorted((p.relative_to(src), p.stat().st_mtime_ns) for p in src.rglob("*")) == before
+
+    with pytest.raises(S.SweepError, match="only measure"):
+        S.recorded_sweep(src, {"render.seed": 3})
+
+
+def test_recording_of_another_case_is_refused(tmp_path):
+    """Re-measuring a recording as a case it was not rendered from is refused."""
+    import sim
+    import synth
+    from validation.case import case_from_dict, small_case_dict
+
+    d = small_case_dict(seconds=0.05)
+    d["render"]["shadows"] = False
+    case = case_from_dict(d)
+    synth.render(sim.simulate(case.scenario), tmp_path / "r.zarr", scene=case.scene,
+                 sensor=case.sensor, seed=0, workers=1, threads=1)
+    other = small_case_dict(seconds=0.05)
+    other["scenario"]["motion"]["mu"] = 0.011
+    with pytest.raises(e2e.RecordingMismatch):
+        e2e.remeasure_case(other, tmp_path / "r.zarr")
+    d["render"]["seed"] = 1
+    with pytest.raises(e2e.RecordingMismatch):
+        e2e.remeasure_case(d, tmp_path / "r.zarr")
+
+
+def test_from_recordings_cli_checks_its_input(tmp_path, capsys):
+    """``rollfric sweep --from-recordings SRC``: the cases of SRC's kept recordings (a
+    dry run lists them), refused (exit 2, nothing written) for --out SRC itself, for a --set
+    of a key that would change what was rendered, and for a SRC without recordings."""
+    from rollfric.cli import main
+    from validation.case import small_case_dict
+
+    spec = S.sweep_from_dict({"sweep": {"name": "rec"}, "base": small_case_dict(0.1),
+                              "grid": {"scenario.motion.mu": [0.005, 0.006]}})
+    src = tmp_path / "src"
+    for sc in spec.cases:
+        S.write_part(src / "parts", S._row(sc, {"status": "ok", "error": "", "metrics": {}}))
+    (src / "recordings" / f"{spec.cases[0].case_id}.zarr").mkdir(parents=True)
+    assert main(["sweep", "--from-recordings", str(src), "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert spec.cases[0].case_id in out and spec.cases[1].case_id not in out
+    assert "1 case(s)" in out
+    assert main(["sweep", "--from-recordings", str(src), "--out", str(src)]) == 2
+    assert main(["sweep", "--from-recordings", str(src), "--out", str(tmp_path / "new"),
+                 "--set", "render.seed=4"]) == 2
+    assert main(["sweep", "--from-recordings", str(tmp_path), "--out",
+                 str(tmp_path / "new")]) == 2
+    assert not (tmp_path / "new").exists()
+    assert "only measure.* keys" in capsys.readouterr().err

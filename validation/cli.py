@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from sim.engines import ENGINES
 
@@ -50,6 +51,10 @@ By default a local cluster of worker processes (one renderer each, PYOPENGL_PLAT
 started; --scheduler ADDRESS uses an existing cluster instead (its workers must see DIR when
 --keep-recordings is used). Example studies ship with the package: `rollfric sweep --list`.
 Exit code 0 when every case is ok, 1 when some failed, 2 on bad input.
+
+--from-recordings SRC measures the recordings a sweep kept in SRC (--keep-recordings) again with
+the current code, without rendering: the same metrics, written to DIR (not SRC); with
+--set measure.oracle=true the same recordings in oracle mode (setup from the recording).
 
 SWEEP.toml:
   [sweep]   name, mode = "grid" | "list", seeds = N (repeat each case with render seeds 0..N-1)
@@ -99,6 +104,10 @@ def register(subparsers) -> None:
                    help="worker processes of the local cluster")
     s.add_argument("--keep-recordings", action="store_true",
                    help="keep every case's recording under DIR/recordings/ with index.csv")
+    s.add_argument("--from-recordings", metavar="SRC",
+                   help="no render: measure again the recordings a sweep kept in SRC "
+                        "(--keep-recordings), with the current code; results into --out DIR "
+                        "(another folder); --set takes only measure.* keys then")
     s.add_argument("--retry-failed", action="store_true",
                    help="on resume, run again the cases recorded as failed")
     s.add_argument("--list", action="store_true", help="list the shipped example sweeps")
@@ -182,9 +191,21 @@ def handle_sweep(args) -> int:
         for name, path, doc in sweep_mod.shipped_sweeps():
             print(f"{name:14s} {doc}   ({path})")
         return 0
-    if not args.sweep:
+    if args.from_recordings:
+        spec = sweep_mod.recorded_sweep(args.from_recordings, _parse_set(args.set))
+        if args.sweep and sweep_mod.load_sweep(args.sweep).name != spec.name:
+            raise InputError(f"--from-recordings {args.from_recordings} holds sweep "
+                             f"{spec.name!r}, not {args.sweep!r}")
+        if args.out and Path(args.out).resolve() == Path(args.from_recordings).resolve():
+            raise InputError("--out must be another folder than --from-recordings (the "
+                             "recorded results stay as they are)")
+        if args.keep_recordings:
+            raise InputError("--keep-recordings with --from-recordings: the recordings stay "
+                             "in the recorded sweep's folder")
+    elif not args.sweep:
         raise InputError("give a SWEEP.toml (or a shipped study name, see --list)")
-    spec = sweep_mod.load_sweep(args.sweep, _parse_set(args.set))
+    else:
+        spec = sweep_mod.load_sweep(args.sweep, _parse_set(args.set))
     if args.dry_run:
         for c in spec.cases:
             print(c.case_id, " ".join(f"{k}={v!r}" for k, v in c.params.items()))

@@ -189,8 +189,13 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
     return out
 
 
+GROUP_KEYS = ("render.noise", "render.lighting", "scenario.ball", "scenario.motion.mu")
+
+
 def summarize(df: pd.DataFrame) -> dict:
-    """Coverage fractions of the blind budget and of the oracle's statistical error."""
+    """Coverage fractions of the blind budget and of the oracle's statistical error; of a
+    sweep's first-order budget (``z_first_order``), of the draws' linear prediction
+    (``z_linear``) and by group (:data:`GROUP_KEYS`) when the table has them."""
     def frac(z, k):
         z = np.asarray(z, dtype=float)
         z = z[np.isfinite(z)]
@@ -216,6 +221,15 @@ def summarize(df: pd.DataFrame) -> dict:
     for ar, g in df.groupby("ar") if df["ar"].nunique() > 1 else ():
         s[f"oracle_within_2u_stat_ar{ar:g}"] = frac(g["z_oracle"], 2.0)
         s[f"oracle_ordinary_within_2se_ar{ar:g}"] = frac(g["z_oracle_ordinary"], 2.0)
+    for col in ("z_first_order", "z_linear"):
+        if col in df:
+            s[f"{col}_within_2u"] = frac(df[col], 2.0)
+            s[f"{col}_within_u"] = frac(df[col], 1.0)
+            s[f"{col}_rms"] = float(np.sqrt(np.nanmean(df[col].to_numpy(float) ** 2)))
+    for key in GROUP_KEYS:
+        if key in df and df[key].nunique() > 1:
+            for value, g in df.groupby(key):
+                s[f"within_U[{key}={value}]"] = frac(g["z"], 2.0)
     if "z_contour" in df:
         s["contour_only_within_2u"] = frac(df["z_contour"], 2.0)
         s["contour_only_within_u"] = frac(df["z_contour"], 1.0)
@@ -236,6 +250,13 @@ def from_sweep(results: pd.DataFrame, oracle: pd.DataFrame | None = None) -> pd.
     df = pd.DataFrame({"case_id": ok["case_id"], "z": ok["z_budget"], "mu": ok["mu_recovered"],
                        "U_mu": ok["U_mu"], "ar": 0.0, "budget_seconds": ok["t_budget_s"],
                        "fit_seconds": ok["t_measure_s"] if "t_measure_s" in ok else np.nan})
+    # the first-order budget's z and the draws' linear prediction, when the sweep has them
+    for col, name in (("z_first_order", "z_first_order"), ("z_linear", "z_linear")):
+        if col in ok:
+            df[name] = ok[col].to_numpy(float)
+    for key in GROUP_KEYS:  # the groups the summary splits by
+        if key in ok:
+            df[key] = ok[key].astype(str).to_numpy()
     if oracle is None:
         df["z_oracle"] = df["z_oracle_ordinary"] = np.nan
         return df
@@ -261,6 +282,11 @@ def plot(df: pd.DataFrame, path: Path) -> None:
             ("z_oracle_ordinary", "oracle: / ordinary standard error")]
     if "z_contour" in df:
         cols.insert(1, ("z_contour", "exact setup, contour centre:\n/ (statistical + centre) u"))
+    if "z_first_order" in df:
+        cols.insert(1, ("z_first_order", "blind: / first-order u_mu"))
+    if "z_linear" in df:
+        cols.insert(2, ("z_linear", "the drawn setup errors through\n"
+                                    "the budget's linear model / u_mu"))
     cols = [c for c in cols if np.isfinite(df[c[0]].to_numpy(float)).any()]
     fig = Figure(figsize=(4.4 * len(cols), 3.8))
     axes = fig.subplots(1, len(cols), squeeze=False)[0]

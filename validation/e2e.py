@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
 import math
 import shutil
 import tempfile
@@ -60,7 +61,8 @@ METRICS = frozenset((
     "stages", "locator_sigma_px",
     # budget_metrics
     "u_mu", "U_mu", "z_budget", "within_u", "within_U", "u_stat", "z_stat",
-    "budget_top_source", "budget_n_sources",
+    "budget_top_source", "budget_n_sources", "u_second_order", "z_first_order",
+    "within_U_first_order", "z_linear",
     # timing_metrics
     "timing_jitter_us", "frames_dropped_true", "frames_dropped_found",
     "frames_dropped_matched", "timing_irregular", "timestamps_used", "video_codec",
@@ -178,28 +180,8 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
             synth.render(traj, rec_path, scene=case.scene, sensor=case.sensor,
                          seed=case.render_seed, progress=progress, workers=render_workers,
                          threads=render_threads, overwrite=True, timing=case.timing)
-        rec = synth.open_recording(rec_path)
-        truth = rec.truth
-        with _timer(timings, "measure"):
-            track, info, fit, setup, setup_dict = measure_recording(rec_path, case,
-                                                                    progress=progress)
-        with _timer(timings, "metrics"):
-            metrics = compute_metrics(case, traj, truth, track, fit, fit_truth, setup)
-            metrics.update(mode_metrics(case, info, truth))
-            metrics.update(timing_metrics(case, rec.attrs, info))
-            if case.data.get("measure", {}).get("budget", True):
-                metrics.update(budget_metrics(case, track, info, fit))
-        timings["total"] = time.perf_counter() - t_start
-        metrics.update({f"t_{k}_s": float(v) for k, v in timings.items()})
-        metrics["n_frames"] = int(len(truth))
-        metrics["frame_width_px"] = int(case.scene.camera.width)
-        metrics["frame_height_px"] = int(case.scene.camera.height)
-        metrics["render_fps"] = (len(truth) / timings["render"]) if timings["render"] > 0 \
-            else math.nan
-        result = CaseResult(case=case, metrics=metrics, timings=dict(timings), trajectory=traj,
-                            truth=truth, track=track, track_info=info, fit=fit,
-                            fit_truth=fit_truth, setup=setup, setup_dict=setup_dict,
-                            recording=rec_path)
+        result = _measure_and_score(case, rec_path, traj, fit_truth, timings, t_start,
+                                    progress)
         if report_tmp is not None:
             from validation.report import write_report
 
@@ -210,6 +192,95 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
     if tmpdir is not None:
         result = dataclasses.replace(result, recording=None)
     return result
+
+
+def _measure_and_score(case: Case, rec_path: Path, traj, fit_truth, timings: dict,
+                       t_start: float, progress: bool) -> CaseResult:
+    """What follows the render: rollfric measures the recording, the metrics against the
+    truth (the recording's truth table and ``traj``), the budget, the stage times."""
+    import synth
+
+    rec = synth.open_recording(rec_path)
+    truth = rec.truth
+    with _timer(timings, "measure"):
+        track, info, fit, setup, setup_dict = measure_recording(rec_path, case,
+                                                                progress=progress)
+    with _timer(timings, "metrics"):
+        metrics = compute_metrics(case, traj, truth, track, fit, fit_truth, setup)
+        metrics.update(mode_metrics(case, info, truth))
+        metrics.update(timing_metrics(case, rec.attrs, info))
+        if case.data.get("measure", {}).get("budget", True):
+            metrics.update(budget_metrics(case, track, info, fit, _true_center(metrics)))
+    timings["total"] = time.perf_counter() - t_start
+    metrics.update({f"t_{k}_s": float(v) for k, v in timings.items()})
+    metrics["n_frames"] = int(len(truth))
+    metrics["frame_width_px"] = int(case.scene.camera.width)
+    metrics["frame_height_px"] = int(case.scene.camera.height)
+    t_render = timings.get("render", math.nan)
+    metrics["render_fps"] = len(truth) / t_render if t_render > 0 else math.nan
+    return CaseResult(case=case, metrics=metrics, timings=dict(timings), trajectory=traj,
+                      truth=truth, track=track, track_info=info, fit=fit, fit_truth=fit_truth,
+                      setup=setup, setup_dict=setup_dict, recording=rec_path)
+
+
+class RecordingMismatch(ValueError):
+    """A recording that was not rendered from the case it is re-measured as."""
+
+
+def remeasure_case(case: Case | dict, recording: str | Path, *,
+                   progress: bool = False) -> CaseResult:
+    """Measure an existing recording of ``case`` again, with the current code: no render.
+
+    The case is simulated again (deterministic, cheap) for the truth's fit and the metrics;
+    rollfric measures the recording as :func:`run_case` does (blind or oracle as the case
+    says) and the metrics are :func:`run_case`'s, without ``t_render_s`` (``render_fps``
+    NaN). The recording must be the case's: its stored scenario (as built) and render seed
+    must be the case's, else :class:`RecordingMismatch`.
+
+    Parameters
+    ----------
+    case : Case or dict
+        The case the recording was rendered from (its ``measure`` table may differ: how it
+        is measured now, e.g. ``oracle``).
+    recording : str or Path
+        The recording (synth's Zarr).
+    progress : bool
+        Progress bars of the measurement.
+
+    Returns
+    -------
+    CaseResult
+        With ``recording`` the given path.
+
+    Raises
+    ------
+    RecordingMismatch
+        The recording was made from another scenario or render seed.
+    """
+    import sim
+    import synth
+    from rollfric.fit import fit_mu
+
+    if isinstance(case, dict):
+        case = case_from_dict(case)
+    rec_path = Path(recording)
+    attrs = synth.open_recording(rec_path).attrs
+    # as synth stores it (JSON: tuples as lists)
+    want = json.loads(json.dumps(case.scenario.to_toml_dict(),
+                                 default=lambda o: o.tolist() if hasattr(o, "tolist")
+                                 else str(o)))
+    if attrs.get("scenario") != want or int(attrs.get("seed", -1)) != case.render_seed:
+        raise RecordingMismatch(f"{rec_path}: not a recording of this case (its scenario or "
+                                "render seed differ from the case's)")
+    timings: dict = {}
+    t_start = time.perf_counter()
+    with _timer(timings, "simulate"):
+        traj = sim.simulate(case.scenario)
+    setup_truth = case.scenario.setup()
+    with _timer(timings, "fit_truth"):
+        fit_truth = fit_mu(traj.t, traj.theta, setup_truth, method=case.fit,
+                           offset=_offset(case, traj.t, traj.theta, setup_truth))
+    return _measure_and_score(case, rec_path, traj, fit_truth, timings, t_start, progress)
 
 
 # -- the measurement (rollfric) ---------------------------------------------------------------
@@ -289,6 +360,12 @@ def mode_metrics(case: Case, info, truth) -> dict:
     return m
 
 
+def _true_center(metrics: dict) -> tuple[float, float]:
+    """The true trough centre (px, in the image rollfric measured in) from mode_metrics'."""
+    return (metrics["trough_center_x_px"] - metrics["trough_center_err_x_px"],
+            metrics["trough_center_y_px"] - metrics["trough_center_err_y_px"])
+
+
 def timing_metrics(case: Case, attrs: dict, info) -> dict:
     """The camera's timing and how rollfric saw it: the jitter (us), the camera frames lost
     (``frames_dropped_true``), the ones rollfric found from the motion (``..._found``) and
@@ -314,24 +391,42 @@ def timing_metrics(case: Case, attrs: dict, info) -> dict:
             "video_quality": -1 if case.video is None else case.video.quality}
 
 
-def budget_metrics(case: Case, track, info, fit) -> dict:
+def budget_metrics(case: Case, track, info, fit, truth_center=None) -> dict:
     """rollfric's uncertainty budget of the measured mu (:mod:`rollfric.uncertainty`) against
     the truth: u_mu, U_mu (k = 2), z_budget = (mu - truth) / u_mu, within_u / within_U (1 or
-    0), the statistical part alone (u_stat, z_stat), the largest source and the budget's time.
-    Oracle mode: the setup is exact, the budget is its statistical part."""
-    from rollfric.uncertainty import budget, measurement_from_track
+    0), the statistical part alone (u_stat, z_stat), the largest source and the budget's time;
+    the second-order row (``u_second_order``) and z and within U without it (the first-order
+    budget: ``z_first_order``, ``within_U_first_order``). ``z_linear``: the error the budget's
+    own first-order model predicts from the case's drawn setup errors, sum of sensitivity x
+    (nominal - as built) over its rows, / u_mu (the as-built values of the case's lab, the
+    true trough centre ``truth_center``, px); its coverage is what an exactly linear budget
+    would reach with these draws. Oracle mode: the setup is exact, the budget is its
+    statistical part."""
+    from rollfric.uncertainty import SECOND_ORDER, budget, measurement_from_track
 
     if fit.method != "lsq":
         return {}
     b = budget(measurement_from_track(track, info), fit)
     mu_true = float(case.scenario.mu)
     u_stat = next(r.u_mu for r in b.rows if r.source == "statistical")
+    u2 = next((r.u_mu for r in b.rows if r.source == SECOND_ORDER), 0.0)
+    u1 = math.sqrt(max(b.u_mu**2 - u2**2, 0.0))
+    truth = dict(case.lab.asbuilt) if case.lab is not None else {}
+    if truth_center is not None:
+        truth["cylinder.center_px[x]"], truth["cylinder.center_px[y]"] = truth_center
+    pred = sum(r.sensitivity * (r.value - truth[r.source]) for r in b.rows
+               if r.source in truth and r.sensitivity is not None and r.value is not None)
     return {"u_mu": b.u_mu, "U_mu": b.U_mu, "z_budget": (b.mu - mu_true) / b.u_mu,
             "within_u": float(abs(b.mu - mu_true) <= b.u_mu),
             "within_U": float(abs(b.mu - mu_true) <= b.U_mu),
             "u_stat": u_stat, "z_stat": (b.mu - mu_true) / u_stat if u_stat > 0 else math.nan,
             "budget_top_source": b.rows[0].source, "budget_n_sources":
-            sum(r.u_mu > 0 for r in b.rows), "t_budget_s": b.seconds}
+            sum(r.u_mu > 0 and r.source != SECOND_ORDER for r in b.rows),
+            "u_second_order": u2,
+            "z_first_order": (b.mu - mu_true) / u1 if u1 > 0 else math.nan,
+            "within_U_first_order": float(abs(b.mu - mu_true) <= b.coverage_factor * u1),
+            "z_linear": pred / b.u_mu if b.u_mu > 0 else math.nan,
+            "t_budget_s": b.seconds}
 
 
 # -- metrics ----------------------------------------------------------------------------------

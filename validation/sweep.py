@@ -77,6 +77,7 @@ class SweepCase:
     params: dict  # swept dotted key -> value (includes render.seed when seeds > 1)
     case: dict  # the full case dict
     stages: str = "full"  # what runs: full, sim or track (sweep.stages or the case's own)
+    recording: str | None = None  # re-measure this existing recording (recorded_sweep)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -268,8 +269,11 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
 # -- running one case (on a worker) ---------------------------------------------------------
 
 def run_one(case_dict: dict, stages: str = "full", recording: str | None = None,
-            case_fn=None) -> dict:
+            case_fn=None, remeasure: bool = False) -> dict:
     """What a worker runs for one case: {"status", "error", "metrics", "worker", "wall_s"}.
+
+    ``recording``: where the full case keeps its recording; with ``remeasure`` the existing
+    recording measured again instead of rendered (:func:`validation.e2e.remeasure_case`).
 
     An exception in the case is caught and returned as status "failed" with its traceback's
     last line as the error; a dying process is left to Dask (the case is re-run elsewhere).
@@ -282,6 +286,8 @@ def run_one(case_dict: dict, stages: str = "full", recording: str | None = None,
     try:
         if case_fn is not None:
             metrics = case_fn(case_dict)
+        elif remeasure:
+            metrics = e2e.remeasure_case(case_dict, recording).metrics
         elif stages == "sim":
             metrics = e2e.sim_only_case(case_dict)
         elif stages == "track":
@@ -299,6 +305,99 @@ def run_one(case_dict: dict, stages: str = "full", recording: str | None = None,
                 "metrics": {}, "worker": worker, "wall_s": time.perf_counter() - t0}
 
 
+# -- re-measuring a finished sweep's kept recordings ------------------------------------------
+
+def recorded_sweep(src: str | Path, overrides: dict | None = None) -> SweepSpec:
+    """The cases of a sweep run with ``--keep-recordings`` into ``src``, to be measured again
+    from their recordings with the current code (no render): every case whose part is "ok"
+    and whose recording ``src/recordings/<case_id>.zarr`` exists (a sweep still running gives
+    the cases finished so far).
+
+    Parameters
+    ----------
+    src : str or Path
+        The recorded sweep's output folder.
+    overrides : dict, optional
+        Dotted ``measure.*`` keys set in every case: how it is measured now (e.g.
+        ``{"measure.oracle": True}``: the setup from the recording). Any other key would
+        change what was rendered and is refused. The case's lab draws (``lab.seed =
+        "case"``) are resolved from the recorded case first, so that they stay the
+        recording's. The cases' ids are then their own; ``recording`` names the one measured.
+
+    Returns
+    -------
+    SweepSpec
+        The recorded sweep's name, description and metrics; one case per recording, each with
+        its ``recording`` path, in the recorded sweep's order.
+
+    Raises
+    ------
+    SweepError
+        ``src`` holds no sweep with kept recordings, or an override that is not ``measure.*``.
+    """
+    from validation.case import _case_seeded_lab
+
+    src = Path(src)
+    overrides = dict(overrides or {})
+    bad = sorted(k for k in overrides if not k.startswith("measure."))
+    if bad:
+        raise SweepError(f"--set {', '.join(bad)}: re-measuring recordings takes only "
+                         "measure.* keys (the others would change what was rendered)")
+    text, head = "", {}
+    if (src / "sweep.toml").is_file():  # a sweep run from a dict (the API) writes none
+        try:
+            text = (src / "sweep.toml").read_text(encoding="utf-8")
+            head = tomllib.loads(text).get("sweep", {})
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+            raise SweepError(f"--from-recordings {src}: unreadable sweep.toml ({exc})") \
+                from None
+    parts = read_parts(src)
+    rec_dir = src / "recordings"
+    if not len(parts) or not rec_dir.is_dir():
+        raise SweepError(f"--from-recordings {src}: no finished cases with kept recordings "
+                         "(run the sweep with --keep-recordings)")
+    name = head.get("name") or _previous_name(src) or src.name
+    metrics = tuple(head.get("metrics", DEFAULT_METRICS))
+    swept: list = []
+    cases, seen = [], set()
+    for _, row in parts.iterrows():
+        rec = rec_dir / f"{row['case_id']}.zarr"
+        if row["status"] != "ok" or not rec.is_dir():
+            continue
+        recorded = json.loads(row["case_json"])
+        if "stages" in row and isinstance(row["stages"], str) and row["stages"] != "full":
+            continue  # not rendered
+        d = dict(recorded)
+        if isinstance(d.get("lab"), dict):
+            d["lab"] = _case_seeded_lab(d)  # the recording's as-built draws, whatever follows
+        d = apply_overrides(d, overrides) if overrides else recorded
+        cid = case_id(d)
+        if cid in seen:
+            continue
+        seen.add(cid)
+        params = {}
+        for k in row.index:
+            if "." in k and k not in ("case_json",) and not _isnan(row[k]):
+                params[k] = row[k]
+                if k not in swept:
+                    swept.append(k)
+        params.update(overrides)
+        cases.append(SweepCase(case_id=cid, params=params, case=d, stages="full",
+                               recording=str(rec.resolve())))
+    if not cases:
+        raise SweepError(f"--from-recordings {src}: no finished cases with kept recordings")
+    swept += [k for k in overrides if k not in swept]
+    note = f"\n# re-measured from the recordings of {src.resolve()}" + "".join(
+        f"\n# with --set {k}={v!r}" for k, v in overrides.items()) + "\n"
+    return SweepSpec(name=name, description=head.get("description", ""), stages="full",
+                     metrics=metrics, swept=tuple(swept), cases=tuple(cases),
+                     source=str(src / "sweep.toml"), text=text + note)
+
+
+def _isnan(v) -> bool:
+    return isinstance(v, float) and math.isnan(v)
+
+
 # -- parts and the combined table -----------------------------------------------------------
 
 def _scalar(v):
@@ -314,6 +413,8 @@ def _row(sc: SweepCase, outcome: dict) -> dict:
     for k, v in sc.params.items():
         row[k] = _scalar(v)
     row["stages"] = sc.stages
+    if sc.recording is not None:
+        row["recording"] = sc.recording
     for k, v in outcome.get("metrics", {}).items():
         if k in ("case_id",):
             continue
@@ -537,11 +638,12 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
         try:
             futures = {}
             for sc in todo:
-                rec = None
-                if keep_recordings:
+                rec = sc.recording
+                if keep_recordings and rec is None:
                     (out / "recordings").mkdir(exist_ok=True)
                     rec = str((out / "recordings" / f"{sc.case_id}.zarr").resolve())
                 fut = client.submit(run_one, sc.case, sc.stages, rec, case_fn,
+                                    sc.recording is not None,
                                     key=f"case-{spec.name}-{sc.case_id}", pure=False)
                 futures[fut] = sc
             bar = tqdm(total=len(spec.cases), initial=n_before, unit="case",
@@ -572,7 +674,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
                 if own[1] is not None:
                     own[1].close()
     df = rebuild_table(out, spec)
-    if keep_recordings:
+    if keep_recordings and not any(c.recording for c in spec.cases):
         _write_recordings_index(out, spec, df)
     n_failed_total = int((df["status"] != "ok").sum()) if len(df) else 0
     notes = []

@@ -22,7 +22,8 @@ What it leaves out, so the sources that need it are run rendered (``stages = "fu
 ball's image is located (lighting, noise, blur, defocus, compression, the silhouette bent by a
 lens: 0.06 % of mu at k1 = -0.18), frame-level timing (jitter, dropped frames, timestamps) and
 rollfric's per-frame plausibility checks. Its metrics are :func:`validation.e2e.run_case`'s
-without the uncertainty budget, plus ``stages`` = "track".
+without the uncertainty budget (with it when the case sets ``measure.budget = true``
+explicitly: a coverage study at the track level), plus ``stages`` = "track".
 """
 
 from __future__ import annotations
@@ -276,6 +277,14 @@ def run_track_case(case: Case | dict, *, sigma_px: float = LOCATOR_SIGMA_PX) -> 
     info = SimpleNamespace(center_px=tc.center_px, undistorted=tc.undistorted,
                            offset_fitted=tc.offset_fitted)
     metrics.update(mode_metrics(tc.case, info, tc.truth))
+    if tc.case.data.get("measure", {}).get("budget") is True and tc.fit.method == "lsq":
+        from validation.e2e import _true_center, budget_metrics
+
+        # what rollfric.track.measure tells the budget (TrackInfo's fields it reads)
+        info = SimpleNamespace(**vars(info), setup=tc.setup, angle="atan2",
+                               times="frame / camera.fps")
+        metrics.update(budget_metrics(tc.case, tc.track, info, tc.fit,  # with t_budget_s
+                                      _true_center(metrics)))
     metrics.update({f"t_{k}_s": float(v) for k, v in tc.timings.items()})
     cam = tc.case.scene.camera
     metrics.update({"stages": "track", "locator_sigma_px": float(sigma_px),
