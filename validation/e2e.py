@@ -152,22 +152,30 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
     return result
 
 
-def _run_case(case, recording, report_tmp, render_workers, render_threads,
-              progress) -> CaseResult:
+def _simulate(case: Case, timings: dict):
+    """The case's trajectory and the fit of its exact angles (the engine's mu), timed as the
+    stages "simulate" and "fit_truth"."""
     import sim
-    import synth
     from rollfric.fit import fit_mu
 
-    if isinstance(case, dict):
-        case = case_from_dict(case)
-    timings: dict = {}
-    t_start = time.perf_counter()
     with _timer(timings, "simulate"):
         traj = sim.simulate(case.scenario)
     setup_truth = case.scenario.setup()
     with _timer(timings, "fit_truth"):
         fit_truth = fit_mu(traj.t, traj.theta, setup_truth, method=case.fit,
                            offset=_offset(case, traj.t, traj.theta, setup_truth))
+    return traj, fit_truth
+
+
+def _run_case(case, recording, report_tmp, render_workers, render_threads,
+              progress) -> CaseResult:
+    import synth
+
+    if isinstance(case, dict):
+        case = case_from_dict(case)
+    timings: dict = {}
+    t_start = time.perf_counter()
+    traj, fit_truth = _simulate(case, timings)
 
     tmpdir = None
     if recording is not None:
@@ -257,9 +265,7 @@ def remeasure_case(case: Case | dict, recording: str | Path, *,
     RecordingMismatch
         The recording was made from another scenario or render seed.
     """
-    import sim
     import synth
-    from rollfric.fit import fit_mu
 
     if isinstance(case, dict):
         case = case_from_dict(case)
@@ -274,12 +280,7 @@ def remeasure_case(case: Case | dict, recording: str | Path, *,
                                 "render seed differ from the case's)")
     timings: dict = {}
     t_start = time.perf_counter()
-    with _timer(timings, "simulate"):
-        traj = sim.simulate(case.scenario)
-    setup_truth = case.scenario.setup()
-    with _timer(timings, "fit_truth"):
-        fit_truth = fit_mu(traj.t, traj.theta, setup_truth, method=case.fit,
-                           offset=_offset(case, traj.t, traj.theta, setup_truth))
+    traj, fit_truth = _simulate(case, timings)
     return _measure_and_score(case, rec_path, traj, fit_truth, timings, t_start, progress)
 
 
