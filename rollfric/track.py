@@ -822,10 +822,14 @@ def irregular_message(irregular) -> str:
     -------
     str
     """
-    where = ", ".join(f"frame {k} ({r:.2f} x)" for k, r in irregular[:8])
-    return (f"{len(irregular)} step(s) of the ball fit no whole number of frame periods "
-            f"({where}): the timing is irregular there and cannot be repaired from the motion; "
-            "a recording with timestamps would tell")
+    return (f"{_irregular_steps(irregular)}: the timing is irregular there and cannot be "
+            "repaired from the motion; a recording with timestamps would tell")
+
+
+def _irregular_steps(steps) -> str:
+    """"N step(s) of the ball fit no whole number of frame periods (frame k (r x), ...)"."""
+    where = ", ".join(f"frame {k} ({r:.2f} x)" for k, r in steps[:8])
+    return f"{len(steps)} step(s) of the ball fit no whole number of frame periods ({where})"
 
 
 def located_irregular_message(located_irregular) -> str:
@@ -840,10 +844,9 @@ def located_irregular_message(located_irregular) -> str:
     -------
     str
     """
-    where = ", ".join(f"frame {k} ({r:.2f} x)" for k, r in located_irregular[:8])
-    return (f"{len(located_irregular)} step(s) of the ball fit no whole number of frame periods "
-            f"({where}) at frames the locator lost or that failed the plausibility checks: "
-            "the located centres are off there (a ball in shadow, half lit), not the timing")
+    return (f"{_irregular_steps(located_irregular)} at frames the locator lost or that failed "
+            "the plausibility checks: the located centres are off there (a ball in shadow, half "
+            "lit), not the timing")
 
 
 def located_frames_reason(info: TrackInfo) -> str:
