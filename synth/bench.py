@@ -83,7 +83,14 @@ def stock_frame_seconds(scene=None, repeats: int = 3) -> float:
 def _tile_frames(sr, traj, indices, bg, draw, fulls, timings=None):
     """Render the frames ``indices`` as a recording does (tiles over the background, the
     previous frame's tiles put back first): (seconds per frame, tile pixels per frame, largest
-    difference from the stock full frames ``fulls`` in DN)."""
+    difference from the stock full frames ``fulls`` in DN). ``draw``: "lean", "pyrender" or
+    "sphere" (the lean path with the ball as the exact sphere, ``ball_model = "sphere"``)."""
+    if draw != "pyrender":
+        model = "sphere" if draw == "sphere" else "mesh"
+        if sr._lean.ball_model != model:
+            sr._lean.ball_model = model
+            sr._lean.ready = False
+        draw = "lean"
     comp = bg.copy()
     prev: list = []
     times, px, worst = [], [], 0.0
@@ -152,10 +159,10 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         _STOCK.setdefault(repr(scene), float(np.median(full_times)))
         # both tile paths over the same frames, in alternating blocks of 10 frames (a shared
         # machine's load falls on both alike)
-        res = {"lean": ([], [], 0.0), "pyrender": ([], [], 0.0)}
+        res = {"lean": ([], [], 0.0), "pyrender": ([], [], 0.0), "sphere": ([], [], 0.0)}
         for start in range(0, len(idx_all), 10):
             block = idx_all[start:start + 10]
-            for draw in ("pyrender", "lean"):
+            for draw in ("pyrender", "lean", "sphere"):
                 times, px, worst = _tile_frames(sr, traj, block, bg, draw, fulls)
                 t, p, w = res[draw]
                 res[draw] = (t + [x for i, x in zip(block, times, strict=True)
@@ -166,11 +173,14 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         stages: dict = {}
         n_stage = min(len(idx_tile), 30)
         _tile_frames(sr, traj, idx_tile[:n_stage], bg, "lean", {}, timings=stages)
+        stages_sphere: dict = {}
+        _tile_frames(sr, traj, idx_tile[:n_stage], bg, "sphere", {}, timings=stages_sphere)
     finally:
         sr.close()
     full_ms = 1e3 * float(np.median(full_times))
     tile_ms = 1e3 * float(np.median(res["lean"][0]))
     tile_py_ms = 1e3 * float(np.median(res["pyrender"][0]))
+    tile_sphere_ms = 1e3 * float(np.median(res["sphere"][0]))
     tile_px = res["lean"][1]
     # a whole recording, both cores
     tmp = Path(tempfile.mkdtemp(prefix="synth-bench-"))
@@ -222,6 +232,7 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     stage_ms = {name: round(1e3 * v / n_stage, 2) for name, v in stages.items()}
+    stage_sphere_ms = {name: round(1e3 * v / n_stage, 2) for name, v in stages_sphere.items()}
     return {
         "frame": f"{scene.camera.width}x{scene.camera.height}",
         "projection": scene.camera.projection,
@@ -240,6 +251,10 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "max_diff_dn": res["lean"][2],
         "max_diff_dn_pyrender_path": res["pyrender"][2],
         "lean_frame_stages_ms": stage_ms,
+        "synth_tile_sphere_ms": round(tile_sphere_ms, 2),
+        "speedup_single_process_sphere": round(full_ms / tile_sphere_ms, 1),
+        "max_diff_dn_sphere": res["sphere"][2],
+        "sphere_frame_stages_ms": stage_sphere_ms,
         "sequence_frames": n_done,
         "sequence_workers": workers,
         "sequence_s": round(t_seq, 1),

@@ -18,6 +18,7 @@ class SynthError(InputError):
 
 
 RENDERERS = ("pyrender", "mitsuba")
+BALL_MODELS = ("mesh", "sphere")
 SPP_CHOICES = tuple(4 ** k for k in range(7))  # samples per pixel of the mitsuba backend
 MAX_LAMP_DISTANCE = 100.0  # m: a lamp further away from the trough is no lamp of a lab
 
@@ -107,6 +108,9 @@ class SceneConfig:
     supersample: int = 1  # render ss x ss pixels per output pixel (box filter), plus 4x MSAA
     motion_blur: int = 1  # sub-frames integrated over the exposure (1: none)
     ball_silhouette_segments: int = 512  # vertices on the ball mesh's silhouette ring
+    # the ball as drawn by synth's lean path: "mesh" (the triangle mesh, the same pixels as
+    # stock pyrender) or "sphere" (an exact sphere per pixel, shaded by the same shader code)
+    ball_model: str = "mesh"
     # the backend: "pyrender" (rasterised, fast, the default) or "mitsuba" (path traced, a
     # physically based steel ball: synth.mitsuba_scene, the extra rollfric[mitsuba])
     renderer: str = "pyrender"
@@ -126,6 +130,9 @@ class SceneConfig:
         if not isinstance(self.motion_blur, int) or not 1 <= self.motion_blur <= 64:
             raise SynthError(f"motion_blur must be an integer 1..64 sub-frames, got "
                              f"{self.motion_blur!r}")
+        if self.ball_model not in BALL_MODELS:
+            raise SynthError(f"ball_model must be one of {', '.join(BALL_MODELS)}, got "
+                             f"{self.ball_model!r}")
         if self.renderer not in RENDERERS:
             raise SynthError(f"renderer must be one of {', '.join(RENDERERS)}, got "
                              f"{self.renderer!r}")

@@ -190,6 +190,9 @@ class LeanDraw:
         self._static = None  # (framebuffer, renderbuffers) of the static layer
         self._valid = None  # (rows, cols) of STATIC_BLOCK px blocks drawn into it
         self._static_key = None
+        self._sphere_vao = None
+        # "mesh" or "sphere" (SceneConfig.ball_model); set it and ``ready = False`` to switch
+        self.ball_model = sr.config.ball_model
         self._build(self._order())
 
     def close(self) -> None:
@@ -232,6 +235,9 @@ class LeanDraw:
                     **_drawing(prim)})
         self.static_draws = [d for d in self.draws if d["node"] is not self.ball]
         self.ball_draws = [d for d in self.draws if d["node"] is self.ball]
+        if self.ball_model == "sphere":
+            self.ball_draws = [self._sphere_draw(self.ball_draws[0])]
+            self.draws = self.static_draws + self.ball_draws
         self.depth = []
         if self.shadows:
             for prim in self.ball.mesh.primitives:
@@ -244,6 +250,61 @@ class LeanDraw:
                                    "P": GL.glGetUniformLocation(pid, "P"),
                                    **_drawing(prim)})
         self.ready = False
+
+    def _sphere_draw(self, mesh_draw) -> dict:
+        """The ball drawn as an exact sphere (``SceneConfig.ball_model = "sphere"``): one
+        triangle over the viewport, scissored to the ball's box, whose fragment shader
+        (:func:`synth.shaders.sphere_shader`) intersects each pixel's ray with the sphere and
+        shades the hit with the mesh shader's own code; the ball mesh's material."""
+        from OpenGL import GL
+
+        from synth.shaders import SPHERE_FRAG, SPHERE_VERT, light_counts, program_cache
+
+        sr = self.sr
+        pr = sr._pyrender
+        prim = self.ball.mesh.primitives[0]
+        counts = light_counts(sr.scene)
+        if counts not in sr._programs:
+            sr._programs[counts] = program_cache(counts)
+        prog = pa.primitive_program_as(self.inner, prim, self.flags,
+                                       pr.constants.ProgramFlags.USE_MATERIAL, SPHERE_VERT,
+                                       SPHERE_FRAG, sr._programs[counts])
+        pid = pa.program_id(prog)
+        m = prim.material
+        material = [_uniform(pid, "material.emissive_factor", m.emissiveFactor),
+                    _uniform(pid, "material.base_color_factor", m.baseColorFactor),
+                    _uniform(pid, "material.metallic_factor", m.metallicFactor),
+                    _uniform(pid, "material.roughness_factor", m.roughnessFactor)]
+        if self._sphere_vao is None:
+            self._sphere_vao = int(np.asarray(GL.glGenVertexArrays(1)).ravel()[0])
+        return {**mesh_draw, "program": prog, "pid": pid, "M": -1,
+                "material": [u for u in material if u is not None], "cull": False,
+                "boxes": None, "sphere": True, "vao": self._sphere_vao, "mode": 4,
+                "indexed": False, "count": 3,
+                "centre": GL.glGetUniformLocation(pid, "sphere_centre")}
+
+    def _sphere_uniforms(self, prog, V, P) -> None:
+        """The sphere program's camera, viewport, sample positions and radius."""
+        from OpenGL import GL
+
+        inner = self.inner
+        vp = np.asarray(P, float) @ np.asarray(V, float)
+        fb_ms, _ = pa.main_framebuffers(inner)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, fb_ms)
+        samples = np.array([np.asarray(GL.glGetMultisamplefv(GL.GL_SAMPLE_POSITION, k),
+                                       float).ravel()[:2] for k in range(4)])
+        pid = pa.program_id(prog)
+        for name, value in (("sphere_vp", vp), ("sphere_inv_vp", np.linalg.inv(vp)),
+                            ("sphere_viewport", np.array([0.0, 0.0, inner.viewport_width,
+                                                          inner.viewport_height])),
+                            ("sphere_radius", float(self.sr.ball_radius)),
+                            ("sphere_band", np.array([f(a) for a in self.sr.ball_rings
+                                                      for f in (np.sin, np.cos)]))):
+            u = _uniform(pid, name, value)
+            if u is not None:
+                u[0](*u[1])
+        loc = GL.glGetUniformLocation(pid, "sphere_samples")
+        GL.glUniform2fv(loc, 4, samples.astype(np.float32).ravel())
 
     def _triangle_boxes(self, node, prim):
         """(n, 4) pixel boxes [x0, y0, x1, y1] of a static primitive's triangles in the frame
@@ -301,6 +362,8 @@ class LeanDraw:
             prog.set_uniform("P", P)
             prog.set_uniform("cam_pos", cam_pos)
             pa.bind_lighting(inner, scene, prog, d["node"], flags)  # units 0.. in lamp order
+            if d.get("sphere"):
+                self._sphere_uniforms(prog, V, P)
             pa.reset_active_textures(inner)
         if self.shadows:
             self.units = [(k, pa.texture_id(ln.light.shadow_texture))
@@ -597,7 +660,10 @@ class LeanDraw:
                     GL.glUseProgram(d["pid"])
                     current = d["pid"]
                 pose = M if d["node"] is self.ball else scene.get_pose(d["node"])
-                GL.glUniformMatrix4fv(d["M"], 1, GL.GL_TRUE, pose)
+                if d.get("sphere"):
+                    GL.glUniform3f(d["centre"], *(float(v) for v in pose[:3, 3]))
+                else:
+                    GL.glUniformMatrix4fv(d["M"], 1, GL.GL_TRUE, pose)
                 for fn, args in d["material"]:
                     fn(*args)
                 if d["cull"]:
@@ -605,7 +671,8 @@ class LeanDraw:
                     GL.glCullFace(GL.GL_BACK)
                 else:
                     GL.glDisable(GL.GL_CULL_FACE)
-                _draw(d, self._runs(d, tile) if d["mode"] == 4 else None)
+                _draw(d, None if d.get("sphere") else
+                      self._runs(d, tile) if d["mode"] == 4 else None)
             GL.glBindVertexArray(0)
             GL.glFlush()
         finally:

@@ -197,6 +197,30 @@ def primitive_program(inner_renderer, primitive, flags, program_flags):
     return inner_renderer._get_primitive_program(primitive, flags, program_flags)
 
 
+def primitive_program_as(inner_renderer, primitive, flags, program_flags, vertex_shader,
+                         fragment_shader, programs):
+    """A program of shader files ``vertex_shader`` and ``fragment_shader`` from the
+    ShaderProgramCache ``programs`` (its shader directory), compiled with the defines pyrender
+    gives ``primitive``'s own program (its vertex buffers, lamps, shadows and material)."""
+    cache = inner_renderer._program_cache
+    seen = {}
+    get = cache.get_program
+
+    def record(vertex_shader=None, fragment_shader=None, geometry_shader=None, defines=None):
+        seen["defines"] = dict(defines or {})
+        return get(vertex_shader, fragment_shader, geometry_shader, defines)
+
+    cache.get_program = record
+    try:
+        inner_renderer._get_primitive_program(primitive, flags, program_flags)
+    finally:
+        del cache.get_program  # the class's method again
+    program = programs.get_program(vertex_shader, fragment_shader, None, seen["defines"])
+    if program._program_id is None:
+        program._add_to_context()
+    return program
+
+
 def bind_program(program) -> None:
     """Use ``program`` for the next draws."""
     program._bind()

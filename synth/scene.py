@@ -247,6 +247,10 @@ class SceneRenderer:
             # the ball stays near the ball plane: its distance to the pinhole barely changes
             sil = math.acos(self.ball_radius / cam.working_distance)
         sphere = view_sphere(self.ball_radius, sil, n_silhouette=config.ball_silhouette_segments)
+        # the polar angles of the mesh's last ring before the silhouette and of the silhouette
+        # (view_sphere's 16 front rings): the sphere impostor continues the mesh's outermost
+        # band past the silhouette as the mesh's triangles do
+        self.ball_rings = (sil * 15 / 16, sil)
         bc = config.ball_color
         steel = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=[bc, bc, bc, 1.0], metallicFactor=config.ball_metallic,
@@ -404,6 +408,8 @@ class SceneRenderer:
                     self._lean = LeanDraw(self)
                 finally:
                     pyrender_adapter.make_uncurrent(self._offscreen)
+                if self.config.ball_model == "sphere":  # pyrender drew the mesh
+                    out = self._lean.render(poses, tiles)
         elif self._lean is not None:
             self._lean.ready = False
         return out

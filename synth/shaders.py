@@ -119,7 +119,106 @@ def shader_dir(n_directional: int, n_spot: int, n_point: int) -> str:
         shutil.copy(os.path.join(src, name), out)
     with open(os.path.join(out, "mesh.frag"), "w") as f:
         f.write(text)
+    with open(os.path.join(out, SPHERE_VERT), "w") as f:
+        f.write(_SPHERE_VERT_TEXT)
+    with open(os.path.join(out, SPHERE_FRAG), "w") as f:
+        f.write(sphere_shader(text))
     return out
+
+
+SPHERE_VERT, SPHERE_FRAG = "sphere.vert", "sphere.frag"
+
+# one triangle covering the whole viewport (the draw is scissored to the ball's box)
+_SPHERE_VERT_TEXT = """#version 330 core
+void main()
+{
+    vec2 p = vec2(float((gl_VertexID & 1) << 2), float((gl_VertexID & 2) << 1)) - 1.0;
+    gl_Position = vec4(p, 0.0, 1.0);
+}
+"""
+
+_SPHERE_MAIN = """
+// synth's sphere impostor: the exact sphere hit by each pixel's ray, shaded by the mesh
+// shader's own main() above (renamed shade_mesh) with frag_position and frag_normal set here
+uniform mat4 sphere_vp;       // world -> clip
+uniform mat4 sphere_inv_vp;   // clip -> world
+uniform vec4 sphere_viewport; // x0, y0, width, height (window pixels)
+uniform vec2 sphere_samples[4]; // the multisample positions inside a pixel (0..1)
+uniform vec3 sphere_centre;
+uniform float sphere_radius;
+uniform vec4 sphere_band;     // the mesh's last two rings: (sin, cos) of their polar angles
+
+// the ray through window point w: origin at the depth of the sphere's centre, unit direction
+void sphere_ray(vec2 w, float zc, out vec3 o, out vec3 d)
+{
+    vec2 ndc = (w - sphere_viewport.xy) / sphere_viewport.zw * 2.0 - 1.0;
+    vec4 a = sphere_inv_vp * vec4(ndc, -1.0, 1.0);
+    vec4 b = sphere_inv_vp * vec4(ndc, 1.0, 1.0);
+    vec4 c = sphere_inv_vp * vec4(ndc, zc, 1.0);
+    d = normalize(b.xyz / b.w - a.xyz / a.w);
+    o = c.xyz / c.w - sphere_centre;  // relative to the centre
+}
+
+void main()
+{
+    vec4 cc = sphere_vp * vec4(sphere_centre, 1.0);
+    float zc = cc.z / cc.w;
+    float r2 = sphere_radius * sphere_radius;
+    vec2 pix = floor(gl_FragCoord.xy);
+    int mask = 0;
+    for (int k = 0; k < 4; k++) {
+        vec3 o, d;
+        sphere_ray(pix + sphere_samples[k], zc, o, d);
+        float b = dot(o, d);
+        if (dot(o, o) - b * b < r2) mask |= 1 << k;
+    }
+    if (mask == 0) discard;
+    gl_SampleMask[0] = mask;
+    vec3 o, d;
+    sphere_ray(gl_FragCoord.xy, zc, o, d);
+    float b = dot(o, d);
+    vec3 q = o - b * d;  // the ray's closest approach to the centre
+    float h2 = r2 - dot(q, q);
+    vec3 p;
+    if (h2 >= 0.0) {  // the hit point
+        p = q - sqrt(h2) * d;
+        frag_normal = p / sphere_radius;
+    } else {
+        // a pixel centre off the sphere with a sample on it: the mesh's outermost band of
+        // triangles (between the rings at polar angles sphere_band.xy and .zw, as (sin, cos))
+        // continued past the silhouette, as the mesh's triangles are
+        float rho = length(q);
+        vec3 u = q / rho;
+        float s = (rho / sphere_radius - sphere_band.x) / (sphere_band.z - sphere_band.x);
+        vec2 sc = mix(sphere_band.xy, sphere_band.zw, s);  // (sin, cos) continued linearly
+        p = rho * u - sphere_radius * sc.y * d;
+        frag_normal = normalize(sc.x * u - sc.y * d);
+    }
+    frag_position = sphere_centre + p;
+    vec4 clip = sphere_vp * vec4(frag_position, 1.0);
+    gl_FragDepth = 0.5 * clip.z / clip.w + 0.5;
+    shade_mesh();
+}
+"""
+
+
+def sphere_shader(text: str) -> str:
+    """The sphere impostor's fragment shader from (patched) ``mesh.frag`` text: its inputs
+    ``frag_position`` and ``frag_normal`` become globals that a new ``main`` sets from the
+    exact sphere the pixel's ray hits (the depth and each multisample's coverage from the
+    same sphere), then runs the mesh shader's own ``main`` (renamed), so the ball is shaded by
+    the very BRDF, lamp and shadow code pyrender's mesh shader uses.
+
+    Raises RuntimeError when the text lacks what is replaced."""
+    for old, new in (("in vec3 frag_position;", "vec3 frag_position;"),
+                     ("in vec3 frag_normal;", "vec3 frag_normal;"),
+                     ("void main()\n{", "void shade_mesh()\n{")):
+        if text.count(old) != 1:
+            raise RuntimeError(f"mesh.frag has no single {old!r}: this pyrender version is not "
+                               "supported by synth's sphere impostor")
+        text = text.replace(old, new)
+    head, rest = text.split("\n", 1)
+    return head + "\n#extension GL_ARB_sample_shading : require\n" + rest + _SPHERE_MAIN
 
 
 def light_counts(scene) -> tuple[int, int, int]:

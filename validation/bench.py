@@ -165,11 +165,24 @@ def bench_render(quick: bool) -> list[Row]:
             r["full_frame_ms"] / r["synth_tile_pyrender_path_ms"], "speed-up",
             f"max difference from stock {r['max_diff_dn_pyrender_path']:g} DN; the lean path "
             f"is {r['lean_over_pyrender_path']:g}x faster"),
+        Row("rendering", "tile frame, lean path, the ball as the exact sphere (ball_model = "
+            "\"sphere\"), one process", r["synth_tile_sphere_ms"], "ms/frame",
+            "stock pyrender, full frame, same scene", r["full_frame_ms"],
+            r["full_frame_ms"] / r["synth_tile_sphere_ms"], "speed-up",
+            f"max difference from stock's mesh ball {r['max_diff_dn_sphere']:g} DN (its "
+            "faceted highlights and a multisample of its outline: docs/how/renderer.md)"),
     ]
     for name, ms in stages.items():
         rows.append(Row("rendering", f"lean tile frame: {name}", ms, "ms/frame",
                         note=f"{100 * ms / total:.0f} % of the frame's stages (each waited "
                              "for with glFinish)"))
+    for name in ("draw: ball", "shadow maps"):
+        if name in r.get("sphere_frame_stages_ms", {}):
+            rows.append(Row("rendering", f"lean tile frame, sphere ball: {name}",
+                            r["sphere_frame_stages_ms"][name], "ms/frame",
+                            "the mesh ball", stages.get(name, math.nan),
+                            stages.get(name, math.nan) / r["sphere_frame_stages_ms"][name],
+                            "speed-up", "each stage waited for with glFinish"))
     rows += [
         Row("rendering", f"sequence of {r['sequence_frames']} frames (a recording), "
             f"{r['sequence_workers']} processes", r["sequence_ms_per_frame"], "ms/frame",
