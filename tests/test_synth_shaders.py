@@ -11,7 +11,7 @@ from synth.camera import CameraModel
 from synth.config import SceneConfig, lighting_preset
 from synth.pyrender_adapter import compiled_programs
 from synth.scene import SceneRenderer
-from synth.shaders import fixed_light_loops, gather_mesh_shader
+from synth.shaders import fixed_light_loops, gather_mesh_shader, sphere_shader
 
 R_CYL = 0.0853
 R_BALL = 0.005
@@ -46,6 +46,22 @@ def test_light_loops_get_the_scene_counts_and_keep_their_bound():
     assert ours.count("\n") == stock.count("\n") + 3
     with pytest.raises(ValueError, match="n_spot"):
         fixed_light_loops(stock, 0, -1, 0)
+
+
+def test_sphere_shader_keeps_the_mesh_shader_and_only_feeds_it():
+    """The sphere impostor's shader is the mesh shader's text with its two inputs made
+    globals and its main renamed, plus a main that sets them: the shading code is pyrender's."""
+    stock = gather_mesh_shader(_stock_mesh_frag())
+    ours = sphere_shader(stock)
+    body = stock.replace("in vec3 frag_position;", "vec3 frag_position;").replace(
+        "in vec3 frag_normal;", "vec3 frag_normal;").replace("void main()\n{",
+                                                              "void shade_mesh()\n{")
+    head, rest = body.split("\n", 1)
+    assert ours.startswith(head + "\n#extension GL_ARB_sample_shading : require\n" + rest)
+    tail = ours[len(head) + len(rest) + 50:]
+    assert tail.count("void main()") == 1 and "shade_mesh();" in tail
+    with pytest.raises(RuntimeError, match="frag_normal"):
+        sphere_shader(stock.replace("in vec3 frag_normal;", "in vec3 frag_n;"))
 
 
 def test_an_unknown_shader_is_refused():

@@ -69,6 +69,7 @@ def test_plain_scenario_file_is_a_case(tmp_path):
     ("render.camera.widht", 100, "widht"),
     ("scenario.motion.mu", -1.0, "mu"),
     ("render.bogus", 1, "render.bogus"),
+    ("render.scene.ball_model", "cube", "ball_model"),
 ])
 def test_bad_case_keys_are_named(key, value, words):
     d = C.apply_overrides(C.default_case_dict(), {key: value})
