@@ -21,7 +21,8 @@ Reason codes:
   ``track_radius`` (the path's radius differs from L = R - r in pixels), ``flagged_frames``
   (many frames rejected), ``background_repaired``, ``ball_radius``, ``timing`` (steps that fit
   no whole number of frame periods), ``located_frames`` (such steps among frames the locator
-  lost or got wrong: the located centres', not the timing's).
+  lost or got wrong: the located centres', not the timing's), ``swing_coverage`` (the located
+  frames cover little of the outer half of the swing on one side of the bottom).
 """
 
 from __future__ import annotations
@@ -64,6 +65,17 @@ CENTER_TOL_REL = 0.003
 TRACK_RADIUS_TOL = 0.02
 # flagged_frames: a lab recording with more rejected frames than this has a problem
 FLAGGED_FRACTION_MAX = 0.10
+# swing_coverage: the share of the frames in the outer half of each half-swing (|theta - offset|
+# at least half that half-swing's extreme, by the fitted model) that were located, side by side.
+# A fit that sees one side's turning points only trades mu for the setup's errors: a trough
+# radius 0.5 mm off (its usual _u) moved mu by 0.2 % with both sides located, by 1.7 % with 72
+# %, 4.5 % with 46 % and 12 % with 3 % of one side's outer half located (the 1.58 mm ball's
+# exact track at 15 deg, mu = 0.005, 1 s; 8 deg: 0.3 % -> 0.5-1.3 % at 85-45 %); the harsh
+# lamp's shadow left 0-3 % of one side located in synth's renders, and mu -39 % with the lab's
+# setup. Both sides alike: 1.1 % with 75-84 %, 4 % with 35-44 % located. Below 80 % on either
+# side (about 5x the full track's sensitivity) the measurement is suspect.
+SIDE_COVERAGE_MIN = 0.8
+SIDE_COVERAGE_FRAMES = 20  # frames in a side's outer half before its coverage is judged
 
 
 @dataclasses.dataclass(frozen=True)
@@ -417,3 +429,93 @@ def check_track(df, setup, center, *, warnings=(), flag_counts=None) -> list[Rea
     for code, text in warnings:
         reasons.append(Reason(code, text))
     return reasons
+
+
+def swing_coverage(found, result, setup) -> dict:
+    """The located share of the outer half of the swing on either side of the bottom.
+
+    The fitted model (:func:`rollfric.fit.model_theta`, by :func:`rollfric.eom.solve`) from
+    the fit's first sample on is cut into half-swings (the model's sign changes about its
+    offset); a frame is in a half-swing's outer half when |theta - offset| is at least half
+    that half-swing's extreme.
+
+    Parameters
+    ----------
+    found : array_like of bool
+        Which frames were located and kept, one a sample of ``result.t``.
+    result : rollfric.fit.FitResult
+        The fit.
+    setup : rollfric.setup.Setup
+        The setup fitted with.
+
+    Returns
+    -------
+    dict
+        ``{"right": (located, frames), "left": (located, frames)}``: right is theta > 0
+        (right of the bottom in the image); empty when the model cannot be evaluated.
+    """
+    t = np.asarray(result.t, dtype=float)
+    found = np.asarray(found, dtype=bool)
+    if t.shape != found.shape or not (math.isfinite(result.mu) and math.isfinite(result.theta0)
+                                      and math.isfinite(result.omega0)):
+        return {}
+    after = np.isfinite(t) & (t >= result.t0)
+    if after.sum() < 3 or np.any(np.diff(t[after]) <= 0):
+        return {}
+    try:
+        # rollfric.fit.model_theta less its offset (quality may not import fit)
+        model, _, _ = eom.solve(result.theta0 - result.offset, result.omega0, result.mu,
+                                t[after], track_radius=setup.track_radius,
+                                gravity=setup.gravity, mu1=result.mu1)
+    except (ValueError, FloatingPointError):
+        return {}
+    got = found[after]
+    out = {"right": [0, 0], "left": [0, 0]}
+    sign = np.sign(model)
+    for seg in np.split(np.arange(model.size), np.flatnonzero(np.diff(sign) != 0) + 1):
+        if seg.size == 0 or sign[seg[0]] == 0:
+            continue
+        a = np.abs(model[seg])
+        outer = seg[a >= 0.5 * a.max()]
+        side = out["right" if sign[seg[0]] > 0 else "left"]
+        side[0] += int(got[outer].sum())
+        side[1] += int(outer.size)
+    return {k: (v[0], v[1]) for k, v in out.items()}
+
+
+def swing_coverage_reason(found, result, setup) -> Reason | None:
+    """The quality reason ``swing_coverage``: one side of the swing's outer half mostly lost.
+
+    Parameters
+    ----------
+    found : array_like of bool
+        Which frames were located and kept (one a sample of the fit).
+    result : rollfric.fit.FitResult
+        The fit.
+    setup : rollfric.setup.Setup
+        The setup fitted with.
+
+    Returns
+    -------
+    Reason or None
+        When a side with at least SIDE_COVERAGE_FRAMES frames in its outer half has less
+        than SIDE_COVERAGE_MIN of them located.
+    """
+    cov = swing_coverage(found, result, setup)
+    frac = {k: v[0] / v[1] for k, v in cov.items() if v[1] >= SIDE_COVERAGE_FRAMES}
+    if not frac:
+        return None
+    worst = min(frac, key=frac.get)
+    if frac[worst] >= SIDE_COVERAGE_MIN:
+        return None
+    other = "left" if worst == "right" else "right"
+    sign = ">" if worst == "right" else "<"
+    rest = (f", {100 * frac[other]:.0f} % on the {other}" if other in frac else "")
+    return Reason("swing_coverage", (
+        f"the ball was located in only {100 * frac[worst]:.0f} % of the outer half of the "
+        f"swing {worst} of the bottom (theta {sign} 0; {cov[worst][0]} of {cov[worst][1]} "
+        f"frames{rest}): a fit that misses the turning points turns errors "
+        "of the setup (cylinder.radius_mm, camera.fps, center_px) into mu many times over (a "
+        "trough radius 0.5 mm off: mu 4.5 % off with 46 % of one side located, 0.2 % with "
+        "both sides whole); check the lighting on that side (the ball in a shadow) and the "
+        "field of view (track.csv, the overlays)"))

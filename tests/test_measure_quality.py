@@ -60,3 +60,26 @@ def test_a_recording_as_background_is_refused(tmp_path, capsys):
     code, out = _measure(tmp_path, rec, rec.setup, background="stack.tif")
     assert code == 2 and not out.exists()
     assert "5 pages" in capsys.readouterr().err
+
+
+def test_one_side_of_the_swing_lost_is_suspect(tmp_path, capsys):
+    # the ball lost (not drawn: a deep shadow) wherever it swings beyond a third of its
+    # amplitude right of the bottom; mu itself comes out near the truth here (the exact
+    # setup), but a fit that misses one side's turning points turns setup errors into mu
+    whole = make_recording(160, noise=1.0, with_center=True)
+    lost = np.flatnonzero(whole.theta > 0.33 * whole.theta.max())
+    lost = lost[lost > 3]  # the first frames: found, the track starts
+    rec = make_recording(160, noise=1.0, with_center=True, missing=lost)
+    code, out = _measure(tmp_path, rec, rec.setup)
+    assert code == 3
+    fit = json.loads((out / "fit.json").read_text())
+    reasons = {r["code"]: r["message"] for r in fit["quality_reasons"]}
+    assert set(reasons) == {"swing_coverage"}, reasons
+    assert "right of the bottom" in reasons["swing_coverage"]
+    assert "[swing_coverage]" in capsys.readouterr().err
+    # the same frames lost on both sides near the bottom only: the turning points are seen
+    near = np.flatnonzero(np.abs(whole.theta) < 0.2 * whole.theta.max())[::3]
+    rec = make_recording(160, noise=1.0, with_center=True, missing=near)
+    (tmp_path / "b").mkdir()
+    code, out = _measure(tmp_path / "b", rec, rec.setup)
+    assert code == 0, json.loads((out / "fit.json").read_text())["quality_reasons"]

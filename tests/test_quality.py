@@ -182,3 +182,30 @@ def test_cli_fit_degrees_exit_2_writes_nothing(tmp_path, capsys):
                  "--out", str(out)])
     assert code == 2 and not out.exists()
     assert "degrees" in capsys.readouterr().err
+
+
+def test_swing_coverage_counts_the_outer_half_of_each_side():
+    setup = thesis_setup("10mm")
+    t = T4[:2000]
+    y = truth(setup, 0.0079, 10, t)
+    r = fit_mu(t, y, setup)
+    whole = np.ones(t.size, bool)
+    cov = quality.swing_coverage(whole, r, setup)
+    assert cov["right"][0] == cov["right"][1] > 200 and cov["left"][0] == cov["left"][1] > 200
+    assert quality.swing_coverage_reason(whole, r, setup) is None
+    # the outer half of a half-swing: |theta| >= half its extreme (the model's, not the data's)
+    right = y > 0
+    ext = {}
+    for seg in np.split(np.arange(t.size), np.flatnonzero(np.diff(np.sign(y)) != 0) + 1):
+        ext.update({i: np.abs(y[seg]).max() for i in seg})
+    e = np.array([ext[i] for i in range(t.size)])
+    outer = np.abs(y) >= 0.5 * e
+    keep = ~(right & (y > 0.7 * e))  # the right turning points lost
+    cov = quality.swing_coverage(keep, r, setup)
+    assert cov["right"][1] == int((outer & right).sum())
+    assert cov["right"][0] == int((outer & right & keep).sum())
+    reason = quality.swing_coverage_reason(keep, r, setup)
+    assert reason is not None and reason.code == "swing_coverage"
+    assert "right of the bottom" in reason.message
+    left_lost = ~((y < 0) & (np.abs(y) > 0.7 * e))
+    assert "left of the bottom" in quality.swing_coverage_reason(left_lost, r, setup).message
