@@ -437,7 +437,8 @@ def swing_coverage(found, result, setup) -> dict:
     The fitted model (:func:`rollfric.fit.model_theta`, by :func:`rollfric.eom.solve`) from
     the fit's first sample on is cut into half-swings (the model's sign changes about its
     offset); a frame is in a half-swing's outer half when |theta - offset| is at least half
-    that half-swing's extreme.
+    that half-swing's extreme. The frames before the first located one count as lost frames of
+    the first side's outer half when the ball comes in from there (it was farther out).
 
     Parameters
     ----------
@@ -472,6 +473,11 @@ def swing_coverage(found, result, setup) -> dict:
     got = found[after]
     out = {"right": [0, 0], "left": [0, 0]}
     sign = np.sign(model)
+    # the frames before the first located one, while the ball comes in towards the bottom
+    # (a release in a shadow): farther out than that frame, lost on its side's outer half
+    before = int(np.sum(np.isfinite(t) & (t < result.t0)))
+    if before and sign[0] != 0 and result.omega0 * sign[0] < 0:
+        out["right" if sign[0] > 0 else "left"][1] += before
     for seg in np.split(np.arange(model.size), np.flatnonzero(np.diff(sign) != 0) + 1):
         if seg.size == 0 or sign[seg[0]] == 0:
             continue

@@ -209,3 +209,18 @@ def test_swing_coverage_counts_the_outer_half_of_each_side():
     assert "right of the bottom" in reason.message
     left_lost = ~((y < 0) & (np.abs(y) > 0.7 * e))
     assert "left of the bottom" in quality.swing_coverage_reason(left_lost, r, setup).message
+
+
+def test_swing_coverage_counts_a_release_lost_before_the_first_located_frame():
+    setup = thesis_setup("10mm")
+    t = T4[:2000]
+    y = truth(setup, 0.0079, 10, t)
+    k = int(np.argmax(y < 0.5 * y[0]))  # the ball lost from its release until half way in
+    keep = np.ones(t.size, bool)
+    keep[:k] = False
+    r = fit_mu(t, np.where(keep, y, np.nan), setup)
+    full = quality.swing_coverage(np.ones(t.size, bool), fit_mu(t, y, setup), setup)
+    cov = quality.swing_coverage(keep, r, setup)
+    # the k frames before the first located one are lost frames of the right side's outer half
+    assert cov["right"][1] - cov["right"][0] == k
+    assert cov["left"] == full["left"]
