@@ -201,8 +201,11 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
                          sensor=synth.noise_preset("realistic"), seed=0, workers=workers,
                          frames=n_short)
             t_short = time.perf_counter() - t0
-            steady = max((t_seq - t_short) / (n_done - n_short), 1e-9)
-            startup = t_short - n_short * steady
+            if t_seq > t_short:
+                steady = (t_seq - t_short) / (n_done - n_short)
+                startup = t_short - n_short * steady
+            else:  # the machine slowed down between the two (loaded): no difference to take
+                steady = float("nan")
         size = _dir_size(out)
         disk = _disk_usage(out)
         rec = synth.open_recording(out)
