@@ -423,7 +423,7 @@ def second_order(evaluate, n: int) -> tuple[float, list]:
 
 def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: int = 0,
            seed: int = 0, coverage_factor: float = COVERAGE_FACTOR,
-           order: int = 2) -> Budget:
+           order: int = 1) -> Budget:
     """The uncertainty budget of ``result`` (a least-squares FitResult of ``meas``).
 
     ``fit_length``: fit L = R - r as well (self-calibration; mu and the budget then use the
@@ -445,7 +445,7 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     coverage_factor : float
         k of the expanded uncertainty U = k u.
     order : int
-        1: the first-order law of propagation; 2 (default): with the next-order terms of
+        1 (default): the first-order law of propagation; 2: with the next-order terms of
         :func:`second_order` (the inputs' interactions and curvature), a row of their own.
 
     Returns
@@ -660,8 +660,8 @@ def add_arguments(parser) -> None:
     Parameters
     ----------
     parser : argparse.ArgumentParser
-        The command's parser; ``--fit-length``, ``--monte-carlo``, ``--seed`` and
-        ``--first-order`` are added.
+        The command's parser; ``--fit-length``, ``--monte-carlo``, ``--seed``,
+        ``--second-order`` and ``--first-order`` (deprecated, no effect) are added.
     """
     parser.add_argument("--fit-length", action="store_true",
                         help="self-calibration: also fit L = R - r (the radius of the ball "
@@ -670,9 +670,13 @@ def add_arguments(parser) -> None:
                         help="check the budget by N Monte-Carlo draws of the uncertain inputs "
                              "(JCGM 101), each a re-fit")
     parser.add_argument("--seed", type=int, default=0, help="seed of the Monte-Carlo draws")
+    parser.add_argument("--second-order", action="store_true",
+                        help="add the second-order row to the budget (GUM 5.1.2: the inputs' "
+                             "interactions and curvature; 4 re-fits per pair of uncertain "
+                             "inputs and 2 per input)")
     parser.add_argument("--first-order", action="store_true",
-                        help="the budget by the first-order law of propagation alone (no "
-                             "second-order row: fewer re-fits)")
+                        help="deprecated, no effect: the budget is first order unless "
+                             "--second-order is given")
 
 
 def run_budget(meas: Measurement, result, args):
@@ -711,7 +715,7 @@ def run_budget(meas: Measurement, result, args):
         return {"u_mu": None, "U_mu": None, "coverage_factor": None,
                 "uncertainty_budget": []}, None
     b = budget(meas, result, fit_length=args.fit_length, monte_carlo=args.monte_carlo,
-               seed=args.seed, order=1 if getattr(args, "first_order", False) else 2)
+               seed=args.seed, order=2 if getattr(args, "second_order", False) else 1)
     print(format_budget(b))
     keys = b.to_json()
     if args.fit_length:

@@ -117,7 +117,7 @@ def test_budget_rows_follow_the_geometry(tmp_path):
     rows = {r.source: r for r in b.rows}
     assert set(rows) == {"statistical", "cylinder.radius_mm", "cylinder.center_px[x]",
                          "cylinder.center_px[y]", "ball.diameter_mm", "camera.fps",
-                         "camera.pixel_size_mm", "second order"}
+                         "camera.pixel_size_mm"}
     assert b.exact == ("ball.mass_g", "environment.gravity_m_s2")
     assert b.mu == pytest.approx(result.mu, rel=1e-7)  # the local re-fit is the fit
     # radius and diameter act only through L = R - d/2: their sensitivities are -2 : 1 (the
@@ -294,8 +294,7 @@ def test_contour_centre_is_a_source_and_its_sensitivity_is_the_finite_difference
     meas = Measurement(setup=true, frames=frames, x=x, y=y, center=found, center_u=u)
     b = budget(meas, fit_mu(*meas.series(true), true))
     rows = {r.source: r for r in b.rows}
-    assert set(rows) == {"statistical", "cylinder.center_px[x]", "cylinder.center_px[y]",
-                         "second order"}
+    assert set(rows) == {"statistical", "cylinder.center_px[x]", "cylinder.center_px[y]"}
     for i, axis in enumerate("xy"):
         row = rows[f"cylinder.center_px[{axis}]"]
         assert row.value == found[i] and row.u == u[i] and "contour" in row.note
@@ -421,9 +420,10 @@ def test_second_order_terms_of_a_cubic_and_of_a_mixed_third_derivative():
 
 
 def test_second_order_row_is_that_of_independent_full_fits(tmp_path):
-    """The budget's second-order row (default) against :func:`second_order` evaluated with
+    """The budget's second-order row (order=2, opt-in) against :func:`second_order` evaluated with
     independent full fits at every moved setup (trough radius +- 0.5 mm and the lab's centre
-    x +- 2 px, 2 px off), and the first-order budget (order=1) is the same without it."""
+    x +- 2 px, 2 px off), and the first-order budget (order=1, the default) is the same
+    without it."""
     from rollfric.uncertainty import SECOND_ORDER, second_order
 
     lab = _lab_setup(tmp_path).replace(uncertainty=(("cylinder_radius", 5e-4),
@@ -431,7 +431,7 @@ def test_second_order_row_is_that_of_independent_full_fits(tmp_path):
     frames, x, y = _lab_track(seconds=1.0)
     meas = Measurement(setup=lab, frames=frames, x=x, y=y, center=lab.center_px)
     result = fit_mu(*meas.series(lab), lab)
-    b2, b1 = budget(meas, result), budget(meas, result, order=1)
+    b2, b1 = budget(meas, result, order=2), budget(meas, result)
     row = {r.source: r for r in b2.rows}[SECOND_ORDER]
     assert SECOND_ORDER not in {r.source for r in b1.rows}
     assert b2.u_mu == pytest.approx(math.hypot(b1.u_mu, row.u_mu), rel=1e-9)

@@ -59,6 +59,7 @@ case of ``rollfric validate``)::
                                # default: when the track has three turning points or more)
     oracle = false             # true: rollfric gets the exact geometry and center_px
     budget = true              # the uncertainty budget (u_mu, U_mu, z_budget, ...); false: off
+    second_order = false       # true: the budget with its second-order row (--second-order)
 
 Blind mode (the default): rollfric gets only what a lab has: the [lab] setup file (nominal
 values; no center_px unless the lab measured it), the recording and its background. The
@@ -103,7 +104,7 @@ MM_KEYS = {"focus_distance_mm": "focus_distance", "focal_length_mm": "focal_leng
 TIMING_KEYS = {"jitter_us": float, "drop_rate": float, "dropped": list, "timestamps": bool}
 VIDEO_KEYS = {"codec": str, "quality": int}
 MEASURE_KEYS = {"locator": str, "fit": str, "offset": (bool, str), "oracle": bool,
-                "budget": bool}
+                "budget": bool, "second_order": bool}
 LOCATORS = ("subpixel", "thesis-large", "thesis-small")
 FITS = ("lsq", "paper1_eps", "paper2_grid")
 TOP_KEYS = ("name", "scenario", "render", "lab", "measure")

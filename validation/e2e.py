@@ -396,8 +396,9 @@ def budget_metrics(case: Case, track, info, fit, truth_center=None) -> dict:
     """rollfric's uncertainty budget of the measured mu (:mod:`rollfric.uncertainty`) against
     the truth: u_mu, U_mu (k = 2), z_budget = (mu - truth) / u_mu, within_u / within_U (1 or
     0), the statistical part alone (u_stat, z_stat), the largest source and the budget's time;
-    the second-order row (``u_second_order``) and z and within U without it (the first-order
-    budget: ``z_first_order``, ``within_U_first_order``). ``z_linear``: the error the budget's
+    with ``measure.second_order = true`` the second-order row (``u_second_order``, else 0) and
+    z and within U without it (the first-order budget: ``z_first_order``,
+    ``within_U_first_order``). ``z_linear``: the error the budget's
     own first-order model predicts from the case's drawn setup errors, sum of sensitivity x
     (nominal - as built) over its rows, / u_mu (the as-built values of the case's lab, the
     true trough centre ``truth_center``, px); its coverage is what an exactly linear budget
@@ -407,7 +408,8 @@ def budget_metrics(case: Case, track, info, fit, truth_center=None) -> dict:
 
     if fit.method != "lsq":
         return {}
-    b = budget(measurement_from_track(track, info), fit)
+    second = bool(case.data.get("measure", {}).get("second_order", False))
+    b = budget(measurement_from_track(track, info), fit, order=2 if second else 1)
     mu_true = float(case.scenario.mu)
     u_stat = next(r.u_mu for r in b.rows if r.source == "statistical")
     u2 = next((r.u_mu for r in b.rows if r.source == SECOND_ORDER), 0.0)
