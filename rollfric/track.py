@@ -28,6 +28,7 @@ from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
 from rollfric.locate.kernels import _ring_sums
 from rollfric.perspective import ball_plane_center, contour_depth_from_radius
+from rollfric.readahead import ReadAhead
 from rollfric.registry import LOCATORS
 from rollfric.setup import Setup, SetupError, setup_from_dict
 
@@ -307,6 +308,7 @@ CAL_MIN_INLIER = 0.9  # fraction of the rim a calibration frame must fit
 CAL_MAX_SIGMA = 0.1  # px: centre sigma of a calibration frame
 CAL_MIN_FRAMES = 5  # calibration frames before the calibrated radius is used
 CAL_WARN_DEV = 0.03  # warn when the apparent radius differs from the setup's by more
+READ_AHEAD_PAD = 4  # px a side the next frame's region read ahead grows the last one by
 
 
 class RadiusCalibration:
@@ -551,7 +553,8 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
                     angle: str = "atan2", center: tuple[float, float] | None = None,
                     progress: bool = True, opts=None,
-                    times=None, drops: bool = True) -> tuple[pd.DataFrame, TrackInfo]:
+                    times=None, drops: bool = True,
+                    read_ahead: bool = False) -> tuple[pd.DataFrame, TrackInfo]:
     """Locate the ball in every frame of ``source``; one row a frame (see TRACK_COLUMNS), plus
     r_px, sigma_px (estimated centre error) and inlier_frac where the locator gives them.
     ``times``: t_s of each frame (default frame / setup.fps; see :func:`frame_times`).
@@ -588,6 +591,11 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         t_s of each frame (s); None: frame / setup.fps, repaired for dropped frames.
     drops : bool
         Find dropped frames from the motion when ``times`` is None.
+    read_ahead : bool
+        Read the next frame's region on a second thread while a frame is located
+        (:class:`rollfric.readahead.ReadAhead`; a reader with ``read`` only). The track is the
+        same either way; off by default: on a loaded 2-core machine it cost 10 % more CPU
+        and no wall time (docs/how/locator.md, "Where the time goes").
 
     Returns
     -------
@@ -649,15 +657,32 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     opts_cal = dataclasses.replace(base, free_min_frac=max(base.free_min_frac, CAL_MIN_INLIER))
     revisit: dict[int, float] = {}  # frame -> radius its partial arc was fitted with
     locator = LOCATORS.load(method)  # as locate_frame, looked up once (not once a frame)
+    # the next frame's region read on a second thread while this one is located
+    ahead = ReadAhead(source) if read is not None and read_ahead else None
+    box_at = None  # the last region read about its frame's guess, (dy0, dy1, dx0, dx1)
 
     def frame_at(i, guess):
         if read is not None and guess is not None:
             # tracking: the locator reads only the regions it crops around the prediction
             # (the same pixels as the full frame's; a full-frame search reads the whole frame)
+            if ahead is not None:
+                return locate.LazyFrame(functools.partial(ahead.read, i),
+                                        functools.partial(ahead.frame, i), (h, w),
+                                        source.dtype)
             return locate.LazyFrame(functools.partial(read, i),
                                     functools.partial(source.__getitem__, i), (h, w),
                                     source.dtype)
-        return source[i]
+        return source[i] if ahead is None else ahead.frame(i)
+
+    def read_next(i):
+        # frame i + 1's region as far as it is known now: the last region read, moved to the
+        # centre predicted two frames ahead, grown by READ_AHEAD_PAD px a side
+        g = _predict(hist, i + 1)
+        if ahead is None or box_at is None or g is None:
+            return
+        gx, gy, p = math.floor(g[0]), math.floor(g[1]), READ_AHEAD_PAD
+        ahead.prefetch(i + 1, (gy + box_at[0] - p, gy + box_at[1] + p,
+                               gx + box_at[2] - p, gx + box_at[3] + p))
 
     def accept(loc):
         ok = (loc.found and math.isfinite(loc.x) and -0.5 <= loc.x <= w - 0.5
@@ -670,11 +695,16 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     for i in range(n):
         guess = _predict(hist, i)
         frame = frame_at(i, guess)
+        read_next(i)
         search = min(0.3 * r_px + 2.0, max(2.0, 4.0 * pred_err + 1.0))
         r_kn = cal.value
         loc = locator(frame, background, r_px, guess, center,
                       opts=opts if r_kn is None else opts_cal, search=search,
                       r_known=r_kn, r_known_sigma=cal.rel_sigma)
+        box = getattr(frame, "_box", None) if guess is not None else None
+        if box is not None:
+            gx, gy = math.floor(guess[0]), math.floor(guess[1])
+            box_at = (box[0] - gy, box[1] - gy, box[2] - gx, box[3] - gx)
         if guess is not None and loc.found:
             pred_err = math.hypot(loc.x - guess[0], loc.y - guess[1])
         else:
@@ -721,6 +751,9 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                           opts=opts_cal, search=2.0, r_known=r_cal, r_known_sigma=cal.rel_sigma)
             if accept(loc):
                 rows[i, :5] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac)
+    if ahead is not None:  # its worker thread ends (after an error: when it is collected)
+        ahead.close()
+        logger.debug(f"read ahead: {ahead.hits} regions read ahead, {ahead.misses} when asked")
     warnings = [cal.warning()] if cal.warning() else []
     warnings_radius = list(warnings)
     for msg in warnings:
@@ -1003,7 +1036,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             method: str = "subpixel", angle: str = "atan2", fit_method: str = "lsq",
             offset: bool | str = "auto", fit: bool = True, progress: bool = False,
             median_frames: int = 41, fit_kwargs: dict | None = None,
-            times: str = "auto", drops: bool = True):
+            times: str = "auto", drops: bool = True, read_ahead: bool = False):
     """Measure mu from a recording: (track DataFrame, TrackInfo, FitResult or None).
 
     ``recording``: a path (see :func:`rollfric.io.open_recording`) or a FrameSource.
@@ -1049,6 +1082,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         More keywords of :func:`rollfric.fit.fit_mu`.
     drops : bool
         Find and repair dropped frames (above).
+    read_ahead : bool
+        Read the next frame's region on a second thread (:func:`track_recording`).
 
     Returns
     -------
@@ -1136,7 +1171,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             contour_notes.append(note)
     df, info = track_recording(source, setup, bg, method=method, angle=angle, center=center,
                                progress=progress,
-                               times=None if times_desc == TIMES_FPS else t, drops=drops)
+                               times=None if times_desc == TIMES_FPS else t, drops=drops,
+                               read_ahead=read_ahead)
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,

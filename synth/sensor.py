@@ -120,7 +120,7 @@ def _row_normals(key, y, x0, zrow):
         zrow[c] = za
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)  # nogil: a reader thread overlaps the locator
 def _apply_kernel(counts, lut, gain, offset, has_pattern, noisy, shot, read_var, k, black,
                   max_dn, key, y0, x0, out):
     """The sensor model of :meth:`Sensor.apply` over one region, "hash/1" noise: a row's

@@ -309,3 +309,33 @@ def test_chunk_writer_writes_the_files_zarr_writes(tmp_path):
     for name in names:
         assert (tmp_path / "w.zarr" / "ours" / name).read_bytes() == \
             (tmp_path / "w.zarr" / "theirs" / name).read_bytes()
+
+
+@pytest.mark.parametrize("read_ahead", [False, True])
+def test_a_corrupt_chunk_stops_the_measurement_with_a_message(rec_path, tmp_path, read_ahead,
+                                                             capsys):
+    import re
+    import shutil
+
+    from rollfric.cli import main
+    from rollfric.errors import InputError
+    from rollfric.track import measure
+
+    bad = tmp_path / "bad.zarr"
+    shutil.copytree(rec_path, bad)
+    def frame_of(p):  # chunk keys "5.0.1" or "c/5/0/1"
+        keys = [k for k in re.split(r"[./]", p.relative_to(bad / "clean_diff").as_posix())
+                if k != "c"]
+        return keys[0] if len(keys) == 3 else None
+
+    frame5 = [p for p in (bad / "clean_diff").rglob("*") if p.is_file() and frame_of(p) == "5"]
+    assert frame5
+    for p in frame5:
+        p.write_bytes(b"not zstd" * 10)
+    with pytest.raises(InputError, match="frame 5's chunk is corrupt"):
+        measure(bad, fit=False, read_ahead=read_ahead)
+    if not read_ahead:  # the command: exit 2, the message, nothing written
+        out = tmp_path / "out"
+        assert main(["measure", str(bad), "--out", str(out), "--no-progress"]) == 2
+        assert "frame 5's chunk is corrupt" in capsys.readouterr().err
+        assert not out.exists()
