@@ -677,8 +677,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     def read_next(i):
         # frame i + 1's region as far as it is known now: the last region read, moved to the
         # centre predicted two frames ahead, grown by READ_AHEAD_PAD px a side
-        g = _predict(hist, i + 1)
-        if ahead is None or box_at is None or g is None:
+        g = None if ahead is None or box_at is None else _predict(hist, i + 1)
+        if g is None:
             return
         gx, gy, p = math.floor(g[0]), math.floor(g[1]), READ_AHEAD_PAD
         ahead.prefetch(i + 1, (gy + box_at[0] - p, gy + box_at[1] + p,
