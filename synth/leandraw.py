@@ -191,6 +191,7 @@ class LeanDraw:
         self._valid = None  # (rows, cols) of STATIC_BLOCK px blocks drawn into it
         self._static_key = None
         self._sphere_vao = None
+        self._far_lamps = None
         # "mesh" or "sphere" (SceneConfig.ball_model); set it and ``ready = False`` to switch
         self.ball_model = sr.config.ball_model
         self._build(self._order())
@@ -232,6 +233,8 @@ class LeanDraw:
                     "material": [u for u in material if u is not None],
                     "cull": not m.doubleSided,
                     "boxes": None if node is self.ball else self._triangle_boxes(node, prim),
+                    "far": None if node is self.ball else self._triangle_far(node, prim),
+                    "prim": prim,
                     **_drawing(prim)})
         self.static_draws = [d for d in self.draws if d["node"] is not self.ball]
         self.ball_draws = [d for d in self.draws if d["node"] is self.ball]
@@ -324,11 +327,39 @@ class LeanDraw:
         q = cam.project(v)[tri]  # (n, 3, 2)
         return np.concatenate([q.min(axis=1) - 2.0, q.max(axis=1) + 2.0], axis=1)
 
-    def _runs(self, d, tile) -> list:
+    def _lamp_positions(self) -> np.ndarray:
+        return np.array([self.sr.scene.get_pose(ln)[:3, 3] for ln in self.lamps]).reshape(-1, 3)
+
+    def _triangle_far(self, node, prim):
+        """(n, lamps) the largest distance of each triangle's vertices from each lamp (a
+        triangle's farthest point from a lamp is a vertex), or None when it is not a triangle
+        list: what :meth:`_reach` is compared with."""
+        if prim.mode != 4 or not self.lamps:
+            return None
+        pose = self.sr.scene.get_pose(node)
+        v = np.asarray(prim.positions, float) @ pose[:3, :3].T + pose[:3, 3]
+        if prim.indices is not None:
+            tri = np.asarray(prim.indices, dtype=np.int64).reshape(-1, 3)
+        else:
+            tri = np.arange(len(v)).reshape(-1, 3)
+        lamps = self._lamp_positions()
+        self._far_lamps = lamps
+        dist = np.linalg.norm(v[:, None, :] - lamps[None, :, :], axis=2)  # (vertices, lamps)
+        return dist[tri].max(axis=1)
+
+    def _reach(self, centres) -> np.ndarray:
+        """Per lamp, the distance of the ball's nearest point at ``centres`` (K, 3) (a
+        little less): a point nearer a lamp than that has the ball behind it, not between it
+        and the lamp, so the ball cannot shadow a triangle whose vertices are all nearer."""
+        lamps = self._far_lamps
+        near = np.linalg.norm(centres[:, None, :] - lamps[None, :, :], axis=2).min(axis=0)
+        return near - self.sr.ball_radius * (1 + 1e-6) - 1e-9
+
+    def _runs(self, d, tile, reach=None) -> list:
         """(first triangle, count) runs of draw ``d``'s triangles that can touch ``tile``
         (x0, y0, w, h): the others have no pixel in the scissor box, so leaving them out
-        changes no pixel (the drawn ones keep their order). Runs closer than 64 triangles
-        are drawn as one."""
+        changes no pixel (the drawn ones keep their order); with ``reach`` (:meth:`_reach`)
+        only those the ball can shadow. Runs closer than 64 triangles are drawn as one."""
         boxes = d["boxes"]
         n = d["count"] // 3
         if boxes is None:
@@ -336,6 +367,8 @@ class LeanDraw:
         x0, y0, w, h = tile
         hit = np.flatnonzero((boxes[:, 0] <= x0 + w) & (boxes[:, 2] >= x0)
                              & (boxes[:, 1] <= y0 + h) & (boxes[:, 3] >= y0))
+        if reach is not None and d.get("far") is not None and hit.size:
+            hit = hit[(d["far"][hit] >= reach[None, :]).any(axis=1)]
         if hit.size == 0:
             return []
         cut = np.flatnonzero(np.diff(hit) > 64)
@@ -460,6 +493,11 @@ class LeanDraw:
                     self._light_mats = mats
                     self._set_static()
                 M = np.asarray(pose, dtype=float)
+                if self._far_lamps is not None and not np.array_equal(
+                        self._far_lamps, self._lamp_positions()):
+                    self._build(order)  # a lamp moved: the triangles' distances again
+                    self._set_static()
+                reach = None if self._far_lamps is None else self._reach(M[None, :3, 3])
                 t0 = lap("set-up", t0)
                 if self.shadows:
                     self._shadow_pass(M, mats)
@@ -471,7 +509,7 @@ class LeanDraw:
                         part = _meet(tile, box)
                         if part is not None:  # the static surfaces the shadows fall on
                             self._forward(M, self._gl_box(part), part, self.static_draws,
-                                          self.units, clear=True)
+                                          self.units, clear=False, redraw=True, reach=reach)
                     t0 = lap("draw: shadowed surfaces", t0)
                     part = _meet(tile, ball_box)
                     if part is not None:
@@ -624,11 +662,22 @@ class LeanDraw:
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)
 
-    def _forward(self, M, box, tile, draws, units, *, clear: bool, fb=None) -> None:
+    def _forward(self, M, box, tile, draws, units, *, clear: bool, fb=None,
+                 redraw: bool = False, reach=None) -> None:
         """``draws`` (the ball's at pose ``M``, the static ones at their poses) scissored to
         ``box`` (GL window coordinates) of ``tile`` (frame pixels), with the shadow maps
         ``units`` [(texture unit, GL texture)], into the main multisampled framebuffer (or
-        ``fb``), the box cleared first with ``clear``; :func:`read_region` reads it."""
+        ``fb``), the box cleared first with ``clear``; :func:`read_region` reads it.
+
+        ``redraw`` (with ``clear=False``): the static surfaces drawn again over the static
+        layer's samples (not cleared) where the ball's shadows fall, with the depth test
+        passing equal depths, and with ``reach`` (:meth:`_reach`) only the triangles the
+        ball can shadow. A surface
+        drawn again has the very depth the layer holds for it (the same program, vertices
+        and rasterisation), so its samples are shaded again and every other sample (a surface
+        in front of it, one the ball cannot shadow) keeps the layer's colour, which is what
+        drawing it would give: the ball is not between it and any lamp, and the ball's depth
+        in the shadow maps lies behind it."""
         from OpenGL import GL
 
         inner, scene = self.inner, self.sr.scene
@@ -638,7 +687,7 @@ class LeanDraw:
         GL.glViewport(0, 0, inner.viewport_width, inner.viewport_height)
         GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glDepthMask(GL.GL_TRUE)
-        GL.glDepthFunc(GL.GL_LESS)
+        GL.glDepthFunc(GL.GL_LEQUAL if redraw else GL.GL_LESS)
         GL.glDepthRange(0.0, 1.0)
         GL.glEnable(GL.GL_SCISSOR_TEST)
         try:
@@ -671,8 +720,12 @@ class LeanDraw:
                     GL.glCullFace(GL.GL_BACK)
                 else:
                     GL.glDisable(GL.GL_CULL_FACE)
-                _draw(d, None if d.get("sphere") else
-                      self._runs(d, tile) if d["mode"] == 4 else None)
+                if d.get("sphere") or d["mode"] != 4:
+                    _draw(d, None)
+                else:
+                    runs = self._runs(d, tile, reach)
+                    if runs:
+                        _draw(d, runs)
             GL.glBindVertexArray(0)
             GL.glFlush()
         finally:

@@ -293,3 +293,43 @@ def test_sphere_impostor_is_the_mesh_ball_within_its_faceting(projection, lighti
     assert s[:, 2].sum() <= 0.01 * s[:, 3].sum(), s  # < 1 % of the ball's pixels > 1 DN
     assert s[:, 4].max() <= 3, s  # a few outline pixels a frame
     assert s[:, 3].sum() > 0
+
+
+def test_lean_shadowed_surfaces_leave_out_what_the_ball_cannot_shadow():
+    """In the boxes of the ball's shadows the lean path draws again only the static triangles
+    the ball can shadow (a triangle nearer every lamp than the ball's nearest point has the
+    ball behind it): the trough's front face, between the lamps and the ball plane, is left to
+    the static layer; the back face and the backdrop are drawn. The pixels stay pyrender's
+    (test_lean_draw_path_equals_pyrenders, test_tiles_equal_full_frame_render)."""
+    cam = CameraModel(width=256, height=192, center_px=(128.0, -470.0))
+    sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
+    try:
+        c = _centre(0.02)
+        tiles = sr.tiles_for(c[None])
+        sr.render_tiles([sr.ball_pose(c)], tiles)
+        sr.render_tiles([sr.ball_pose(c)], tiles)
+        ld = sr._lean
+        reach = ld._reach(c[None])
+        half = SceneConfig().trough_length / 2
+        full_frame = (0, 0, cam.width, cam.height)
+        counted = {"front": [0, 0], "other": [0, 0]}
+        for d in ld.static_draws:
+            if d["far"] is None:
+                continue
+            prim = d["prim"]
+            pose = sr.scene.get_pose(d["node"])
+            v = np.asarray(prim.positions, float) @ pose[:3, :3].T + pose[:3, 3]
+            tri = (np.arange(len(v)) if prim.indices is None
+                   else np.asarray(prim.indices, dtype=np.int64)).reshape(-1, 3)
+            z = v[tri][:, :, 2]
+            front = np.all(np.abs(z - half) < 1e-6, axis=1)
+            for k, r in enumerate((None, reach)):
+                drawn = np.zeros(len(front), bool)
+                for a, n in ld._runs(d, full_frame, r):
+                    drawn[a:a + n] = True
+                counted["front"][k] += int((drawn & front).sum())
+                counted["other"][k] += int((drawn & ~front).sum())
+    finally:
+        sr.close()
+    assert counted["front"][0] > 100 and counted["front"][1] == 0, counted
+    assert counted["other"][1] == counted["other"][0], counted
