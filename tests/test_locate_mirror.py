@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from rollfric.locate import MIRROR, SubpixelOptions, locate_subpixel
+from rollfric.locate import AUTO_MIRROR, MIRROR, SubpixelOptions, locate_subpixel
 from validation.mirror_frames import (
     MirrorScene,
     background,
@@ -140,3 +140,41 @@ def test_relative_fresnel_correction_leaves_a_matt_ball_alone():
     assert abs(on.r - off.r) < 0.002
     assert math.hypot(on.x - off.x, on.y - off.y) < 0.002
     assert absolute.r > off.r + 0.05
+
+
+@pytest.mark.parametrize("kw", [{}, {"noise": 2.0}, {"roughness": 0.03}])
+def test_auto_mirror_finds_the_mirror_rim_and_holds_on_it(kw):
+    # the backdrop mirrored over a wide crescent of the upper rim, the trough on the lower:
+    # the rim's signature (a low- and a full-contrast sector against the background) turns
+    # the mirror handling on; the default's error there is 0.056-0.095 px radial
+    e = _errors(n=4, opts=AUTO_MIRROR, **kw)
+    assert np.sqrt(np.mean(e[:, 0] ** 2)) < 0.03, e
+    assert np.sqrt(np.mean(e[:, 1] ** 2)) < 0.03, e
+
+
+def _same_location(a, b):
+    return (a.found, a.x, a.y, a.r) == (b.found, b.x, b.y, b.r)
+
+
+def test_auto_mirror_leaves_a_matt_ball_and_a_short_crescent_alone():
+    # a matt ball of one level has no mirror signature: the same location as the default,
+    # to the last bit
+    from validation.drawn_frames import Scene, make_frames
+    sc = Scene(width=200, height=200, center=(100.0, -500.0), R_px=640.0, r_px=37.23,
+               spot=0.0, ball=0.4)
+    bg, (f,) = make_frames(sc, [(100.31, 99.72)])
+    assert _same_location(locate_subpixel(f, bg, sc.r_px, guess=(101, 99)),
+                          locate_subpixel(f, bg, sc.r_px, guess=(101, 99), opts=AUTO_MIRROR))
+    # the backdrop's top 40 mm below the axis: the upper rim mirrors it in a crescent 1.5 px
+    # wide, whose rays are left out as wider than the sharpest; the rest of the bright sector
+    # is too short an arc for the signature, and the default is kept (with the handling on
+    # everywhere this case goes from 0.026 to 0.10 px radial)
+    th, tx, ty = 0.1, 100.2, 99.7
+    sc = _scene_at(th, tx, ty, backdrop_top_mm=-40.0)
+    bg, (f,) = make_mirror_frames(sc, [(tx, ty)], seed=7)
+    g = (tx + 0.8, ty - 0.6)
+    plain = locate_subpixel(f, bg, sc.r_px, guess=g)
+    assert _same_location(plain, locate_subpixel(f, bg, sc.r_px, guess=g, opts=AUTO_MIRROR))
+    on = locate_subpixel(f, bg, sc.r_px, guess=g,
+                         opts=SubpixelOptions(mirror_rim=True, local_contrast=True))
+    assert not _same_location(plain, on)

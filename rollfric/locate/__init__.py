@@ -21,6 +21,7 @@ from rollfric.locate.location import Location, Locator
 from rollfric.locate.regions import LazyFrame, _crop, as_array, relative_image
 from rollfric.locate.search import coarse_candidates, coarse_find
 from rollfric.locate.subpixel import (
+    AUTO_MIRROR,
     MIRROR,
     SubpixelOptions,
     locate_subpixel,
@@ -35,6 +36,7 @@ __all__ = [
     "METHODS",
     "LazyFrame",
     "LOCATORS",
+    "AUTO_MIRROR",
     "MIRROR",
     "Location",
     "Locator",

@@ -623,6 +623,34 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor,
 
 
 @numba.njit(cache=True)
+def _mirror_signature(con, valid, out_sd, b_lv, noise, least):
+    """Whether the rim looks like a mirror's: where its outside is the background itself, the
+    contrast along it (the median over about 1/8 of the rim) falls into a low sector (under
+    3/4 of its 90th percentile: the rim mirrors something bright, the backdrop) and a full
+    one (it mirrors something dark, the trough), each at least ``least`` of those rays. A
+    matt ball, one of uniform level or with spots inside its rim, has one sector only."""
+    n = len(con)
+    nv = valid.sum()
+    if nv < 8:
+        return False
+    cmed = np.median(con[valid])
+    nz = noise if noise >= 0 else np.median(out_sd[valid])
+    loc = _rim_median(con, valid, max(2, n // 16))
+    ok = np.zeros(n, np.bool_)
+    for i in range(n):
+        ok[i] = valid[i] and np.isfinite(loc[i]) and abs(b_lv[i]) <= 0.05 * cmed + 3.0 * nz
+    m = ok.sum()
+    if m < 8:
+        return False
+    top = np.sort(loc[ok])[int(0.9 * (m - 1))]
+    low = 0
+    for i in range(n):
+        if ok[i] and loc[i] < 0.75 * top:
+            low += 1
+    return low >= least * m and m - low >= least * m
+
+
+@numba.njit(cache=True)
 def _fit_stats(wts, res):
     """Inliers, their median residual and weighted rms residual."""
     inl = wts > 0
