@@ -23,6 +23,7 @@ from rollfric.locate.search import coarse_candidates, coarse_find
 from rollfric.locate.subpixel import (
     AUTO_MIRROR,
     MIRROR,
+    NO_MIRROR,
     SubpixelOptions,
     locate_subpixel,
     silhouette_stretch,
@@ -38,6 +39,7 @@ __all__ = [
     "LOCATORS",
     "AUTO_MIRROR",
     "MIRROR",
+    "NO_MIRROR",
     "Location",
     "Locator",
     "SubpixelOptions",

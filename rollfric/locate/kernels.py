@@ -569,13 +569,18 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
 
 
 @numba.njit(cache=True)
-def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor, local, b_lv):
+def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor, local, b_lv,
+            flank):
     """Edge points of the clean rays: the ball's typical contrast (a tight band first, widened
     only when too few rays pass: real balls vary around the rim) and a flat outside (shadow
     gradients, spots, the trough contact and occluders fail). ``local``: the typical contrast
     of a ray whose outside is the background itself (``b_lv`` about 0: the contrast varies
-    with the ball's inside only) is that of its neighbours. Returns status, xs, ys, ray
-    index."""
+    with the ball's inside only) is that of its neighbours; and the full-contrast rays within
+    ``flank`` rays of the low-contrast sector (:func:`_rim_sectors`) are left out when at
+    least ``min_rays`` others remain: on a mirror ball the rim there mirrors the bright
+    backdrop in a crescent that tapers from the low sector's width to nothing, too thin to
+    show in the profile, which moves the edge in (0.6 px next to the sector). Returns status,
+    xs, ys, ray index."""
     n = len(s_edge)
     empty = np.empty(0)
     iempty = np.empty(0, np.int64)
@@ -605,6 +610,21 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor,
             cnt += keep[i]
         if cnt >= max(min_rays, 0.4 * nv):
             break
+    if local and flank > 0:
+        ok, low = _rim_sectors(con, valid, out_sd, b_lv, noise)
+        near = np.zeros(n, np.bool_)
+        for i in range(n):
+            if low[i]:
+                for j in range(-flank, flank + 1):
+                    near[(i + j) % n] = True
+        rest = 0
+        for i in range(n):
+            if keep[i] and not (near[i] and not low[i]):
+                rest += 1
+        if rest >= min_rays:
+            for i in range(n):
+                if near[i] and not low[i]:
+                    keep[i] = False
     m = keep.sum()
     if m < min_rays:
         return 3, empty, empty, iempty
@@ -623,31 +643,46 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor,
 
 
 @numba.njit(cache=True)
-def _mirror_signature(con, valid, out_sd, b_lv, noise, least):
-    """Whether the rim looks like a mirror's: where its outside is the background itself, the
-    contrast along it (the median over about 1/8 of the rim) falls into a low sector (under
-    3/4 of its 90th percentile: the rim mirrors something bright, the backdrop) and a full
-    one (it mirrors something dark, the trough), each at least ``least`` of those rays. A
-    matt ball, one of uniform level or with spots inside its rim, has one sector only."""
+def _rim_sectors(con, valid, out_sd, b_lv, noise):
+    """The rays whose outside is the background itself (``ok``: there the contrast varies with
+    the ball's inside only) and among them the low-contrast sector (``low``: the contrast along
+    the rim, the median over about 1/8 of it, under 3/4 of its 90th percentile; on a mirror
+    ball the rim mirrors something bright there, the backdrop). Both empty with fewer than 8
+    such rays."""
     n = len(con)
+    ok = np.zeros(n, np.bool_)
+    low = np.zeros(n, np.bool_)
     nv = valid.sum()
     if nv < 8:
-        return False
+        return ok, low
     cmed = np.median(con[valid])
     nz = noise if noise >= 0 else np.median(out_sd[valid])
     loc = _rim_median(con, valid, max(2, n // 16))
-    ok = np.zeros(n, np.bool_)
     for i in range(n):
         ok[i] = valid[i] and np.isfinite(loc[i]) and abs(b_lv[i]) <= 0.05 * cmed + 3.0 * nz
     m = ok.sum()
     if m < 8:
-        return False
+        ok[:] = False
+        return ok, low
     top = np.sort(loc[ok])[int(0.9 * (m - 1))]
-    low = 0
     for i in range(n):
-        if ok[i] and loc[i] < 0.75 * top:
-            low += 1
-    return low >= least * m and m - low >= least * m
+        low[i] = ok[i] and loc[i] < 0.75 * top
+    return ok, low
+
+
+@numba.njit(cache=True)
+def _mirror_signature(con, valid, out_sd, b_lv, noise, least):
+    """Whether the rim looks like a mirror's: where its outside is the background itself, the
+    contrast along it falls into a low sector (the rim mirrors something bright, the backdrop)
+    and a full one (it mirrors something dark, the trough), each at least ``least`` of those
+    rays (:func:`_rim_sectors`). A matt ball, one of uniform level or with spots inside its
+    rim, has one sector only."""
+    ok, low = _rim_sectors(con, valid, out_sd, b_lv, noise)
+    m = ok.sum()
+    if m < 8:
+        return False
+    nlow = low.sum()
+    return nlow >= least * m and m - nlow >= least * m
 
 
 @numba.njit(cache=True)

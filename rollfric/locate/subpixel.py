@@ -59,27 +59,28 @@ class SubpixelOptions:
     radius_sigma: float = 0.003  # relative uncertainty of r_px (centre error on partial arcs)
     max_sigma: float = 0.5  # px: a centre less certain than this is reported not found
     # a steel ball's rim, a curved mirror (docs/how/locator.md, "A steel ball's rim"); mirror_rim
-    # and local_contrast are off by default (on, even only where the rim shows a mirror's
-    # signature, they cost a drawn narrow crescent's test: radial 0.052 px against 0.05);
-    # AUTO_MIRROR turns them on where it does, MIRROR everywhere:
+    # and local_contrast are on by default where the rim shows a mirror's signature (None),
+    # MIRROR turns them on everywhere:
     rim_levels: bool = True  # a ray's inside level is checked against its neighbours' (and
     # its own further in), not against one median: the rim mirrors bright and dark surroundings
     sharp_rays: bool = True  # rays whose edge is much wider than the rim's sharpest are left
     # out (r_px >= 12): a rim that mirrors a narrow band of bright surroundings
     sharp_excess: float = 0.25  # px: how much wider than the rim's sharpest quarter
-    mirror_rim: bool | None = False  # correct each ray's edge for the Fresnel rise at the rim
+    mirror_rim: bool | None = None  # correct each ray's edge for the Fresnel rise at the rim
     mirror_relative: bool = True  # ... for the inside level above the rim's darkest only (its
     # variation along the rim; a matt ball's uniform level gets none); False: the whole level
     # (the radius then comes out as the sphere's on a mirror ball, a matt ball's too small)
     steel_eta: float = 2.9  # the ball's complex refractive index (steel, green)
     steel_k: float = 3.0
-    local_contrast: bool | None = False  # the contrast band about the neighbouring rays'
+    local_contrast: bool | None = None  # the contrast band about the neighbouring rays'
     # contrast (r_px >= 12), not one median: a mirror ball's rim is bright where it mirrors
     # the backdrop
     # mirror_rim, local_contrast None: on where the rim shows a mirror's signature (a sector
     # of low and one of full contrast against the background, each >= mirror_sector of it;
-    # AUTO_MIRROR), off elsewhere
+    # the default, AUTO_MIRROR), off elsewhere; False: off
     mirror_sector: float = 0.25
+    mirror_flank: float = 30.0  # deg: with local_contrast on, the full-contrast rays this close
+    # to the low-contrast sector are left out (the rim's tapering crescent of mirrored backdrop)
     pinhole: tuple | None = None  # (principal x, principal y, focal length) px of a pinhole
     # camera whose image plane is parallel to the ball's plane (rollfric.perspective): the
     # ball's silhouette is then an ellipse (:func:`silhouette_stretch`), fitted as one; None:
@@ -93,10 +94,14 @@ class SubpixelOptions:
 ARC_MIN_DISK = 0.2
 
 AUTO_MIRROR = SubpixelOptions(mirror_rim=None, local_contrast=None)
-"""The sub-pixel locator's options with the mirror-rim handling (``mirror_rim``,
+"""The sub-pixel locator's default options, named: the mirror-rim handling (``mirror_rim``,
 ``local_contrast``; relative Fresnel correction) on where a frame's rim shows a mirror's
 signature and off elsewhere (a matt ball, pyrender's ball, a rim whose mirrored backdrop is
 too short an arc): docs/how/locator.md, "A steel ball's rim"."""
+
+NO_MIRROR = SubpixelOptions(mirror_rim=False, local_contrast=False)
+"""The sub-pixel locator's options without the mirror-rim handling (the default before
+2026-11-23: one contrast band about the rays' median, no Fresnel correction)."""
 
 MIRROR = SubpixelOptions(mirror_rim=True, local_contrast=True, mirror_relative=False)
 """The sub-pixel locator's options for a polished steel ball whose rim mirrors its surroundings:
@@ -402,7 +407,8 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
                                       opts.contrast_bands, opts.min_rays,
                                       -1.0 if noise is None else float(noise),
                                       0.004 * _full_scale(frame.dtype),
-                                      mirror[1] and r_px >= 12, b_lv)
+                                      mirror[1] and r_px >= 12, b_lv,
+                                      int(round(opts.mirror_flank / 360.0 * n)))
         if status:
             return Location.missing(_SELECT_FAIL[status])
         # a free radius only on most of the rim: on a partial arc (the rest of the rim without
