@@ -522,6 +522,20 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
                   "L_nominal_mm": setup.track_radius * 1e3,
                   "u_L_nominal_mm": None if u_nom is None else u_nom * 1e3,
                   "mu_nominal_L": result.mu, "mu_fitted_L": mu}
+    # the inputs that act on the angles (centre, lens, arcsin's pixel size): their angle
+    # changes over +-u, whose smooth maps their rows hold
+    angle_inputs = []
+    if meas.from_centres:
+        _, th0 = meas.series(setup)
+        for _, field, comp, u, factor in active:
+            _, th_hi = meas.series(_moved(setup, field, comp, u, factor))
+            _, th_lo = meas.series(_moved(setup, field, comp, -u, factor))
+            dth = (th_hi - th_lo)[refit.mask]
+            if np.any(np.isfinite(dth) & (dth != 0.0)):
+                angle_inputs.append(np.nan_to_num(dth))
+    method, statistical["method"] = _method_row(refit, setup, aug, angle_inputs,
+                                                statistical["inflation"])
+    rows.append(method)
     if order == 2 and active:
         rows.append(_second_order_row(refit, setup, active))
     u_mu = math.sqrt(sum(r.u_mu**2 for r in rows))
@@ -537,6 +551,50 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
 
 
 SECOND_ORDER = "second order"
+METHOD = "method (angle map)"
+METHOD_NOTE = ("the pipeline's own smooth angle error (the locator's, e.g. a lamp's highlight "
+               "or shadow): what the 2nd and 3rd order of the angle map the noise fit absorbs "
+               "do to mu, less its noise part")
+
+
+def _method_row(refit: _Refitter, setup: Setup, aug: dict, angle_inputs: list,
+                inflation: float) -> tuple[Row, dict]:
+    """The budget row of the measurement's own smooth angle error, a Type A evaluation from
+    the record (see the module docstring): the 2nd and 3rd order part of the noise fit's
+    angle map (c2 m^2 + c3 m^3 over the model angle m), less what the uncertain inputs that
+    act on the angles (``angle_inputs``: their angle changes over +-u) could make (their own
+    rows hold that), propagated to mu through the nominal fit's least-squares weights: d. Its
+    noise part, the standard deviation s of the same linear functional of white noise of the
+    noise fit's rms (times the statistical row's HAC inflation), is removed:
+    u = sqrt(max(d^2 - s^2, 0)). Returns the row and its details."""
+    t, th = refit.meas.series(setup)
+    t, th = t[refit.mask], th[refit.mask]
+    m, _, _ = eom.solve(aug["theta0"], aug["omega0"], aug["mu"], t,
+                        track_radius=aug.get("length", setup.track_radius),
+                        gravity=setup.gravity, mu1=aug.get("mu1", 0.0))
+    basis = np.stack([np.ones_like(m), m, m * m, m * m * m], axis=1)
+    pinv = np.linalg.pinv(basis)
+    high = basis[:, 2:]
+    _, jac, _ = refit.fit(setup, jacobian=True)
+    names = list(refit.fit(setup)[0])
+    w = np.linalg.pinv(jac)[names.index("mu")]  # d mu / d theta_t of the nominal fit
+    # the part of the map's 2nd/3rd order the uncertain angle inputs could make is theirs
+    eff = [(high @ (pinv @ d)[2:]) for d in angle_inputs]
+    eff = [e for e in eff if np.any(e != 0.0)]
+    w_eff = w
+    if eff:
+        a = np.stack(eff, axis=1)
+        w_eff = w - a @ (np.linalg.pinv(a) @ w)  # (I - P) w, P the projector onto their span
+    v = (w_eff @ high) @ pinv[2:]  # d = v . theta
+    d = float(v @ th)
+    noise = refit.fit(setup, augmented=True)[2]
+    s = float(np.sqrt(np.sum(v * v)) * np.sqrt(np.mean(noise**2)) * (inflation if inflation > 1.0 else 1.0))
+    u = math.sqrt(max(d * d - s * s, 0.0))
+    coef = pinv @ th
+    details = {"map_c2": float(coef[2]), "map_c3": float(coef[3]), "d_mu": d,
+               "d_mu_noise": s, "u_mu": u, "angle_inputs_projected_out": len(eff)}
+    note = METHOD_NOTE + f"; d = {d:.2g}, noise part {s:.2g}"
+    return Row(METHOD, None, u, 1.0, u, note), details
 
 
 def _second_order_row(refit: _Refitter, setup: Setup, active: list) -> Row:
@@ -622,11 +680,13 @@ def format_budget(b: Budget) -> str:
              f" {'rel.':>8}"]
     for r in b.rows:
         value = "" if r.value is None else f"{r.value:.6g}"
-        sens = "" if r.sensitivity is None or r.source in ("statistical", SECOND_ORDER) else \
+        sens = "" if r.sensitivity is None or r.source in ("statistical", SECOND_ORDER,
+                                                           METHOD) else \
             f"{r.sensitivity:+.3e}"
         lines.append(f"  {r.source:<26} {value:>11} {r.u:>10.3g} {sens:>12} {r.u_mu:>10.3g}"
                      f" {rel(r.u_mu):>8}" + (f"  ({r.note})" if r.note and (
-                         r.u_mu == 0 or r.note == CONTOUR_NOTE or r.source == SECOND_ORDER)
+                         r.u_mu == 0 or r.note == CONTOUR_NOTE or r.source == SECOND_ORDER
+                         or r.source == METHOD)
                          else ""))
     lines.append(f"  combined u(mu) = {b.u_mu:.3g} ({rel(b.u_mu).strip()}), expanded U(mu) = "
                  f"{b.U_mu:.3g} ({rel(b.U_mu).strip()}, k = {b.coverage_factor:g})")
