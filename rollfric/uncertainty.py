@@ -552,9 +552,10 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
 
 SECOND_ORDER = "second order"
 METHOD = "method (angle map)"
+METHOD_SIGNIFICANCE = 2.0  # |d| above this many of its noise parts: a smooth angle error
 METHOD_NOTE = ("the pipeline's own smooth angle error (the locator's, e.g. a lamp's highlight "
                "or shadow): what the 2nd and 3rd order of the angle map the noise fit absorbs "
-               "do to mu, less its noise part")
+               "do to mu, less its noise part; 0 unless above twice that")
 
 
 def _method_row(refit: _Refitter, setup: Setup, aug: dict, angle_inputs: list,
@@ -566,7 +567,8 @@ def _method_row(refit: _Refitter, setup: Setup, aug: dict, angle_inputs: list,
     rows hold that), propagated to mu through the nominal fit's least-squares weights: d. Its
     noise part, the standard deviation s of the same linear functional of white noise of the
     noise fit's rms (times the statistical row's HAC inflation), is removed:
-    u = sqrt(max(d^2 - s^2, 0)). Returns the row and its details."""
+    u = sqrt(d^2 - s^2) when |d| > 2 s (a smooth angle error the record shows), else 0 (d is
+    the noise the statistical row holds). Returns the row and its details."""
     t, th = refit.meas.series(setup)
     t, th = t[refit.mask], th[refit.mask]
     m, _, _ = eom.solve(aug["theta0"], aug["omega0"], aug["mu"], t,
@@ -588,8 +590,10 @@ def _method_row(refit: _Refitter, setup: Setup, aug: dict, angle_inputs: list,
     v = (w_eff @ high) @ pinv[2:]  # d = v . theta
     d = float(v @ th)
     noise = refit.fit(setup, augmented=True)[2]
-    s = float(np.sqrt(np.sum(v * v)) * np.sqrt(np.mean(noise**2)) * (inflation if inflation > 1.0 else 1.0))
-    u = math.sqrt(max(d * d - s * s, 0.0))
+    s = float(np.sqrt(np.sum(v * v)) * np.sqrt(np.mean(noise**2))
+              * (inflation if inflation > 1.0 else 1.0))
+    # an estimate within twice its noise part is noise: the statistical row holds it
+    u = math.sqrt(d * d - s * s) if abs(d) > METHOD_SIGNIFICANCE * s else 0.0
     coef = pinv @ th
     details = {"map_c2": float(coef[2]), "map_c3": float(coef[3]), "d_mu": d,
                "d_mu_noise": s, "u_mu": u, "angle_inputs_projected_out": len(eff)}

@@ -117,7 +117,7 @@ def test_budget_rows_follow_the_geometry(tmp_path):
     rows = {r.source: r for r in b.rows}
     assert set(rows) == {"statistical", "cylinder.radius_mm", "cylinder.center_px[x]",
                          "cylinder.center_px[y]", "ball.diameter_mm", "camera.fps",
-                         "camera.pixel_size_mm"}
+                         "camera.pixel_size_mm", "method (angle map)"}
     assert b.exact == ("ball.mass_g", "environment.gravity_m_s2")
     assert b.mu == pytest.approx(result.mu, rel=1e-7)  # the local re-fit is the fit
     # radius and diameter act only through L = R - d/2: their sensitivities are -2 : 1 (the
@@ -143,7 +143,7 @@ def test_statistical_part_widens_for_correlated_noise_only(tmp_path):
     meas = Measurement(setup=true, frames=frames, x=x, y=y, center=true.center_px)
     b = budget(meas, fit_mu(*meas.series(true), true))
     assert b.statistical["inflation"] > 2.0
-    assert [r.source for r in b.rows] == ["statistical"]
+    assert {r.source for r in b.rows} == {"statistical", "method (angle map)"}
     assert abs(b.mu - 0.0079) < 3 * b.u_mu
 
 
@@ -294,7 +294,8 @@ def test_contour_centre_is_a_source_and_its_sensitivity_is_the_finite_difference
     meas = Measurement(setup=true, frames=frames, x=x, y=y, center=found, center_u=u)
     b = budget(meas, fit_mu(*meas.series(true), true))
     rows = {r.source: r for r in b.rows}
-    assert set(rows) == {"statistical", "cylinder.center_px[x]", "cylinder.center_px[y]"}
+    assert set(rows) == {"statistical", "cylinder.center_px[x]", "cylinder.center_px[y]",
+                         "method (angle map)"}
     for i, axis in enumerate("xy"):
         row = rows[f"cylinder.center_px[{axis}]"]
         assert row.value == found[i] and row.u == u[i] and "contour" in row.note
@@ -312,7 +313,7 @@ def test_contour_centre_is_a_source_and_its_sensitivity_is_the_finite_difference
     # without its uncertainty the contour centre is exact (no row), as before
     b0 = budget(Measurement(setup=true, frames=frames, x=x, y=y, center=found),
                 fit_mu(*meas.series(true), true))
-    assert [r.source for r in b0.rows] == ["statistical"]
+    assert {r.source for r in b0.rows} == {"statistical", "method (angle map)"}
 
 
 def test_lens_calibration_uncertainty_is_propagated():
@@ -444,3 +445,82 @@ def test_second_order_row_is_that_of_independent_full_fits(tmp_path):
     var, terms = second_order(full, 2)
     assert var > 0 and row.u_mu == pytest.approx(math.sqrt(var), rel=0.05)
     assert "cylinder.radius_mm x cylinder.center_px[x]" in row.note
+
+
+def _mapped_track(delta, *, noise_px=0.02, seed=0, seconds=1.0, mu=0.0079, theta0_deg=12.0):
+    """Centres on the reference ODE (exact thesis setup, axis at (642, 380) px) whose angles
+    carry a smooth locator error ``delta(theta)`` (rad) and white noise."""
+    true = thesis_setup("10mm", center_px=(642.0, 380.0))
+    frames = np.arange(int(seconds * 1000))
+    th, _, _ = eom.solve_reference(math.radians(theta0_deg), 0.0, mu, frames / 1000.0,
+                                   track_radius=true.track_radius)
+    th = th + delta(th)
+    L_px = true.track_radius / true.pixel_size
+    rng = np.random.default_rng(seed)
+    x = 642.0 + L_px * np.sin(th) + rng.normal(0.0, noise_px, th.size)
+    y = 380.0 + L_px * np.cos(th) + rng.normal(0.0, noise_px, th.size)
+    return true, frames, x, y
+
+
+@pytest.mark.parametrize("order, k", [(2, 0.05), (3, -0.05), (3, 0.1)])
+def test_method_row_holds_a_smooth_locator_error(order, k):
+    """A locator error smooth in the angle, k theta^order (the 2nd/3rd order of the angle map
+    the noise fit absorbs, so the statistical row cannot see it), biases mu by many standard
+    errors; the ``method (angle map)`` row, computed from the record alone, is that bias
+    (within 10 %) and the truth lies within U."""
+    from rollfric.uncertainty import METHOD
+
+    true, frames, x, y = _mapped_track(lambda t: k * t**order)
+    meas = Measurement(setup=true, frames=frames, x=x, y=y, center=true.center_px)
+    b = budget(meas, fit_mu(*meas.series(true), true))
+    rows = {r.source: r for r in b.rows}
+    err = b.mu - 0.0079
+    assert abs(err) > 20 * rows["statistical"].u_mu  # the statistical part alone: far off
+    assert rows[METHOD].u_mu == pytest.approx(abs(err), rel=0.1)
+    assert abs(err) <= b.U_mu
+    assert b.statistical["method"]["d_mu"] * err > 0  # the same sign: it is that error
+
+
+def test_method_row_is_noise_free_on_white_noise():
+    """Without a locator map the row's estimate d is noise: over 12 noise draws d / (its noise
+    part) has an rms near 1 (the noise part is calibrated), and the row (d^2 less the noise
+    part's square, when d is above twice it) leaves u_mu the statistical row's in most
+    draws."""
+    from rollfric.uncertainty import METHOD
+
+    ratios, infl = [], []
+    for seed in range(12):
+        true, frames, x, y = _mapped_track(lambda t: 0.0 * t, noise_px=0.05, seed=seed)
+        meas = Measurement(setup=true, frames=frames, x=x, y=y, center=true.center_px)
+        b = budget(meas, fit_mu(*meas.series(true), true))
+        m = b.statistical["method"]
+        ratios.append(m["d_mu"] / m["d_mu_noise"])
+        rows = {r.source: r for r in b.rows}
+        infl.append(b.u_mu / rows["statistical"].u_mu)
+        significant = abs(m["d_mu"]) > 2.0 * m["d_mu_noise"]
+        assert rows[METHOD].u_mu == pytest.approx(
+            math.sqrt(m["d_mu"]**2 - m["d_mu_noise"]**2) if significant else 0.0)
+    assert 0.6 < float(np.sqrt(np.mean(np.square(ratios)))) < 1.5
+    # most draws leave u_mu as it was; a draw of |d| > 2 s widens it (here 1 in 12, by 1.7)
+    assert np.median(infl) == 1.0 and np.mean(infl) < 1.1
+
+
+def test_method_row_leaves_a_centre_error_to_the_centre_rows():
+    """A trough centre 2 px off leaves a smooth angle map too; with the centre's u in the
+    setup that map is the centre rows' (the method row is 0: no double counting), without it
+    the method row sees it."""
+    from rollfric.uncertainty import METHOD
+
+    true, frames, x, y = _mapped_track(lambda t: 0.0 * t)
+    for u, expect_zero in (((2.0, 2.0), True), (None, False)):
+        lab = true.replace(center_px=(640.0, 381.0),
+                           uncertainty=(("center_px", u),) if u else ())
+        meas = Measurement(setup=lab, frames=frames, x=x, y=y, center=lab.center_px)
+        b = budget(meas, fit_mu(*meas.series(lab), lab))
+        rows = {r.source: r for r in b.rows}
+        stat = rows["statistical"].u_mu
+        if expect_zero:
+            assert rows[METHOD].u_mu < 1e-3 * stat
+            assert b.statistical["method"]["angle_inputs_projected_out"] == 2
+        else:
+            assert rows[METHOD].u_mu > stat
