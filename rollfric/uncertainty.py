@@ -22,6 +22,12 @@ A budget has one row per source:
   lens calibration with ``matrix_u`` / ``distortion_u`` (the located centres undistorted
   again with the moved calibration).
 
+- ``"method (angle map)"``: the measurement's own smooth angle error (a locator's error that
+  varies smoothly with the angle, e.g. a lamp's shadow or highlight), which the noise fit
+  absorbs into its angle map: the 2nd and 3rd order of that map through the nominal fit's
+  weights, less its noise part, 0 unless above twice it; the part of the map the uncertain
+  angle inputs (centre, lens) could make is theirs and projected out (:func:`_method_row`).
+
 The combined standard uncertainty is the root sum of squares of the rows (first-order law of
 propagation, inputs uncorrelated) and the expanded uncertainty U = k u with k = 2. Inputs
 without ``_u`` are listed as exact. On a track CSV (``rollfric fit``) the angles are given: the
