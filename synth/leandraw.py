@@ -73,6 +73,16 @@ def unsupported(sr) -> str | None:
     return None
 
 
+def _material_uniforms(program_id: int, m) -> list:
+    """The (function, args) pairs setting a pyrender material's four factors in a program
+    (those the program has), as pyrender's primitive draw sets them."""
+    material = [_uniform(program_id, "material.emissive_factor", m.emissiveFactor),
+                _uniform(program_id, "material.base_color_factor", m.baseColorFactor),
+                _uniform(program_id, "material.metallic_factor", m.metallicFactor),
+                _uniform(program_id, "material.roughness_factor", m.roughnessFactor)]
+    return [u for u in material if u is not None]
+
+
 def _uniform(program_id: int, name: str, value):
     """(function, args) setting uniform ``name`` to ``value`` as pyrender's
     ShaderProgram.set_uniform does (the same GL function and converted value), or None when the
@@ -222,16 +232,11 @@ class LeanDraw:
                 prog = pa.primitive_program(inner, prim, self.flags,
                                             pr.constants.ProgramFlags.USE_MATERIAL)
                 pid = pa.program_id(prog)
-                m = prim.material
-                material = [_uniform(pid, "material.emissive_factor", m.emissiveFactor),
-                            _uniform(pid, "material.base_color_factor", m.baseColorFactor),
-                            _uniform(pid, "material.metallic_factor", m.metallicFactor),
-                            _uniform(pid, "material.roughness_factor", m.roughnessFactor)]
                 self.draws.append({
                     "node": node, "program": prog, "pid": pid,
                     "M": GL.glGetUniformLocation(pid, "M"),
-                    "material": [u for u in material if u is not None],
-                    "cull": not m.doubleSided,
+                    "material": _material_uniforms(pid, prim.material),
+                    "cull": not prim.material.doubleSided,
                     "boxes": None if node is self.ball else self._triangle_boxes(node, prim),
                     "far": None if node is self.ball else self._triangle_far(node, prim),
                     "prim": prim,
@@ -273,15 +278,10 @@ class LeanDraw:
                                        pr.constants.ProgramFlags.USE_MATERIAL, SPHERE_VERT,
                                        SPHERE_FRAG, sr._programs[counts])
         pid = pa.program_id(prog)
-        m = prim.material
-        material = [_uniform(pid, "material.emissive_factor", m.emissiveFactor),
-                    _uniform(pid, "material.base_color_factor", m.baseColorFactor),
-                    _uniform(pid, "material.metallic_factor", m.metallicFactor),
-                    _uniform(pid, "material.roughness_factor", m.roughnessFactor)]
         if self._sphere_vao is None:
             self._sphere_vao = int(np.asarray(GL.glGenVertexArrays(1)).ravel()[0])
         return {**mesh_draw, "program": prog, "pid": pid, "M": -1,
-                "material": [u for u in material if u is not None], "cull": False,
+                "material": _material_uniforms(pid, prim.material), "cull": False,
                 "boxes": None, "sphere": True, "vao": self._sphere_vao, "mode": 4,
                 "indexed": False, "count": 3,
                 "centre": GL.glGetUniformLocation(pid, "sphere_centre")}
