@@ -524,3 +524,21 @@ def test_method_row_leaves_a_centre_error_to_the_centre_rows():
             assert b.statistical["method"]["angle_inputs_projected_out"] == 2
         else:
             assert rows[METHOD].u_mu > stat
+
+
+def test_coverage_report_gives_binomial_errors_and_the_offset_groups():
+    """The summary's binomial standard error sqrt(p (1 - p) / n) of each fraction, and the
+    fractions split by whether the fit freed the angle offset."""
+    from validation.coverage import from_sweep, summarize
+
+    z = [0.5, -1.5, 2.5, 0.1, -0.2]
+    rows = pd.DataFrame([{"case_id": f"c{i}", "status": "ok", "mu_recovered": 0.008,
+                          "U_mu": 1e-4, "z_budget": v, "t_budget_s": 0.1,
+                          "offset_fitted": i >= 3} for i, v in enumerate(z)])
+    s = summarize(from_sweep(rows))
+    assert s["blind_within_U"] == pytest.approx(0.8)
+    assert s["blind_within_U_se"] == pytest.approx(math.sqrt(0.8 * 0.2 / 5))
+    assert s["blind_within_u_se"] == pytest.approx(math.sqrt(0.6 * 0.4 / 5))
+    assert s["cases[offset_fitted=True]"] == 2 and s["cases[offset_fitted=False]"] == 3
+    assert s["within_U[offset_fitted=False]"] == pytest.approx(2 / 3)
+    assert s["within_u[offset_fitted=True]"] == 1.0

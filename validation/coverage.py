@@ -189,7 +189,12 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
     return out
 
 
-GROUP_KEYS = ("render.noise", "render.lighting", "scenario.ball", "scenario.motion.mu")
+# the groups the summary splits by; offset_fitted: whether the record held the turning points
+# to fit the angle offset (``--offset auto``), which selects on the as-built radius (a shorter
+# period holds more turning points in the same record), so its groups' draws are not the
+# stated distribution
+GROUP_KEYS = ("render.noise", "render.lighting", "scenario.ball", "scenario.motion.mu",
+              "offset_fitted")
 
 
 def summarize(df: pd.DataFrame) -> dict:
@@ -206,9 +211,15 @@ def summarize(df: pd.DataFrame) -> dict:
         df = df[df["contour_error"].isna()]
     else:
         failed = 0
+    def se(p, n):  # the binomial standard error of a fraction
+        return float(math.sqrt(p * (1.0 - p) / n)) if n else float("nan")
+
+    n = int(np.isfinite(df["z"].to_numpy(float)).sum())
     s = {"cases": len(df), "contour_not_found": failed,
          "blind_within_U": frac(df["z"], 2.0), "blind_within_u": frac(df["z"], 1.0),
          "blind_z_rms": float(np.sqrt(np.mean(df["z"] ** 2))),
+         "blind_within_U_se": se(frac(df["z"], 2.0), n),
+         "blind_within_u_se": se(frac(df["z"], 1.0), n),
          "median_U_rel": float(np.median(df["U_mu"] / df["mu"])),
          "median_budget_seconds": float(np.median(df["budget_seconds"])),
          "median_fit_seconds": float(np.median(df["fit_seconds"]))}
@@ -230,6 +241,8 @@ def summarize(df: pd.DataFrame) -> dict:
         if key in df and df[key].nunique() > 1:
             for value, g in df.groupby(key):
                 s[f"within_U[{key}={value}]"] = frac(g["z"], 2.0)
+                s[f"within_u[{key}={value}]"] = frac(g["z"], 1.0)
+                s[f"cases[{key}={value}]"] = len(g)
     if "z_contour" in df:
         s["contour_only_within_2u"] = frac(df["z_contour"], 2.0)
         s["contour_only_within_u"] = frac(df["z_contour"], 1.0)
