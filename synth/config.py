@@ -114,7 +114,10 @@ class SceneConfig:
     # the backend: "pyrender" (rasterised, fast, the default) or "mitsuba" (path traced, a
     # physically based steel ball: synth.mitsuba_scene, the extra rollfric[mitsuba])
     renderer: str = "pyrender"
-    mitsuba_spp: int = 256  # samples per pixel in the windows around the ball (a power of 4)
+    # samples per pixel (powers of 4) on the ball and in its shadows' penumbra, and elsewhere in
+    # the windows around the ball (at most mitsuba_spp)
+    mitsuba_spp: int = 256
+    mitsuba_base_spp: int = 64
     mitsuba_background_spp: int = 256  # samples per pixel of the ball-free frame
     mitsuba_max_depth: int = 4  # path vertices (3: the ball reflects the lit backdrop)
     mitsuba_margin: float = 0.15  # window margin around the ball's silhouette, ball radii
@@ -141,7 +144,7 @@ class SceneConfig:
                              "backend's layers only: Mitsuba's thinlens sensor has no "
                              "orthographic form and no principal-point offset; render it with "
                              "renderer = \"pyrender\"")
-        for name in ("mitsuba_spp", "mitsuba_background_spp"):
+        for name in ("mitsuba_spp", "mitsuba_base_spp", "mitsuba_background_spp"):
             v = getattr(self, name)
             # Mitsuba's low-discrepancy sampler takes powers of 4 (square powers of two)
             if isinstance(v, bool) or not isinstance(v, int) or v not in SPP_CHOICES:

@@ -68,3 +68,62 @@ class RimPath(RBIntegrator):
             depth[si.is_valid()] += 1
             active = active_next & (dr.max(mi.unpolarized_spectrum(beta)) != 0)
         return L, depth != 0, [], L
+
+
+def render_pixels(integrator, scene, sensor, pixels, spp: int, seed: int):
+    """Mean radiance of the film pixels ``pixels`` at ``spp`` samples each (box filter).
+
+    What ``mitsuba.render`` does for a whole film, for a list of its pixels: the sample
+    layout, the sampler's seeding and the integrator are Mitsuba's, but the film's size and the
+    pixels are data of the kernel, not constants compiled into it, so Dr.Jit compiles one kernel
+    per ``spp`` for every window and pixel list.
+
+    Parameters
+    ----------
+    integrator : RimPath
+        The scene's integrator.
+    scene, sensor : mitsuba.Scene, mitsuba.Sensor
+        The scene and a sensor whose film holds the pixels (box pixel filter, no border).
+    pixels : numpy.ndarray
+        Flat row-major indices of film pixels (uint32).
+    spp : int
+        Samples per pixel (a power of 4 for the low-discrepancy sampler).
+    seed : int
+        The sampler's seed.
+
+    Returns
+    -------
+    numpy.ndarray
+        (len(pixels), 3) float64 mean linear RGB.
+    """
+    import numpy as np
+
+    film = sensor.film()
+    w, h = (int(v) for v in film.crop_size())
+    n = len(pixels)
+    sampler = sensor.sampler().clone()
+    sampler.set_sample_count(int(spp))
+    spp = sampler.sample_count()
+    sampler.set_samples_per_wavefront(spp)
+    sampler.seed(int(seed), n * spp)
+    # sample k of pixel i at index i spp + k, as Mitsuba lays out a film's samples
+    idx = dr.arange(mi.UInt32, n * spp)
+    log_spp = dr.log2i(spp)
+    pid = idx >> dr.opaque(mi.UInt32, log_spp) if 1 << log_spp == spp \
+        else idx // dr.opaque(mi.UInt32, spp)
+    pix = dr.gather(mi.UInt32, mi.UInt32(np.asarray(pixels, dtype=np.uint32)), pid)
+    y = pix // dr.opaque(mi.UInt32, w)
+    x = pix - y * dr.opaque(mi.UInt32, w)
+    pos = mi.Vector2f(mi.Float(x), mi.Float(y)) + sampler.next_2d()
+    rel = pos * mi.Vector2f(dr.opaque(mi.Float, 1.0 / w), dr.opaque(mi.Float, 1.0 / h))
+    ray, weight = sensor.sample_ray_differential(time=sensor.shutter_open(), sample1=0.0,
+                                                 sample2=rel, sample3=mi.Vector2f(0.0))
+    L, valid, _, _ = integrator.sample(mode=dr.ADMode.Primal, scene=scene, sampler=sampler,
+                                       ray=ray, δL=None, state_in=None, active=mi.Bool(True))
+    rgb = dr.select(valid, mi.Color3f(L * weight), 0.0)
+    dr.eval(rgb)  # one kernel for the three channels
+    # each pixel's spp samples are consecutive: summed block by block in a fixed order (the
+    # same bytes every time; a scatter-add's atomics would sum in the threads' order)
+    sums = [np.asarray(dr.block_reduce(dr.ReduceOp.Add, rgb[c], spp), dtype=np.float64)
+            for c in range(3)]
+    return np.stack(sums, axis=1) / spp

@@ -54,10 +54,13 @@ IRON_ETA = (2.91, 2.95, 2.58)  # iron's refractive index at R, G, B (~ 650, 550,
 IRON_K = (3.09, 2.93, 2.77)  # and its extinction coefficient
 UNIT = 4080  # integer levels of display value 1.0 per channel (16 x 255)
 WINDOW_STEP = 16  # px: window sizes are rounded up to multiples of this
-PASS_SAMPLES = 1 << 22  # samples per Mitsuba call (memory bound of one wavefront)
+PASS_SAMPLES = 1 << 24  # samples per Mitsuba call (memory bound of one wavefront)
 VARIANT = "llvm_ad_rgb"
 FALLBACK = "scalar_rgb"  # when Dr.Jit's LLVM backend cannot start (no LLVM >= 16)
 VARIANT_ENV = "ROLLFRIC_MITSUBA_VARIANT"  # forces one of the two (e.g. to test the fallback)
+CORE = 0.4  # the ball's middle (0.6 of its radius) is traced at mitsuba_base_spp
+HIGHLIGHT_PX = 6.0  # px about a lamp's highlight on the ball traced at 4 mitsuba_spp
+SPP_MAX = 4096
 AMBIENT_WEIGHT = 0.05  # next-event estimation's weight of the ambient light (lamps: 1)
 
 _STATE: dict = {}
@@ -206,15 +209,18 @@ def render_seed(seed: int, *key: int) -> int:
                .generate_state(1)[0])
 
 
-def _camera_to_world(cam: CameraModel) -> np.ndarray:
+def _camera_to_world(cam: CameraModel, window=None) -> np.ndarray:
     """4x4 matrix of Mitsuba's camera frame (looks along its +z; film x along its -x, film y
-    along its -y; orthographic: the film spans camera x in [-1, 1]) in the world frame."""
+    along its -y; orthographic: the film spans camera x in [-1, 1]) in the world frame, for a
+    film of full-frame pixels ``window`` = (x0, y0, w, h) (default: the whole frame)."""
     W, H, s = cam.width, cam.height, cam.pixel_size
+    x0, y0, w, h = window or (0, 0, W, H)
     cx, cy = cam.center_px
     if cam.projection == "orthographic":
-        # the frame centre ((W-1)/2, (H-1)/2) in the camera's turned world frame
-        origin = np.array([((W - 1) / 2 - cx) * s, (cy - (H - 1) / 2) * s, cam.camera_z])
-        axes = np.diag([-W * s / 2, W * s / 2, -1.0])
+        # the film's centre (x0 + (w-1)/2, y0 + (h-1)/2) in the camera's turned world frame
+        origin = np.array([(x0 + (w - 1) / 2 - cx) * s, (cy - y0 - (h - 1) / 2) * s,
+                           cam.camera_z])
+        axes = np.diag([-w * s / 2, w * s / 2, -1.0])
     else:
         origin = np.array([0.0, 0.0, cam.camera_z])
         axes = np.diag([-1.0, 1.0, -1.0])
@@ -249,10 +255,12 @@ def sensor_dict(cam: CameraModel, near: float, far: float, spp: int,
     mi = load()
     W, H = cam.width, cam.height
     x0, y0, w, h = window or (0, 0, W, H)
-    film = {"type": "hdrfilm", "width": W, "height": H, "rfilter": {"type": "box"},
-            "pixel_format": "rgb", "component_format": "float32", "crop_offset_x": int(x0),
-            "crop_offset_y": int(y0), "crop_width": int(w), "crop_height": int(h)}
-    d = {"to_world": mi.ScalarTransform4f(_camera_to_world(cam).tolist()),
+    # a film of the window's size whose camera sees just those pixels (not a crop of the whole
+    # frame: Dr.Jit would compile the crop's offset into the kernel, a new kernel, ~0.6 s of
+    # LLVM, for every window position; the camera's transforms are not compiled in)
+    film = {"type": "hdrfilm", "width": int(w), "height": int(h), "rfilter": {"type": "box"},
+            "pixel_format": "rgb", "component_format": "float32"}
+    d = {"to_world": mi.ScalarTransform4f(_camera_to_world(cam, (x0, y0, w, h)).tolist()),
          "near_clip": float(near), "far_clip": float(far), "film": film,
          "sampler": {"type": "ldsampler", "sample_count": int(spp)}}
     if cam.projection == "orthographic":
@@ -260,9 +268,9 @@ def sensor_dict(cam: CameraModel, near: float, far: float, spp: int,
     else:
         cx, cy = cam.center_px
         d |= {"type": "perspective", "fov_axis": "x",
-              "fov": math.degrees(2 * math.atan(W / (2 * cam.focal_px))),
-              "principal_point_offset_x": -(cx - (W - 1) / 2) / W,
-              "principal_point_offset_y": -(cy - (H - 1) / 2) / H}
+              "fov": math.degrees(2 * math.atan(w / (2 * cam.focal_px))),
+              "principal_point_offset_x": -(cx - x0 - (w - 1) / 2) / w,
+              "principal_point_offset_y": -(cy - y0 - (h - 1) / 2) / h}
     return d
 
 
@@ -358,6 +366,7 @@ class MitsubaRenderer:
                      "alpha": config.ball_roughness ** 2,
                      "eta": {"type": "rgb", "value": list(IRON_ETA)},
                      "k": {"type": "rgb", "value": list(IRON_K)}}}
+        self.background = None  # the ball-free frame's levels (set_background)
         self._static = mi.load_dict(scene)
         self._with_ball = mi.load_dict(scene | {"ball": self._ball_dict})
         self._params = mi.traverse(self._with_ball)
@@ -437,25 +446,190 @@ class MitsubaRenderer:
         """Render ``tiles`` [(x0, y0, w, h), ...] with the ball at each of ``poses`` (centres,
         one per sub-frame) and return per tile the sum of the sub-frames' levels.
 
-        Each window is path traced at ``mitsuba_spp`` samples per pixel, seeded from
-        (seed, index, sub-frame, tile).
+        Each tile is path traced at :meth:`spp_map`'s samples per pixel (``mitsuba_spp`` on
+        the ball and in its shadows' penumbra, ``mitsuba_base_spp`` elsewhere; the
+        ``scalar_rgb`` fallback: ``mitsuba_spp`` everywhere), seeded from (seed, index,
+        sub-frame, tile).
 
         Returns
         -------
         list of numpy.ndarray
             (h, w) int64 per tile.
         """
-        spp = self.config.mitsuba_spp
         out = []
         for t, (x0, y0, w, h) in enumerate(tiles):
-            win = self._window(x0, y0, w, h)
             acc = np.zeros((h, w), dtype=np.int64)
             for k, c in enumerate(poses):
-                rgb = self.render_window_rgb(c, win, spp, render_seed(self.seed, index, k, t))
-                wx, wy = x0 - win[0], y0 - win[1]
-                acc += to_levels(rgb[wy:wy + h, wx:wx + w])
+                rgb = self.render_tile_rgb(c, (x0, y0, w, h), render_seed(self.seed, index, k, t))
+                levels = to_levels(rgb)
+                if self.background is not None and variant() == VARIANT:
+                    # the pixels the ball leaves unchanged are the ball-free frame's
+                    same = self.spp_map(c, (x0, y0, w, h)) == 0
+                    levels[same] = self.background[y0:y0 + h, x0:x0 + w][same]
+                acc += levels
             out.append(acc)
         return out
+
+    def set_background(self, levels) -> None:
+        """Use the ball-free frame ``levels`` ((H, W) levels, from :meth:`render_full`) for
+        the pixels of a tile that the ball leaves unchanged (:meth:`spp_map` 0) instead of
+        path tracing them; None: trace them at ``mitsuba_base_spp``.
+
+        Parameters
+        ----------
+        levels : numpy.ndarray or None
+        """
+        self.background = None if levels is None else np.asarray(levels, dtype=np.int64)
+
+    def render_tile_rgb(self, centre, tile, seed: int) -> np.ndarray:
+        """Linear RGB of full-frame pixels ``tile`` = (x0, y0, w, h) with the ball at
+        ``centre`` (m), each pixel at :meth:`spp_map`'s samples.
+
+        Parameters
+        ----------
+        centre : array_like
+            Ball centre in the world frame (m).
+        tile : tuple
+            (x0, y0, w, h) full-frame pixels.
+        seed : int
+            The tile's seed (each group of pixels of one spp gets its own from it).
+
+        Returns
+        -------
+        numpy.ndarray
+            (h, w, 3) float64.
+        """
+        x0, y0, w, h = tile
+        if variant() != VARIANT:  # Mitsuba's own render of a window, mitsuba_spp everywhere
+            win = self._window(x0, y0, w, h)
+            rgb = self.render_window_rgb(centre, win, self.config.mitsuba_spp, seed)
+            return rgb[y0 - win[1]:y0 - win[1] + h, x0 - win[0]:x0 - win[0] + w]
+        from synth.mitsuba_integrator import render_pixels
+
+        mi = load()
+        self.set_ball(centre)
+        plan = self.spp_map(centre, tile).ravel()
+        sensor = mi.load_dict(sensor_dict(self.camera, self.near, self.far, 4, tile))
+        scene = self._with_ball
+        base = min(int(self.config.mitsuba_base_spp), int(self.config.mitsuba_spp))
+        if self.background is None:
+            plan[plan == 0] = base  # nothing to take the unchanged pixels from
+        rgb = np.zeros((h * w, 3))
+        for spp in np.unique(plan[plan > 0]):
+            pix = np.flatnonzero(plan == spp).astype(np.uint32)
+            per = 4 ** int(math.log(int(spp), 4) + 1e-9)  # passes of a power of 4 samples
+            step = max(1, PASS_SAMPLES // per)
+            for j in range(int(spp) // per):
+                for k, s0 in enumerate(range(0, len(pix), step)):
+                    part = pix[s0:s0 + step]
+                    rgb[part] += render_pixels(scene.integrator(), scene, sensor, part, per,
+                                               render_seed(seed, int(spp), j, k)) * (per / spp)
+        return rgb.reshape(h, w, 3)
+
+    def spp_map(self, centre, tile) -> np.ndarray:
+        """Samples per pixel for tile (x0, y0, w, h) with the ball at ``centre``:
+        ``mitsuba_spp`` where the Monte-Carlo noise is largest, ``mitsuba_base_spp`` (at most
+        that) elsewhere.
+
+        ``mitsuba_spp`` on the ball's silhouette and 2 px around it (its rim reflects the
+        backdrop at grazing angles; its edge), 4 ``mitsuba_spp`` within HIGHLIGHT_PX of each
+        lamp's mirror highlight on it, and ``mitsuba_spp`` in the penumbra of
+        its shadows (a lamp partly hidden): with an orthographic camera square to the trough
+        the pixels where the backdrop plane sees some lamp partly hidden by the ball (exact, 2.5
+        px of margin), with any other camera (which also sees the bore) the shadow boxes whole.
+
+        Parameters
+        ----------
+        centre : array_like
+            Ball centre (m).
+        tile : tuple
+            (x0, y0, w, h) full-frame pixels.
+
+        Returns
+        -------
+        numpy.ndarray
+            (h, w) int samples per pixel.
+        """
+        cfg, cam = self.config, self.camera
+        high = int(cfg.mitsuba_spp)
+        base = min(int(cfg.mitsuba_base_spp), high)
+        x0, y0, w, h = tile
+        plan = np.full((h, w), base, dtype=np.int64)
+        if base == high:
+            return plan
+        c = np.asarray(centre, float)
+        uu, vv = np.meshgrid(np.arange(x0, x0 + w, dtype=float),
+                             np.arange(y0, y0 + h, dtype=float))
+        # pixels outside the ball's box and its shadows' boxes (the footprint of tiles_for)
+        # are the ball-free frame's
+        inside = np.zeros((h, w), dtype=bool)
+        boxes = self.shadow_boxes(c[None]) if self.config.shadows else []
+        for bx0, by0, bx1, by1 in [self.ball_box(c[None]), *boxes]:
+            inside |= (uu >= bx0) & (uu < bx1) & (vv >= by0) & (vv < by1)
+        plan[~inside] = 0
+        uv, rad = cam.sphere_silhouette(c[None], self.ball_radius)
+        stretch = 1.0 if cam.projection == "orthographic" else 1.06  # as ball_box
+        d = np.hypot(uu - uv[0, 0], vv - uv[0, 1]) - rad[0] * stretch
+        if cam.projection == "orthographic" and not cam.tilted:
+            # the trough's front face, which the ball can neither shade nor hide
+            face = self._front_face(uu, vv)
+            plan[face] = 0
+            shade = self._penumbra(c, uu, vv) & ~face & inside
+        else:
+            shade = inside & (d >= 2.0)  # the shadow boxes whole
+        plan[shade] = max(base, high // 2)
+        # the ball's rim (reflections at grazing angles) and edge; its dark middle at base
+        plan[(d < 2.0) & (d >= -CORE * rad[0])] = high
+        # the lamps' highlights: a small bright reflection, the noisiest pixels of the ball
+        view = (cam.position - c if cam.projection == "perspective"
+                else cam.pose()[:3, 2])  # towards the camera
+        view = view / np.linalg.norm(view)
+        for lamp in self.lamps:
+            to_lamp = np.asarray(lamp.position, float) - c
+            n = to_lamp / np.linalg.norm(to_lamp) + view
+            n /= np.linalg.norm(n)
+            if n @ view > 0:
+                hu, hv = cam.project((c + self.ball_radius * n)[None])[0]
+                plan[np.hypot(uu - hu, vv - hv) < HIGHLIGHT_PX] = min(4 * high, SPP_MAX)
+        return plan
+
+    def _front_face(self, uu: np.ndarray, vv: np.ndarray) -> np.ndarray:
+        """Pixels (uu, vv) that certainly see the trough's front face (orthographic camera
+        square to the trough; 2 px inside its edges, as pyrender's footprint's test)."""
+        cam = self.camera
+        q = np.stack([uu.ravel(), vv.ravel()], axis=1) - np.asarray(cam.center_px)
+        rho = np.hypot(q[:, 0], q[:, 1]) * cam.pixel_size
+        r_in = self.cylinder_radius + 0.25 * self.section.ovality  # the bore's largest radius
+        phi = np.abs(np.arctan2(q[:, 0], q[:, 1]) - cam.roll)  # angle from the bottom
+        face = ((rho > r_in + 2 * cam.pixel_size)
+                & (rho < self.cylinder_radius + self.config.trough_wall - 2 * cam.pixel_size)
+                & (phi < self.config.trough_opening - 0.02))
+        return face.reshape(uu.shape)
+
+    def _penumbra(self, c: np.ndarray, uu: np.ndarray, vv: np.ndarray) -> np.ndarray:
+        """Pixels (uu, vv) whose point on the backdrop plane sees a lamp partly hidden by the
+        ball at ``c`` (orthographic camera square to the trough), with 2.5 px of margin."""
+        cam = self.camera
+        zb = -self.config.backdrop_distance
+        # the plane z = zb maps to pixels affinely: invert that map
+        p0 = cam.project(np.array([[0.0, 0.0, zb]]))[0]
+        m = np.column_stack([cam.project(np.array([[1e-3, 0.0, zb]]))[0] - p0,
+                             cam.project(np.array([[0.0, 1e-3, zb]]))[0] - p0]) / 1e-3
+        xy = np.linalg.solve(m, np.stack([uu.ravel() - p0[0], vv.ravel() - p0[1]]))
+        X = np.column_stack([xy[0], xy[1], np.full(xy.shape[1], zb)])
+        vc = c - X
+        dc = np.linalg.norm(vc, axis=1)
+        ang_r = np.arcsin(np.clip(self.ball_radius / dc, 0.0, 1.0))
+        out = np.zeros(X.shape[0], dtype=bool)
+        for lamp in self.lamps:
+            vp = np.asarray(lamp.position, float) - X
+            dp = np.linalg.norm(vp, axis=1)
+            # 2.5 px on the backdrop turn the directions to ball and lamp by at most this much
+            margin = 2.5 * cam.pixel_size * (1.0 / dc + 1.0 / dp)
+            ang_a = np.arcsin(np.clip(self.config.lamp_radius / dp, 0.0, 1.0))
+            sep = np.arccos(np.clip(np.einsum("ij,ij->i", vc, vp) / (dc * dp), -1.0, 1.0))
+            out |= np.abs(sep - ang_r) < ang_a + margin
+        return out.reshape(uu.shape)
 
     def _window(self, x0: int, y0: int, w: int, h: int) -> tuple[int, int, int, int]:
         """A window holding tile (x0, y0, w, h), its size rounded up to WINDOW_STEP (fewer
@@ -488,16 +662,22 @@ class MitsubaRenderer:
         return SceneRenderer.ball_box(self, centres, m if margin_px is None else margin_px)
 
     def shadow_boxes(self, centres: np.ndarray, margin_px: float = 1.5) -> list:
-        """Pyrender's shadow boxes widened by the lamp's penumbra on the backdrop."""
+        """Pyrender's shadow boxes widened by the lamps' penumbra: a s / (D - r) over the
+        cosine of the incidence on the backdrop (lamp radius a, lamp to ball D, ball to the
+        surface behind it s, at most to the backdrop along the lamp's ray), in px."""
         from synth.scene import SceneRenderer
 
         cam = self.camera
-        a = self.config.lamp_radius
-        # penumbra width on the backdrop: a (ball-to-backdrop) / (lamp-to-ball), in px
-        far = self.config.backdrop_distance + 2 * self.cylinder_radius
-        near = min(max(math.dist(lp.position, (0.0, 0.0, 0.0)) - 0.2, 0.05)
-                   for lp in self.lamps)
-        pen = a * far / near / cam.pixel_size
+        a, r = self.config.lamp_radius, self.ball_radius
+        C = np.atleast_2d(np.asarray(centres, float))
+        zb = -self.config.backdrop_distance
+        pen = 0.0
+        for lamp in self.lamps:
+            d = C - np.asarray(lamp.position, float)
+            D = np.linalg.norm(d, axis=1)
+            cos_inc = np.clip(np.abs(d[:, 2]) / D, 0.3, 1.0)  # the backdrop's normal is z
+            s = (C[:, 2] - zb) / cos_inc + r  # the bore's hits are nearer than the backdrop
+            pen = max(pen, float((a * s / (D - r) / cos_inc).max()) / cam.pixel_size)
         return SceneRenderer.shadow_boxes(self, centres, margin_px + pen)
 
     def _behind_trough(self, points: np.ndarray) -> np.ndarray:

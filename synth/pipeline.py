@@ -167,6 +167,8 @@ def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads, 
         _W["bg"] = np.asarray(g["background_ideal_clean"][...], dtype=np.int64)
     else:
         _W["bg"] = np.asarray(g["background_clean"][...], dtype=np.int64)
+    if hasattr(_W["renderer"], "set_background"):  # Mitsuba: unchanged pixels from it
+        _W["renderer"].set_background(_W["bg"])
 
 
 def _worker_batch(indices, centres):

@@ -105,6 +105,40 @@ def test_pasted_window_equals_full_render_within_monte_carlo_noise():
     assert np.abs(a - bg).max() > 0.2
 
 
+def test_samples_spent_where_the_noise_is_leave_the_mean_frame_unchanged():
+    # mitsuba_spp on the ball's rim and edge, 4x that on the lamps' highlights, half of it in
+    # the shadows' penumbra, mitsuba_base_spp elsewhere, and the ball-free frame's own pixels
+    # where the ball changes nothing (outside its footprint, the trough's front face): the
+    # pasted frame is an unbiased estimate of a full frame in every one of those classes
+    cfg, c = _tiny_scene(mitsuba_spp=64, mitsuba_base_spp=16, mitsuba_background_spp=64)
+    sr = ms.MitsubaRenderer(cfg, R_BALL, R_CYL, seed=3)
+    cam = cfg.camera
+    full = (0, 0, cam.width, cam.height)
+    bg = ms.to_levels(sr.render_window_rgb(None, full, 64, seed=21))
+    sr.set_background(bg)
+    tiles = sr.tiles_for(c[None])
+    plan = np.full(bg.shape, -1)
+    pasted = bg.copy()
+    for (x0, y0, w, h), img in zip(tiles, sr.render_tiles([c], tiles, index=4), strict=True):
+        pasted[y0:y0 + h, x0:x0 + w] = img
+        plan[y0:y0 + h, x0:x0 + w] = sr.spp_map(c, (x0, y0, w, h))
+    again = sr.render_tiles([c], tiles, index=4)
+    assert all(np.array_equal(pasted[y:y + h, x:x + w], a)
+               for (x, y, w, h), a in zip(tiles, again, strict=True))  # same seed, same bytes
+    assert set(np.unique(plan)) == {-1, 0, 16, 32, 64, 256}, np.unique(plan)
+    a, b = (ms.to_levels(sr.render_window_rgb(c, full, 64, seed=s)).astype(float)
+            for s in (22, 23))
+    d_ref = a - b
+    d = pasted - a
+    for k in (-1, 0, 16, 32, 64, 256):  # outside the tiles, unchanged, base ... highlights
+        m = plan == k
+        sigma = math.sqrt((d[m].var() + d_ref[m].var() / 2) / m.sum())
+        assert abs(d[m].mean()) < 4 * sigma, (k, d[m].mean(), sigma)
+    # the rim's pixels were traced with their own samples (not the background's) and the
+    # ball changes the frame there
+    assert np.abs(a - bg)[plan == 64].mean() > 100
+
+
 def test_same_seed_same_bytes(tmp_path):
     import sim
     import synth
