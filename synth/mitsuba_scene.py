@@ -527,16 +527,20 @@ class MitsubaRenderer:
         return rgb.reshape(h, w, 3)
 
     def spp_map(self, centre, tile) -> np.ndarray:
-        """Samples per pixel for tile (x0, y0, w, h) with the ball at ``centre``:
-        ``mitsuba_spp`` where the Monte-Carlo noise is largest, ``mitsuba_base_spp`` (at most
-        that) elsewhere.
+        """Samples per pixel for tile (x0, y0, w, h) with the ball at ``centre``: more where
+        the Monte-Carlo noise is larger, none where the ball changes nothing.
 
-        ``mitsuba_spp`` on the ball's silhouette and 2 px around it (its rim reflects the
-        backdrop at grazing angles; its edge), 4 ``mitsuba_spp`` within HIGHLIGHT_PX of each
-        lamp's mirror highlight on it, and ``mitsuba_spp`` in the penumbra of
-        its shadows (a lamp partly hidden): with an orthographic camera square to the trough
-        the pixels where the backdrop plane sees some lamp partly hidden by the ball (exact, 2.5
-        px of margin), with any other camera (which also sees the bore) the shadow boxes whole.
+        ``mitsuba_spp`` on the ball's rim (outside the middle 0.6 of its radius: it reflects
+        the backdrop at grazing angles) and edge (to 2 px outside it) and in the penumbra of
+        its shadows (a lamp partly hidden: with an orthographic camera square to the trough
+        the pixels whose point on the backdrop plane sees a lamp partly hidden, 2.5 px of
+        margin; with any other camera, which also sees the bore, the shadow boxes whole);
+        4 ``mitsuba_spp`` within HIGHLIGHT_PX of each lamp's mirror highlight on the ball;
+        0 (the ball-free frame's pixel, :meth:`set_background`) outside the ball's box and
+        its shadows' boxes and on the trough's front face (orthographic camera square to the
+        trough: the ball can neither hide nor shade it); ``mitsuba_base_spp`` elsewhere (the
+        ball's dark middle, the margins, the shadows' umbra). When ``mitsuba_base_spp`` >=
+        ``mitsuba_spp``: ``mitsuba_spp`` everywhere.
 
         Parameters
         ----------
@@ -577,7 +581,7 @@ class MitsubaRenderer:
             shade = self._penumbra(c, uu, vv) & ~face & inside
         else:
             shade = inside & (d >= 2.0)  # the shadow boxes whole
-        plan[shade] = max(base, high // 2)
+        plan[shade] = high
         # the ball's rim (reflections at grazing angles) and edge; its dark middle at base
         plan[(d < 2.0) & (d >= -CORE * rad[0])] = high
         # the lamps' highlights: a small bright reflection, the noisiest pixels of the ball
