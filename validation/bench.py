@@ -205,7 +205,94 @@ def bench_render(quick: bool) -> list[Row]:
             f"clean region {r['read_roi_clean_ms_per_frame']:g} ms; the locator's own cost "
             "is in the recognition section (streaming loop)"),
     ]
-    return rows
+    return rows + _mitsuba_rows(quick)
+
+
+def mitsuba_frames(frames: int = 4) -> dict:
+    """Time of the Mitsuba backend's frames of the default case (1280 x 1024, thesis lighting):
+    the ball's tiles path traced at its default samples per pixel, beside every tile pixel at
+    ``mitsuba_spp`` (256).
+
+    Steady state (the first, compiling, frame timed apart); wall and process CPU time (Dr.Jit's
+    threads included); the ball-free frame is a stand-in of zeros (its pixels are copied, not
+    traced: the time does not depend on their values).
+
+    Parameters
+    ----------
+    frames : int, optional
+        Steady frames timed per variant (spread over 0.3 s of the swing).
+
+    Returns
+    -------
+    dict
+        ``first_s``, ``wall_s``, ``cpu_s`` and ``samples`` (medians per frame) of the default
+        sampling, ``uniform_wall_s``, ``uniform_cpu_s``, ``uniform_samples`` of the baseline,
+        ``compiled`` (kernels compiled after the first frame), ``spp``, ``base_spp``.
+    """
+    import resource
+
+    import sim
+    from synth.pipeline import make_renderer, subframe_positions
+    from validation.case import case_from_dict
+
+    def cpu():
+        u = resource.getrusage(resource.RUSAGE_SELF)
+        return u.ru_utime + u.ru_stime
+
+    case = case_from_dict({"render": {"renderer": "mitsuba"},
+                           "scenario": {"motion": {"seconds": 0.3}}})
+    traj = sim.simulate(case.scenario)
+    st = traj.setup()
+    centres = subframe_positions(traj, case.scene.motion_blur, case.sensor.exposure)
+    sr = make_renderer(case.scene, st.ball_radius, st.cylinder_radius, 0)
+    import drjit as dr  # after the renderer chose Dr.Jit's LLVM (synth.mitsuba_scene.load)
+
+    sr.set_background(np.zeros((sr.camera.height, sr.camera.width), dtype=np.int64))
+    cfg = sr.config
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    out = {"spp": cfg.mitsuba_spp, "base_spp": cfg.mitsuba_base_spp}
+
+    def run(index):
+        tiles = sr.tiles_for(centres[index])
+        n = sum(int(sr.spp_map(centres[index][0], t).sum()) for t in tiles)
+        dr.kernel_history()
+        w0, c0 = time.perf_counter(), cpu()
+        sr.render_tiles([sr.ball_pose(c) for c in centres[index]], tiles, index=index)
+        w, c = time.perf_counter() - w0, cpu() - c0
+        return w, c, n, sum(1 for k in dr.kernel_history() if not k.get("cache_hit", True))
+
+    out["first_s"] = run(0)[0]
+    picks = np.linspace(1, len(centres) - 1, frames).astype(int)
+    for name, config in (("", cfg), ("uniform_", cfg.replace(mitsuba_base_spp=cfg.mitsuba_spp))):
+        sr.config = config
+        res = [run(int(i)) for i in picks]
+        out[f"{name}wall_s"] = statistics.median(r[0] for r in res)
+        out[f"{name}cpu_s"] = statistics.median(r[1] for r in res)
+        out[f"{name}samples"] = statistics.median(r[2] for r in res)
+        out.setdefault("compiled", sum(r[3] for r in res))
+    sr.close()
+    return out
+
+
+def _mitsuba_rows(quick: bool) -> list[Row]:
+    item = "Mitsuba frame (path traced), default case 1280x1024, thesis lamps"
+    if quick:
+        return [Row("rendering", item, math.nan, "s/frame",
+                    note="not run with --quick (~20 s; docs/how/renderers.md)")]
+    from synth.mitsuba_scene import available
+
+    why = available()
+    if why is not None:
+        return [Row("rendering", item, math.nan, "s/frame", note=f"not run: {why}")]
+    m = mitsuba_frames()
+    return [Row("rendering", f"{item}, {m['spp']}/{m['base_spp']} spp where the noise is",
+                m["wall_s"], "s/frame",
+                f"every tile pixel at {m['spp']} spp", m["uniform_wall_s"],
+                m["uniform_wall_s"] / m["wall_s"], "speed-up",
+                f"CPU {m['cpu_s']:.2f} s (uniform {m['uniform_cpu_s']:.2f} s); "
+                f"{m['samples'] / 1e6:.2f} M samples (uniform {m['uniform_samples'] / 1e6:.2f} "
+                f"M); first frame {m['first_s']:.2f} s; kernels compiled after it: "
+                f"{m['compiled']}; target <= 1 s")]
 
 
 def _pixels(frame: str) -> int:
