@@ -22,7 +22,7 @@ case of ``rollfric validate``)::
     supersample = 1            # ss x ss samples per pixel (plus 4x MSAA)
     shadows = true
     renderer = "pyrender"      # or "mitsuba": path traced (rollfric[mitsuba]; spp etc. in
-                               #   [render.scene]: mitsuba_spp, mitsuba_background_spp)
+                               #   [render.scene]: mitsuba_spp, mitsuba_base_spp, ...)
     seed = 0                   # seed of the sensor noise (and of Mitsuba's samples)
     [render.sensor]            # overrides of the preset: read_noise, full_well, shot_noise,
     read_noise = 8.0           #   exposure, gain, bit_depth, prnu, dsnu, vignetting, ...
