@@ -460,11 +460,11 @@ class MitsubaRenderer:
         for t, (x0, y0, w, h) in enumerate(tiles):
             acc = np.zeros((h, w), dtype=np.int64)
             for k, c in enumerate(poses):
-                rgb = self.render_tile_rgb(c, (x0, y0, w, h), render_seed(self.seed, index, k, t))
+                rgb, plan = self._render_tile(c, (x0, y0, w, h),
+                                              render_seed(self.seed, index, k, t))
                 levels = to_levels(rgb)
-                if self.background is not None and variant() == VARIANT:
-                    # the pixels the ball leaves unchanged are the ball-free frame's
-                    same = self.spp_map(c, (x0, y0, w, h)) == 0
+                if plan is not None:  # the pixels the ball leaves unchanged: the ball-free frame's
+                    same = plan == 0
                     levels[same] = self.background[y0:y0 + h, x0:x0 + w][same]
                 acc += levels
             out.append(acc)
@@ -499,16 +499,22 @@ class MitsubaRenderer:
         numpy.ndarray
             (h, w, 3) float64.
         """
+        return self._render_tile(centre, tile, seed)[0]
+
+    def _render_tile(self, centre, tile, seed: int):
+        """(rgb of :meth:`render_tile_rgb`, the tile's :meth:`spp_map` when its 0s are to be
+        the background's pixels, else None)."""
         x0, y0, w, h = tile
         if variant() != VARIANT:  # Mitsuba's own render of a window, mitsuba_spp everywhere
             win = self._window(x0, y0, w, h)
             rgb = self.render_window_rgb(centre, win, self.config.mitsuba_spp, seed)
-            return rgb[y0 - win[1]:y0 - win[1] + h, x0 - win[0]:x0 - win[0] + w]
+            return rgb[y0 - win[1]:y0 - win[1] + h, x0 - win[0]:x0 - win[0] + w], None
         from synth.mitsuba_integrator import render_pixels
 
         mi = load()
         self.set_ball(centre)
-        plan = self.spp_map(centre, tile).ravel()
+        tile_plan = self.spp_map(centre, tile)
+        plan = tile_plan.ravel().copy()
         sensor = mi.load_dict(sensor_dict(self.camera, self.near, self.far, 4, tile))
         scene = self._with_ball
         base = min(int(self.config.mitsuba_base_spp), int(self.config.mitsuba_spp))
@@ -524,7 +530,7 @@ class MitsubaRenderer:
                     part = pix[s0:s0 + step]
                     rgb[part] += render_pixels(scene.integrator(), scene, sensor, part, per,
                                                render_seed(seed, int(spp), j, k)) * (per / spp)
-        return rgb.reshape(h, w, 3)
+        return rgb.reshape(h, w, 3), (tile_plan if self.background is not None else None)
 
     def spp_map(self, centre, tile) -> np.ndarray:
         """Samples per pixel for tile (x0, y0, w, h) with the ball at ``centre``: more where
