@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import concurrent.futures as cf
+import functools
 import math
 import multiprocessing as mp
 import os
@@ -141,19 +142,38 @@ def make_renderer(scene: SceneConfig, ball_radius: float, cylinder_radius: float
 
 def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads, oval=(0.0, 0.0),
                  seed=0, defocus=None):
+    _worker_start(scene_dict, ball_radius, cylinder_radius, threads, oval, seed)
+    _worker_open(store_path, defocus)
+
+
+def _worker_start(scene_dict, ball_radius, cylinder_radius, threads, oval=(0.0, 0.0), seed=0):
+    """A render process's renderer (its imports, EGL context, programs and meshes): what needs
+    no store, so the processes can start while the main process renders the background."""
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    cfg = SceneConfig.from_dict(scene_dict)
+    _W["cfg"] = cfg
+    _W["ball_radius"] = ball_radius
+    _W["renderer"] = make_renderer(cfg, ball_radius, cylinder_radius, seed, threads, oval)
+
+
+def _worker_ready() -> int:
+    """A no-op task: submitting one per process makes the pool start them all now."""
+    return os.getpid()
+
+
+def _worker_open(store_path, defocus=None):
+    """The recording's store in a render process: its chunk writer and background."""
     import zarr
 
-    cfg = SceneConfig.from_dict(scene_dict)
+    cfg = _W["cfg"]
     lens = cfg.camera.lens
-    _W["renderer"] = make_renderer(cfg, ball_radius, cylinder_radius, seed, threads, oval)
     _W["defocus"] = None
     if defocus is not None:  # (face, bore, sharp background) of the ideal frame
         from synth.defocus import Defocus
 
         face, bore, sharp = defocus
         _W["defocus"] = (Defocus(cfg.replace(camera=cfg.camera.ideal()), face, bore,
-                                 ball_radius), np.asarray(sharp, dtype=np.int64))
+                                 _W["ball_radius"]), np.asarray(sharp, dtype=np.int64))
     from synth.store import chunk_writer
 
     g = zarr.open_group(store_path, mode="r+")
@@ -169,6 +189,15 @@ def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads, 
         _W["bg"] = np.asarray(g["background_clean"][...], dtype=np.int64)
     if hasattr(_W["renderer"], "set_background"):  # Mitsuba: unchanged pixels from it
         _W["renderer"].set_background(_W["bg"])
+    _W["store"] = store_path
+
+
+def _worker_batch_in(store_path, indices, centres):
+    """:func:`_worker_batch` in a process started by :func:`_worker_start`: the store is opened
+    at its first batch (it is written after the processes start)."""
+    if _W.get("store") != store_path:
+        _worker_open(store_path)
+    return _worker_batch(indices, centres)
 
 
 def _worker_batch(indices, centres):
@@ -220,21 +249,34 @@ def _through_lens(tiles, rendered, bg, k, lens) -> list:
 MAX_POOL_RESTARTS = 3
 
 
+def _start_pool(workers, init) -> cf.ProcessPoolExecutor:
+    """``workers`` spawned render processes started now, each running ``_worker_start(*init)``
+    (imports, EGL, the renderer) while the caller goes on (the background's render)."""
+    pool = cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"),
+                                  initializer=_worker_start, initargs=init)
+    for _ in range(workers):  # a process is spawned per task while none is idle
+        pool.submit(_worker_ready)
+    return pool
+
+
 def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worker_init,
-                     batch_fn=_worker_batch) -> None:
+                     batch_fn=_worker_batch, pool=None) -> None:
     """Render batches in ``workers`` spawned processes (EGL contexts do not survive fork).
 
     A batch writes only its own frames' chunks, so a batch whose process died (llvmpipe has
     crashed a worker once in a 4000-frame run on this machine) is simply rendered again in a
     fresh pool, at most MAX_POOL_RESTARTS times. ``initializer(*init)`` prepares each process
-    and ``batch_fn(indices, centres)`` renders a batch (default: _worker_init, _worker_batch).
+    and ``batch_fn(indices, centres)`` renders a batch (default: _worker_init, _worker_batch);
+    ``pool``: a pool already started with that initializer (:func:`_start_pool`), used first.
     """
     ctx = mp.get_context("spawn")
     pending = list(range(len(batches)))
     for attempt in range(MAX_POOL_RESTARTS + 1):
         failed = []
-        with cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=initializer,
-                                    initargs=init) as pool:
+        if pool is None:
+            pool = cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=initializer,
+                                          initargs=init)
+        with pool:
             futs = {pool.submit(batch_fn, batches[k], centres[batches[k]]): k
                     for k in pending}
             for f in cf.as_completed(futs):
@@ -242,6 +284,7 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
                     bar.update(f.result())
                 except cf.process.BrokenProcessPool:
                     failed.append(futs[f])
+        pool = None
         if not failed:
             return
         if attempt == MAX_POOL_RESTARTS:
@@ -269,10 +312,6 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     lost camera frames are listed in the attrs (``timing``), and with ``timing.timestamps`` the
     store carries each frame's time (array ``timestamps``, s). Returns the path.
     """
-    import zarr
-    from tqdm import tqdm
-    from zarr.codecs import ZstdCodec
-
     from rollfric.lens import Calibration
     from rollfric.setup import Setup
     scene = scene or SceneConfig()
@@ -314,7 +353,30 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     if threads is None and workers > 1:
         threads = 1  # one llvmpipe thread per process: the processes fill the cores
 
+    # the render processes start (imports, EGL, programs, meshes: ~2 s) while this process
+    # renders the background; a thin lens's processes need the background's layers first
+    start = (scene.to_dict(), r_ball, r_cyl, threads, oval, int(seed))
+    pool = _start_pool(workers, start) if workers > 1 and not cam.thin_lens else None
+    try:
+        return _render_into(out, traj, scene, sensor, seed, progress, workers, threads, setup,
+                            oval, centres, n, timing, timing_attrs, pool, start)
+    finally:
+        if pool is not None:  # (already shut down unless the render failed before using it)
+            pool.shutdown(cancel_futures=True)
+
+
+def _render_into(out, traj, scene, sensor, seed, progress, workers, threads, setup, oval,
+                 centres, n, timing, timing_attrs, pool, start) -> Path:
+    """:func:`render` from its store on; ``pool``: render processes already started (or None),
+    ``start`` their :func:`_worker_start` arguments."""
+    import zarr
+    from tqdm import tqdm
+    from zarr.codecs import ZstdCodec
+
+    cam = scene.camera
     lens = cam.lens
+    r_ball, r_cyl = setup.ball_radius, setup.cylinder_radius
+    k_sub = scene.motion_blur
     with replacing(out, folder_ok=True) as tmp:
         sr = make_renderer(scene, r_ball, r_cyl, seed, oval=oval)
         bg = sr.render_full()
@@ -371,6 +433,9 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             finally:
                 _W.pop("renderer").close()
                 _W.clear()
+        elif pool is not None:
+            _render_parallel(batches, centres, workers, start, bar, initializer=_worker_start,
+                             batch_fn=functools.partial(_worker_batch_in, str(tmp)), pool=pool)
         else:
             _render_parallel(batches, centres, workers, init, bar)
         bar.close()
