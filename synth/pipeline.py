@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import functools
 import math
 import multiprocessing as mp
@@ -249,14 +250,23 @@ def _through_lens(tiles, rendered, bg, k, lens) -> list:
 MAX_POOL_RESTARTS = 3
 
 
-def _start_pool(workers, init) -> cf.ProcessPoolExecutor:
+@contextlib.contextmanager
+def _early_pool(workers, init):
     """``workers`` spawned render processes started now, each running ``_worker_start(*init)``
-    (imports, EGL, the renderer) while the caller goes on (the background's render)."""
+    (imports, EGL, the renderer) while the caller goes on (the background's render); None
+    for 0 workers. Shut down on leaving (already done unless the render failed before using
+    it)."""
+    if not workers:
+        yield None
+        return
     pool = cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"),
                                   initializer=_worker_start, initargs=init)
-    for _ in range(workers):  # a process is spawned per task while none is idle
-        pool.submit(_worker_ready)
-    return pool
+    try:
+        for _ in range(workers):  # a process is spawned per task while none is idle
+            pool.submit(_worker_ready)
+        yield pool
+    finally:
+        pool.shutdown(cancel_futures=True)
 
 
 def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worker_init,
@@ -267,7 +277,7 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
     crashed a worker once in a 4000-frame run on this machine) is simply rendered again in a
     fresh pool, at most MAX_POOL_RESTARTS times. ``initializer(*init)`` prepares each process
     and ``batch_fn(indices, centres)`` renders a batch (default: _worker_init, _worker_batch);
-    ``pool``: a pool already started with that initializer (:func:`_start_pool`), used first.
+    ``pool``: a pool already started with that initializer (:func:`_early_pool`), used first.
     """
     ctx = mp.get_context("spawn")
     pending = list(range(len(batches)))
@@ -312,6 +322,10 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     lost camera frames are listed in the attrs (``timing``), and with ``timing.timestamps`` the
     store carries each frame's time (array ``timestamps``, s). Returns the path.
     """
+    import zarr
+    from tqdm import tqdm
+    from zarr.codecs import ZstdCodec
+
     from rollfric.lens import Calibration
     from rollfric.setup import Setup
     scene = scene or SceneConfig()
@@ -353,31 +367,12 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     if threads is None and workers > 1:
         threads = 1  # one llvmpipe thread per process: the processes fill the cores
 
+    lens = cam.lens
     # the render processes start (imports, EGL, programs, meshes: ~2 s) while this process
     # renders the background; a thin lens's processes need the background's layers first
     start = (scene.to_dict(), r_ball, r_cyl, threads, oval, int(seed))
-    pool = _start_pool(workers, start) if workers > 1 and not cam.thin_lens else None
-    try:
-        return _render_into(out, traj, scene, sensor, seed, progress, workers, threads, setup,
-                            oval, centres, n, timing, timing_attrs, pool, start)
-    finally:
-        if pool is not None:  # (already shut down unless the render failed before using it)
-            pool.shutdown(cancel_futures=True)
-
-
-def _render_into(out, traj, scene, sensor, seed, progress, workers, threads, setup, oval,
-                 centres, n, timing, timing_attrs, pool, start) -> Path:
-    """:func:`render` from its store on; ``pool``: render processes already started (or None),
-    ``start`` their :func:`_worker_start` arguments."""
-    import zarr
-    from tqdm import tqdm
-    from zarr.codecs import ZstdCodec
-
-    cam = scene.camera
-    lens = cam.lens
-    r_ball, r_cyl = setup.ball_radius, setup.cylinder_radius
-    k_sub = scene.motion_blur
-    with replacing(out, folder_ok=True) as tmp:
+    with _early_pool(workers if workers > 1 and not cam.thin_lens else 0, start) as pool, \
+            replacing(out, folder_ok=True) as tmp:
         sr = make_renderer(scene, r_ball, r_cyl, seed, oval=oval)
         bg = sr.render_full()
         defocus = None
