@@ -18,7 +18,9 @@ The rendered study is the shipped sweep ``coverage`` (validation/sweeps/coverage
 cases with ``lab.draw`` and ``measure.budget``); ``python -m validation.coverage --from-sweep
 OUT`` reads its OUT/results.parquet and writes OUT/coverage.json and OUT/coverage.png the same
 way (its oracle columns come from an oracle run of the sweep, ``measure.oracle = true``, if
-given with ``--oracle-sweep``).
+given with ``--oracle-sweep``). ``--from-sweep OUT1 OUT2 --out DIR`` reports several studies
+together (the independent second study ``coverage_b`` beside the first), split by study. Every
+summary gives the miss counts outside u and U with their binomial tail probabilities.
 """
 
 from __future__ import annotations
@@ -194,7 +196,43 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
 # period holds more turning points in the same record), so its groups' draws are not the
 # stated distribution
 GROUP_KEYS = ("render.noise", "render.lighting", "scenario.ball", "scenario.motion.mu",
-              "offset_fitted")
+              "offset_fitted", "study")
+# the fraction of a normal z outside k = 1 and k = 2: what an honest budget's misses have
+MISS_PROBABILITY = {1.0: math.erfc(1.0 / math.sqrt(2.0)), 2.0: math.erfc(2.0 / math.sqrt(2.0))}
+
+
+def misses(z, prefix: str) -> dict:
+    """The cases outside ``u`` (|z| > 1) and outside ``U`` (|z| > 2), with the binomial tail
+    probabilities of that many misses for an honest budget (each case missing with the normal
+    distribution's 31.7 % and 4.55 %): ``P(X >= misses)`` and ``P(X <= misses)``, X binomial
+    over the finite z's. A tail of 5e-5 says that set of draws is improbable for an honest
+    budget, or that the budget is not honest.
+
+    Parameters
+    ----------
+    z : array_like
+        (mu - truth) / u_mu of each case; NaN: left out.
+    prefix : str
+        The keys' prefix ("blind", "oracle").
+
+    Returns
+    -------
+    dict
+        ``{prefix}_misses_u``, ``{prefix}_misses_U``, their ``_expected`` counts and
+        ``_p_at_least`` / ``_p_at_most`` tails.
+    """
+    from scipy.stats import binom
+
+    z = np.asarray(z, dtype=float)
+    z = z[np.isfinite(z)]
+    out = {}
+    for k, name in ((1.0, "u"), (2.0, "U")):
+        m, p = int(np.sum(np.abs(z) > k)), MISS_PROBABILITY[k]
+        out.update({f"{prefix}_misses_{name}": m,
+                    f"{prefix}_misses_{name}_expected": float(p * z.size),
+                    f"{prefix}_misses_{name}_p_at_least": float(binom.sf(m - 1, z.size, p)),
+                    f"{prefix}_misses_{name}_p_at_most": float(binom.cdf(m, z.size, p))})
+    return out
 
 
 def summarize(df: pd.DataFrame) -> dict:
@@ -220,6 +258,7 @@ def summarize(df: pd.DataFrame) -> dict:
          "blind_z_rms": float(np.sqrt(np.mean(df["z"] ** 2))),
          "blind_within_U_se": se(frac(df["z"], 2.0), n),
          "blind_within_u_se": se(frac(df["z"], 1.0), n),
+         **misses(df["z"], "blind"),
          "median_U_rel": float(np.median(df["U_mu"] / df["mu"])),
          "median_budget_seconds": float(np.median(df["budget_seconds"])),
          "median_fit_seconds": float(np.median(df["fit_seconds"]))}
@@ -227,8 +266,19 @@ def summarize(df: pd.DataFrame) -> dict:
         s.update(oracle_cases=int(np.isfinite(df["z_oracle"].to_numpy(float)).sum()),
                  oracle_within_2u_stat=frac(df["z_oracle"], 2.0),
                  oracle_within_u_stat=frac(df["z_oracle"], 1.0),
+                 oracle_z_rms_stat=float(np.sqrt(np.nanmean(df["z_oracle"].to_numpy(float)
+                                                            ** 2))),
+                 **misses(df["z_oracle"], "oracle"),
                  oracle_ordinary_within_2se=frac(df["z_oracle_ordinary"], 2.0),
                  oracle_ordinary_within_se=frac(df["z_oracle_ordinary"], 1.0))
+    if "z_oracle_budget" in df and np.isfinite(df["z_oracle_budget"].to_numpy(float)).any():
+        zb = df["z_oracle_budget"]  # statistical + method rows (the sweep's oracle budget)
+        nb = int(np.isfinite(zb.to_numpy(float)).sum())
+        s.update(oracle_within_2u_budget=frac(zb, 2.0), oracle_within_u_budget=frac(zb, 1.0),
+                 oracle_within_2u_budget_se=se(frac(zb, 2.0), nb),
+                 oracle_within_u_budget_se=se(frac(zb, 1.0), nb),
+                 oracle_z_rms_budget=float(np.sqrt(np.nanmean(zb.to_numpy(float) ** 2))),
+                 **misses(zb, "oracle_budget"))
     for ar, g in df.groupby("ar") if df["ar"].nunique() > 1 else ():
         s[f"oracle_within_2u_stat_ar{ar:g}"] = frac(g["z_oracle"], 2.0)
         s[f"oracle_ordinary_within_2se_ar{ar:g}"] = frac(g["z_oracle_ordinary"], 2.0)
@@ -253,12 +303,15 @@ def summarize(df: pd.DataFrame) -> dict:
     return s
 
 
-def from_sweep(results: pd.DataFrame, oracle: pd.DataFrame | None = None) -> pd.DataFrame:
+def from_sweep(results: pd.DataFrame, oracle: pd.DataFrame | None = None,
+               study: str | None = None) -> pd.DataFrame:
     """The coverage table (z, z_oracle, z_oracle_ordinary, mu, U_mu, ...) of a ``coverage``
     sweep's results (its ok cases). ``oracle``: the same sweep run with ``measure.oracle =
     true``, matched case by case on the swept parameters (its z_stat: the statistical part
     alone; its mu_stderr: the ordinary standard error); without it the oracle columns are NaN
-    (a blind run's statistical part alone says nothing: its error is mostly the setup's)."""
+    (a blind run's statistical part alone says nothing: its error is mostly the setup's).
+    ``study``: its name in a ``study`` column (several studies reported together are split
+    by it)."""
     ok = results[results["status"] == "ok"].reset_index(drop=True)
     df = pd.DataFrame({"case_id": ok["case_id"], "z": ok["z_budget"], "mu": ok["mu_recovered"],
                        "U_mu": ok["U_mu"], "ar": 0.0, "budget_seconds": ok["t_budget_s"],
@@ -270,8 +323,10 @@ def from_sweep(results: pd.DataFrame, oracle: pd.DataFrame | None = None) -> pd.
     for key in GROUP_KEYS:  # the groups the summary splits by
         if key in ok:
             df[key] = ok[key].astype(str).to_numpy()
+    if study is not None:
+        df["study"] = study
     if oracle is None:
-        df["z_oracle"] = df["z_oracle_ordinary"] = np.nan
+        df["z_oracle"] = df["z_oracle_ordinary"] = df["z_oracle_budget"] = np.nan
         return df
     # the swept parameters (dotted case keys) name a case in both runs
     keys = [c for c in ok.columns if "." in c and c in oracle.columns]
@@ -279,19 +334,23 @@ def from_sweep(results: pd.DataFrame, oracle: pd.DataFrame | None = None) -> pd.
     o = o.assign(**{k: o[k].astype(str) for k in keys})
     src = ok[keys].astype(str).merge(o, on=keys, how="left")
     df["z_oracle"] = src["z_stat"].to_numpy(float)
+    # the oracle's whole budget: the statistical and the method (angle map) rows
+    df["z_oracle_budget"] = src["z_budget"].to_numpy(float)
     df["z_oracle_ordinary"] = ((src["mu_recovered"] - src["mu_true"])
                                / src["mu_stderr"]).to_numpy(float)
     return df
 
 
 def plot(df: pd.DataFrame, path: Path) -> None:
-    """Histograms of z (blind, full budget) and of the oracle's z (statistical part)."""
+    """Histograms of z (blind, full budget) and of the oracle's z (statistical part, and with
+    the method row)."""
     from matplotlib.figure import Figure  # no pyplot: no backend, no global figure state
 
     from rollfric.atomic import replacing
 
     cols = [("z", "blind: (mu - truth) / u_mu"),
             ("z_oracle", "oracle: / statistical u (corrected)"),
+            ("z_oracle_budget", "oracle: / (statistical + method) u"),
             ("z_oracle_ordinary", "oracle: / ordinary standard error")]
     if "z_contour" in df:
         cols.insert(1, ("z_contour", "exact setup, contour centre:\n/ (statistical + centre) u"))
@@ -332,14 +391,26 @@ def main(argv=None) -> int:
     p.add_argument("--merge", nargs="+", metavar="DIR",
                    help="report the coverage.csv of these folders (runs of other --seed "
                         "ranges) together in --out")
-    p.add_argument("--from-sweep", metavar="OUT", help="report a coverage sweep's results")
-    p.add_argument("--oracle-sweep", metavar="OUT", help="the same sweep run in oracle mode")
+    p.add_argument("--from-sweep", metavar="OUT", nargs="+",
+                   help="report a coverage sweep's results; several: the studies together "
+                        "(written to --out, split by study)")
+    p.add_argument("--oracle-sweep", metavar="OUT", nargs="+",
+                   help="the same sweep(s) run in oracle mode, one per --from-sweep, in order")
     args = p.parse_args(argv)
     if args.from_sweep:
-        out = Path(args.from_sweep)
-        oracle = (pd.read_parquet(Path(args.oracle_sweep) / "results.parquet")
-                  if args.oracle_sweep else None)
-        df = from_sweep(pd.read_parquet(out / "results.parquet"), oracle)
+        if args.oracle_sweep and len(args.oracle_sweep) != len(args.from_sweep):
+            p.error("--oracle-sweep needs one folder per --from-sweep folder")
+        if len(args.from_sweep) > 1 and not args.out:
+            p.error("several --from-sweep folders are reported together into --out")
+        frames = []
+        for i, src in enumerate(args.from_sweep):
+            oracle = (pd.read_parquet(Path(args.oracle_sweep[i]) / "results.parquet")
+                      if args.oracle_sweep else None)
+            frames.append(from_sweep(pd.read_parquet(Path(src) / "results.parquet"), oracle,
+                                     study=Path(src).name))
+        df = pd.concat(frames, ignore_index=True)
+        out = Path(args.out) if args.out else Path(args.from_sweep[0])
+        out.mkdir(parents=True, exist_ok=True)
         s = summarize(df)
         (out / "coverage.json").write_text(json.dumps(s, indent=2) + "\n")
         plot(df, out / "coverage.png")
