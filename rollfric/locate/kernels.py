@@ -194,6 +194,8 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
     a_in = np.full(n, np.nan)
     b_out = np.full(n, np.nan)
     a_deep = np.full(n, np.nan)
+    a_near = np.full(n, np.nan)
+    nh = max(2, (3 * nl) // 8)
     for i in range(n):
         best = -np.inf
         kb = -1
@@ -212,10 +214,15 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
             v = prof[i, kb + ne + 2 + j]
             b += v
             b2 += v * v
+        a_near[i] = 0.0  # the level over the nh samples next to the edge window
+        for j in range(nh):
+            a_near[i] += prof[i, kb - ne - 1 - j]
+        a_near[i] /= nh
         a /= nl
         b /= nl
-        # the level a further nl samples inside: a flat inside (a rim's reflection) or a
-        # gradient (a specular spot's tail)
+        # the level a further nl samples inside: a flat inside (a rim's reflection), a
+        # gradient towards the background's level (a specular spot's tail) or away from it (a
+        # crescent of reflection narrower than the windows)
         j0 = kb - ne - 1 - 2 * nl
         if j0 >= 0:
             a2 = 0.0
@@ -253,6 +260,20 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
     # the ball's inside level: per ray, unless a spot or shading spoils it (then the median)
     c_med = np.median(np.abs(a_in[fin] - b_out[fin]))
     sd_med = np.median(osd[fin])
+    # a ray whose level a further nl samples in has more contrast than its own (``local_lv``):
+    # a rim brighter than the ball's inside towards the background, the crescent a mirror ball
+    # reflects of its surroundings, whose inner edge reaches into the level window on a small
+    # ball (4 px from the edge at 18.6 px radius). Its level is taken next to the edge window
+    # (3 nl / 8 samples nearest it, 0.75 px), and the profile is clipped at that level in the
+    # edge's integral and spread (``cres``): the crescent's inner step is no part of the edge.
+    # A specular spot's tail is the other way round (less contrast further in): still spoiled
+    cres = np.zeros(n, np.bool_)
+    if local_lv:
+        tol0 = 0.08 * c_med + 3.0 * sd_med
+        for i in range(n):
+            if fin[i] and sgn * (a_deep[i] - a_in[i]) > tol0:
+                a_in[i] = a_near[i]
+                cres[i] = True
     # the inside level next to the rim varies along it (a mirror ball's rim reflects the
     # bright backdrop on one side, the dark trough on the other): a ray's level is compared
     # with the median of its neighbours' over about 1/8 of the rim, not with one median
@@ -263,7 +284,7 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
         ref = a_loc[i] if np.isfinite(a_loc[i]) else a_med
         tol = 0.08 * c_med + 3.0 * sd_med
         spoiled[i] = abs(a_in[i] - a_med) > tol and (not local_lv or abs(a_in[i] - ref) > tol
-                                                     or not abs(a_in[i] - a_deep[i]) <= tol)
+                                                     or not sgn * (a_in[i] - a_deep[i]) <= tol)
     # drop those rays when enough clean ones remain, else use the median inside level
     drop = (fin & ~spoiled).sum() >= 0.5 * fin.sum()
     # levels averaged over neighbouring rays (2 ksm + 1, clean ones only): less noise
@@ -304,6 +325,8 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
         nw = 2 * ne + 2
         for j in range(nw):
             f = (prof[i, kb - ne + j] - b) / c
+            if cres[i]:
+                f = min(f, 1.0)
             acc += 0.5 * f if (j == 0 or j == nw - 1) else f
         se = s0 + (kb - ne) * ds + ds * acc
         if not np.isfinite(se) or se <= s0 + (kb - ne) * ds or se >= s0 + (kb + ne + 1) * ds:
@@ -315,7 +338,10 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
         gs = 0.0
         gm = 0.0
         for j in range(kb - ne - nl // 2, kb + ne + 1 + nl // 2):
-            g = max((prof[i, j] - prof[i, j + 1]) / c, 0.0)
+            if cres[i]:
+                g = max(min((prof[i, j] - b) / c, 1.0) - min((prof[i, j + 1] - b) / c, 1.0), 0.0)
+            else:
+                g = max((prof[i, j] - prof[i, j + 1]) / c, 0.0)
             dd = s0 + (j + 0.5) * ds - se
             gs += g
             gm += g * dd * dd

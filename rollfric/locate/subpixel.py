@@ -62,7 +62,9 @@ class SubpixelOptions:
     # and local_contrast are on by default where the rim shows a mirror's signature (None),
     # MIRROR turns them on everywhere:
     rim_levels: bool = True  # a ray's inside level is checked against its neighbours' (and
-    # its own further in), not against one median: the rim mirrors bright and dark surroundings
+    # its own further in), not against one median: the rim mirrors bright and dark surroundings;
+    # where the level further in has more contrast (a crescent of reflection narrower than the
+    # level windows, a small ball), the level next to the edge is used
     sharp_rays: bool = True  # rays whose edge is much wider than the rim's sharpest are left
     # out (r_px >= 12): a rim that mirrors a narrow band of bright surroundings
     sharp_excess: float = 0.25  # px: how much wider than the rim's sharpest quarter
