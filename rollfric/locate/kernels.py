@@ -660,6 +660,12 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor,
     # rays keep the median)
     cref = np.full(n, cmed)
     if local:
+        # the rays whose outside is not the background keep one typical contrast: that of
+        # the rim outside the mirrored sector (the median over both is between them)
+        _, lowb = _rim_sectors(con, valid, out_sd, b_lv, noise)
+        full = valid & ~lowb
+        if full.sum() >= min_rays:
+            cref[:] = np.median(con[full])
         loc = _rim_median(con, valid, max(2, n // 16))
         for i in range(n):
             if np.isfinite(loc[i]) and abs(b_lv[i]) <= 0.05 * cmed + 3.0 * nz:
