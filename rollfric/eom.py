@@ -29,9 +29,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from scipy.integrate import solve_ivp
+
+from rollfric.jit import njit
 
 STANDARD_GRAVITY = 9.81
 
@@ -304,13 +305,13 @@ def solve_segments(theta0: float, omega0: float, t, accel, *, mu_static: float,
     return theta_out, omega_out, t_stop
 
 
-@numba.njit(cache=True)
+@njit
 def _accel(th, om, s, mu0, mu1, L, g):
     k = 5.0 / (7.0 * L)
     return -k * (g * math.sin(th) + s * (mu0 + mu1 * abs(om)) * (g * math.cos(th) + L * om * om))
 
 
-@numba.njit(cache=True)
+@njit
 def _rk4(th, om, h, s, mu0, mu1, L, g):
     a1 = _accel(th, om, s, mu0, mu1, L, g)
     th2 = th + 0.5 * h * om
@@ -327,7 +328,7 @@ def _rk4(th, om, h, s, mu0, mu1, L, g):
     return th_n, om_n
 
 
-@numba.njit(cache=True)
+@njit
 def _advance(th, om, s, h, mu0, mu1, L, g):
     """Advance by h with friction sign s, stopping at a turning point if one comes first.
 
@@ -360,13 +361,13 @@ def _advance(th, om, s, h, mu0, mu1, L, g):
     return th_t, 0.0, tau, True
 
 
-@numba.njit(cache=True)
+@njit
 def _sticks(th, mu0):
     # as sticks(): gravity along the track does not beat the rolling resistance at rest
     return abs(math.sin(th)) <= mu0 * math.cos(th) or math.sin(th) == 0.0
 
 
-@numba.njit(cache=True)
+@njit
 def _solve_rk4(t, theta0, omega0, mu0, mu1, L, g, h_max):
     n = t.shape[0]
     theta = np.empty(n)

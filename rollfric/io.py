@@ -325,6 +325,7 @@ class _WrappedSource(_Source):
                                  f"{len(src)} frames")
         super().__init__(name, shape[0], shape[1:], src.dtype)
         self.fps = getattr(src, "fps", None)
+        self.concurrent_reads = getattr(src, "concurrent_reads", False) is True
         stamps = getattr(src, "timestamps", None)
         self.timestamps = None if stamps is None else np.asarray(stamps, dtype=float)
         bg = getattr(src, "background", None)

@@ -32,7 +32,9 @@ class FrameSource(Protocol):
         Whatever else the file holds (a synthetic recording's setup, ...).
 
     A reader may also have ``timestamps``: (T,) float seconds from frame 0, the camera's own
-    per-frame times (None or absent: frames at ``fps``).
+    per-frame times (None or absent: frames at ``fps``), and ``concurrent_reads``: True when
+    its frames and regions may be read from several threads at once (the tracker then locates
+    a long recording's segments on as many threads; absent or False: one thread reads).
     """
 
     shape: tuple[int, int, int]
@@ -135,6 +137,7 @@ class BaseSource:
     fps: float | None = None
     timestamps: np.ndarray | None = None
     background: np.ndarray | None = None
+    concurrent_reads: bool = False  # a file handle's reads are not safe from two threads
 
     def __init__(self, name: str, n: int, hw: tuple[int, int], dtype) -> None:
         from rollfric.limits import MAX_FRAME_PIXELS

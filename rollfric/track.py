@@ -13,11 +13,14 @@ thesis's theta = arcsin((x - xc) / L_px) with L = R - r (``angle="arcsin"``).
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import functools
 import logging
 import math
+import os
 import sys
+import threading
 
 import numpy as np
 import pandas as pd
@@ -309,6 +312,10 @@ CAL_MAX_SIGMA = 0.1  # px: centre sigma of a calibration frame
 CAL_MIN_FRAMES = 5  # calibration frames before the calibrated radius is used
 CAL_WARN_DEV = 0.03  # warn when the apparent radius differs from the setup's by more
 READ_AHEAD_PAD = 4  # px a side the next frame's region read ahead grows the last one by
+# a recording of at least 2 x SEGMENT_MIN_FRAMES frames is tracked in 2 segments (halves), each
+# from its own full-frame search, on 2 threads where the reader allows (track_segments)
+SEGMENT_MIN_FRAMES = 500
+SEGMENT_WARMUP = 20  # frames a later segment is located from before its first (then dropped)
 
 
 class RadiusCalibration:
@@ -550,11 +557,62 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
     return bg, f"per-pixel median of {k} frames" + (", repaired" if notes else ""), notes
 
 
+def track_segments(n: int, segments: int | str = "auto") -> list[tuple[int, int]]:
+    """The contiguous frame ranges a recording of ``n`` frames is tracked in.
+
+    Each segment is tracked from a full-frame search at its first frame, with its own
+    prediction and radius calibration (:func:`track_recording`), so that the segments can be
+    located at the same time on as many cores; they depend on ``n`` and ``segments`` only (not
+    on the machine), and so does the track.
+
+    Parameters
+    ----------
+    n : int
+        Frames in the recording.
+    segments : int or "auto"
+        How many segments (at most ``n``); "auto": 2 when ``n >= 2 * SEGMENT_MIN_FRAMES``,
+        else 1.
+
+    Returns
+    -------
+    list of (int, int)
+        (first frame, end frame) of each segment, in order, covering 0..n; the first
+        ``n % segments`` are a frame longer.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        ``segments`` neither "auto" nor a positive integer.
+    """
+    if segments == "auto":
+        k = 2 if n >= 2 * SEGMENT_MIN_FRAMES else 1
+    elif isinstance(segments, (int, np.integer)) and not isinstance(segments, bool) \
+            and segments >= 1:
+        k = int(segments)
+    else:
+        raise InputError(f"segments must be a positive integer or 'auto', got {segments!r}")
+    k = max(1, min(k, n))
+    size, extra = divmod(n, k)
+    bounds = [0]
+    for j in range(k):
+        bounds.append(bounds[-1] + size + (1 if j < extra else 0))
+    return list(zip(bounds[:-1], bounds[1:], strict=True))
+
+
+def _cpus() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
                     angle: str = "atan2", center: tuple[float, float] | None = None,
                     progress: bool = True, opts=None,
                     times=None, drops: bool = True,
-                    read_ahead: bool = False) -> tuple[pd.DataFrame, TrackInfo]:
+                    read_ahead: bool = False,
+                    segments: int | str = "auto") -> tuple[pd.DataFrame, TrackInfo]:
     """Locate the ball in every frame of ``source``; one row a frame (see TRACK_COLUMNS), plus
     r_px, sigma_px (estimated centre error) and inlier_frac where the locator gives them.
     ``times``: t_s of each frame (default frame / setup.fps; see :func:`frame_times`).
@@ -596,6 +654,14 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         (:class:`rollfric.readahead.ReadAhead`; a reader with ``read`` only). The track is the
         same either way; off by default: on a loaded 2-core machine it cost 10 % more CPU
         and no wall time (docs/how/locator.md, "Where the time goes").
+    segments : int or "auto"
+        The recording is tracked in this many contiguous segments (:func:`track_segments`;
+        "auto": 2 from 2 x SEGMENT_MIN_FRAMES frames on), each from its own full-frame search
+        and radius calibration; the calibrations' radii are then pooled into one and the
+        second pass (above) made with it. The segments run on as many threads (at most the
+        CPUs) when the reader says it can be read from several threads at once (its attribute
+        ``concurrent_reads``; synth's recordings), else one after another: the track is the
+        same either way. 1: one pass through the recording, as before 2026-11-23.
 
     Returns
     -------
@@ -629,19 +695,16 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     rows = np.full((n, 7), np.nan)  # x, y, r, sigma, inlier_frac, found, ring gain
     lost = np.zeros(n, dtype=bool)  # a ball located, but off the trough's circle
     identical = np.zeros(n, dtype=bool)  # the ball's tile equals the previous frame's
-    prev = None
-    hist: list = []
     bar = tqdm(total=n, desc="locating ball", unit="frame", disable=not progress,
                file=sys.stderr, mininterval=0.5)
-    pred_err = math.inf  # how far the last prediction was off (px)
     gate = 0.25 * r_px + 2.0  # px: a tracked ball moves less than this from its prediction
     read = getattr(source, "read", None)
     base_radius = (opts if opts is not None else locate.SubpixelOptions()).radius
     # a small ball (known radius only): its apparent radius from its full rims' edge points;
     # the 1.58 mm ball (5.9 px) under a harsh side lamp measured 1.7 % (0.10 px) larger than
     # the setup's in synth's renders, which put its half-shadowed arcs 0.15-0.3 px off
-    cal = RadiusCalibration(r_px, known=method == "subpixel" and (
-        base_radius == "known" or (base_radius == "auto" and r_px < 12)))
+    cal_known = method == "subpixel" and (
+        base_radius == "known" or (base_radius == "auto" and r_px < 12))
     # once calibrated, a free radius only on (nearly) the full rim: on a partial arc the free
     # radius and the centre are confounded (centres 0.1-0.15 px off on the harsh lamp's arcs
     # over half of the rim), the calibrated one pins the centre
@@ -655,13 +718,10 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                                                   setup.working_distance / setup.pixel_size))
         opts = base
     opts_cal = dataclasses.replace(base, free_min_frac=max(base.free_min_frac, CAL_MIN_INLIER))
-    revisit: dict[int, float] = {}  # frame -> radius its partial arc was fitted with
     locator = LOCATORS.load(method)  # as locate_frame, looked up once (not once a frame)
-    # the next frame's region read on a second thread while this one is located
-    ahead = ReadAhead(source) if read is not None and read_ahead else None
-    box_at = None  # the last region read about its frame's guess, (dy0, dy1, dx0, dx1)
+    stop = threading.Event()  # a segment failed: the others end at their next frame
 
-    def frame_at(i, guess):
+    def frame_at(i, guess, ahead=None):
         if read is not None and guess is not None:
             # tracking: the locator reads only the regions it crops around the prediction
             # (the same pixels as the full frame's; a full-frame search reads the whole frame)
@@ -674,16 +734,6 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                                     source.dtype)
         return source[i] if ahead is None else ahead.frame(i)
 
-    def read_next(i):
-        # frame i + 1's region as far as it is known now: the last region read, moved to the
-        # centre predicted two frames ahead, grown by READ_AHEAD_PAD px a side
-        g = None if ahead is None or box_at is None else _predict(hist, i + 1)
-        if g is None:
-            return
-        gx, gy, p = math.floor(g[0]), math.floor(g[1]), READ_AHEAD_PAD
-        ahead.prefetch(i + 1, (gy + box_at[0] - p, gy + box_at[1] + p,
-                               gx + box_at[2] - p, gx + box_at[3] + p))
-
     def accept(loc):
         ok = (loc.found and math.isfinite(loc.x) and -0.5 <= loc.x <= w - 0.5
               and -0.5 <= loc.y <= h - 0.5)
@@ -692,51 +742,118 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
             ok = abs(dist - L_px) <= 0.15 * L_px
         return ok
 
-    for i in range(n):
-        guess = _predict(hist, i)
-        frame = frame_at(i, guess)
-        read_next(i)
-        search = min(0.3 * r_px + 2.0, max(2.0, 4.0 * pred_err + 1.0))
-        r_kn = cal.value
-        loc = locator(frame, background, r_px, guess, center,
-                      opts=opts if r_kn is None else opts_cal, search=search,
-                      r_known=r_kn, r_known_sigma=cal.rel_sigma)
-        box = getattr(frame, "_box", None) if guess is not None else None
-        if box is not None:
-            gx, gy = math.floor(guess[0]), math.floor(guess[1])
-            box_at = (box[0] - gy, box[1] - gy, box[2] - gx, box[3] - gx)
-        if guess is not None and loc.found:
-            pred_err = math.hypot(loc.x - guess[0], loc.y - guess[1])
-        else:
-            pred_err = math.inf
-        ok = accept(loc)
-        if ok and method == "subpixel":
-            cal.add(loc)
-            if loc.radius_free:
-                if loc.inlier_frac < CAL_MIN_INLIER:
-                    revisit[i] = math.inf  # a free radius on a partial arc: always again
-            elif r_kn is None or loc.inlier_frac < CAL_MIN_INLIER:
-                # (a full rim's centre barely depends on the radius once calibrated)
-                revisit[i] = r_px if r_kn is None else r_kn
-        # a centre far from the prediction (a swapped frame, a ball found elsewhere by the
-        # full-frame search) does not predict the next frames: that is the plausibility
-        # checks' to judge, and one wrong centre would send the next searches astray
-        near = guess is None or math.hypot(loc.x - guess[0], loc.y - guess[1]) <= gate
-        if ok and near:
-            hist.append((i, loc.x, loc.y))
-            if len(hist) > 4:
-                hist.pop(0)
-        if ok:
-            r_loc = loc.r if math.isfinite(loc.r) else r_px  # thesis-small gives no radius
-            identical[i] = prev is not None and same_pixels(frame, prev, loc.x, loc.y, r_loc)
-            rows[i] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac, 1.0,
-                       ring_gain(frame, background, loc.x, loc.y, r_loc))
-        else:
-            rows[i, 5] = 0.0
-            lost[i] = bool(loc.found)
-        prev = frame
-        bar.update(1)
+    def track_span(a, b):
+        # frames a..b-1 with the segment's own prediction, search band and radius calibration;
+        # a later segment starts SEGMENT_WARMUP frames early, from a full-frame search, and
+        # keeps its answers from frame a on (those before are the previous segment's): by then
+        # its prediction and search band are one pass's again. Writes rows, lost and
+        # identical [a:b]; returns the calibration, the radii of frames a..b-1 and the frames
+        # to fit again
+        cal = RadiusCalibration(r_px, known=cal_known)
+        n_warm = 0  # radii the warm-up frames gave
+        revisit: dict[int, float] = {}  # frame -> radius its partial arc was fitted with
+        hist: list = []
+        prev = None
+        pred_err = math.inf  # how far the last prediction was off (px)
+        # the next frame's region read on a second thread while this one is located
+        ahead = ReadAhead(source) if read is not None and read_ahead else None
+        box_at = None  # the last region read about its frame's guess, (dy0, dy1, dx0, dx1)
+        try:
+            for i in range(max(0, a - SEGMENT_WARMUP) if a else 0, b):
+                if stop.is_set():
+                    break
+                if i == a:
+                    n_warm = len(cal.radii)
+                keep = i >= a
+                guess = _predict(hist, i)
+                frame = frame_at(i, guess, ahead)
+                # frame i + 1's region as far as it is known now: the last region read, moved
+                # to the centre predicted two frames ahead, grown by READ_AHEAD_PAD px a side
+                g = None if ahead is None or box_at is None or i + 1 >= b \
+                    else _predict(hist, i + 1)
+                if g is not None:
+                    gx, gy, p = math.floor(g[0]), math.floor(g[1]), READ_AHEAD_PAD
+                    ahead.prefetch(i + 1, (gy + box_at[0] - p, gy + box_at[1] + p,
+                                           gx + box_at[2] - p, gx + box_at[3] + p))
+                search = min(0.3 * r_px + 2.0, max(2.0, 4.0 * pred_err + 1.0))
+                r_kn = cal.value
+                loc = locator(frame, background, r_px, guess, center,
+                              opts=opts if r_kn is None else opts_cal, search=search,
+                              r_known=r_kn, r_known_sigma=cal.rel_sigma)
+                box = getattr(frame, "_box", None) if guess is not None else None
+                if box is not None:
+                    gx, gy = math.floor(guess[0]), math.floor(guess[1])
+                    box_at = (box[0] - gy, box[1] - gy, box[2] - gx, box[3] - gx)
+                if guess is not None and loc.found:
+                    pred_err = math.hypot(loc.x - guess[0], loc.y - guess[1])
+                else:
+                    pred_err = math.inf
+                ok = accept(loc)
+                if ok and method == "subpixel":
+                    cal.add(loc)
+                    if not keep:
+                        pass
+                    elif loc.radius_free:
+                        if loc.inlier_frac < CAL_MIN_INLIER:
+                            revisit[i] = math.inf  # a free radius on a partial arc: always again
+                    elif r_kn is None or loc.inlier_frac < CAL_MIN_INLIER:
+                        # (a full rim's centre barely depends on the radius once calibrated)
+                        revisit[i] = r_px if r_kn is None else r_kn
+                # a centre far from the prediction (a swapped frame, a ball found elsewhere by
+                # the full-frame search) does not predict the next frames: that is the
+                # plausibility checks' to judge, and one wrong centre would send the next
+                # searches astray
+                near = guess is None or math.hypot(loc.x - guess[0], loc.y - guess[1]) <= gate
+                if ok and near:
+                    hist.append((i, loc.x, loc.y))
+                    if len(hist) > 4:
+                        hist.pop(0)
+                if not keep:
+                    pass
+                elif ok:
+                    r_loc = loc.r if math.isfinite(loc.r) else r_px  # thesis-small: no radius
+                    identical[i] = prev is not None and same_pixels(frame, prev, loc.x, loc.y,
+                                                                    r_loc)
+                    rows[i] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac, 1.0,
+                               ring_gain(frame, background, loc.x, loc.y, r_loc))
+                else:
+                    rows[i, 5] = 0.0
+                    lost[i] = bool(loc.found)
+                prev = frame
+                if keep:
+                    bar.update(1)
+        except BaseException:
+            stop.set()
+            raise
+        finally:
+            if ahead is not None:  # its worker thread ends
+                ahead.close()
+                logger.debug(f"read ahead: {ahead.hits} regions read ahead, {ahead.misses} "
+                             "when asked")
+        return cal, cal.radii[n_warm:], revisit
+
+    spans = track_segments(n, segments)
+    # the segments on threads when the reader allows reads from two threads at once (the
+    # locator's kernels, decoding and a synthetic recording's sensor model release the GIL);
+    # else one after another: the track is the same either way
+    workers = min(len(spans), _cpus()) if getattr(source, "concurrent_reads", False) else 1
+    if workers > 1:
+        with concurrent.futures.ThreadPoolExecutor(
+                max_workers=workers, thread_name_prefix="rollfric-track") as pool:
+            futures = [pool.submit(track_span, a, b) for a, b in spans]
+            done = [f.result() for f in futures]
+    else:
+        done = [track_span(a, b) for a, b in spans]
     bar.close()
+    if len(done) == 1:
+        cal, _, revisit = done[0]
+    else:
+        # one calibration from every segment's radii (in frame order), one second pass
+        cal = RadiusCalibration(r_px, known=cal_known)
+        revisit = {}
+        for _, radii, revisit_s in done:
+            cal.radii.extend(radii)
+            revisit.update(revisit_s)
     cal.finish()
     r_cal = cal.value
     if r_cal is not None:
@@ -751,9 +868,6 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                           opts=opts_cal, search=2.0, r_known=r_cal, r_known_sigma=cal.rel_sigma)
             if accept(loc):
                 rows[i, :5] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac)
-    if ahead is not None:  # its worker thread ends (after an error: when it is collected)
-        ahead.close()
-        logger.debug(f"read ahead: {ahead.hits} regions read ahead, {ahead.misses} when asked")
     warnings = [cal.warning()] if cal.warning() else []
     warnings_radius = list(warnings)
     for msg in warnings:
@@ -1036,7 +1150,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             method: str = "subpixel", angle: str = "atan2", fit_method: str = "lsq",
             offset: bool | str = "auto", fit: bool = True, progress: bool = False,
             median_frames: int = 41, fit_kwargs: dict | None = None,
-            times: str = "auto", drops: bool = True, read_ahead: bool = False):
+            times: str = "auto", drops: bool = True, read_ahead: bool = False,
+            segments: int | str = "auto"):
     """Measure mu from a recording: (track DataFrame, TrackInfo, FitResult or None).
 
     ``recording``: a path (see :func:`rollfric.io.open_recording`) or a FrameSource.
@@ -1084,6 +1199,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         Find and repair dropped frames (above).
     read_ahead : bool
         Read the next frame's region on a second thread (:func:`track_recording`).
+    segments : int or "auto"
+        Track the recording in this many segments (:func:`track_recording`).
 
     Returns
     -------
@@ -1172,7 +1289,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     df, info = track_recording(source, setup, bg, method=method, angle=angle, center=center,
                                progress=progress,
                                times=None if times_desc == TIMES_FPS else t, drops=drops,
-                               read_ahead=read_ahead)
+                               read_ahead=read_ahead, segments=segments)
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,

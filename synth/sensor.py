@@ -27,9 +27,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from rollfric.jit import njit
 from synth.config import SensorConfig, SynthError
 
 GAMMA = 2.2  # pyrender's output encoding (linear colour ** (1 / 2.2))
@@ -60,14 +60,14 @@ def noise_key(seed: int, index: int | None) -> int:
     return _mix64(k + (i & _M64) * _GOLDEN)
 
 
-@numba.njit(cache=True)
+@njit
 def _hash(z):
     z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
     z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
     return z ^ (z >> np.uint64(31))
 
 
-@numba.njit(cache=True)
+@njit
 def _pair_normals(key, y, k):
     """The two standard normals (float32) of pixels 2k, 2k + 1 of row y."""
     gold = np.uint64(0x9E3779B97F4A7C15)
@@ -86,7 +86,7 @@ def _pair_normals(key, y, k):
         t += np.uint64(1)
 
 
-@numba.njit(cache=True)
+@njit
 def _normals_kernel(key, y0, x0, out):
     h, w = out.shape
     for r in range(h):
@@ -101,7 +101,7 @@ def _normals_kernel(key, y0, x0, out):
     return out
 
 
-@numba.njit(cache=True)
+@njit
 def _row_normals(key, y, x0, zrow):
     """The standard normals (float32) of pixels x0 .. x0 + len(zrow) - 1 of row y, into zrow."""
     w = zrow.shape[0]
@@ -120,7 +120,7 @@ def _row_normals(key, y, x0, zrow):
         zrow[c] = za
 
 
-@numba.njit(cache=True, nogil=True)  # nogil: a reader thread overlaps the locator
+@njit(nogil=True)  # nogil: a reader thread overlaps the locator
 def _apply_kernel(counts, lut, gain, offset, has_pattern, noisy, shot, read_var, k, black,
                   max_dn, key, y0, x0, out):
     """The sensor model of :meth:`Sensor.apply` over one region, "hash/1" noise: a row's

@@ -70,7 +70,15 @@ TRUTH_COLUMNS = {
 
 
 class SynthFrames:
-    """FrameSource over a synthetic recording (lazy: one frame decoded per access)."""
+    """FrameSource over a synthetic recording (lazy: one frame decoded per access).
+
+    ``concurrent_reads`` (True): frames and regions may be read from several threads at once
+    (each read opens its own chunk files; the sensor model keeps no state between reads), so
+    rollfric tracks a long recording's segments on as many threads
+    (:func:`rollfric.track.track_segments`).
+    """
+
+    concurrent_reads = True
 
     def __init__(self, group):
         a = dict(group.attrs)

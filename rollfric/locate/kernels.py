@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from rollfric.jit import njit
 
-@numba.njit(cache=True)
+
+@njit(nogil=True)
 def _profiles(rel, cx, cy, s0, ds, ns, n):
     """Bilinear samples of rel along n rays from (cx, cy) at s0 + j ds; NaN outside rel."""
     h, w = rel.shape
@@ -34,7 +35,7 @@ def _profiles(rel, cx, cy, s0, ds, ns, n):
     return prof
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _bilinear(img, x, y):
     """img at (x, y) by bilinear interpolation; NaN outside."""
     h, w = img.shape
@@ -48,7 +49,7 @@ def _bilinear(img, x, y):
             + fy * ((1 - fx) * img[iy + 1, ix] + fx * img[iy + 1, ix + 1]))
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _bg_step(bgr, cx, cy, phi, s_in, s_out, nl, ds):
     """The background's own change along a ray at angle phi from (cx, cy): the mean over nl
     samples ending at s_in (inwards) minus the mean over nl samples from s_out outwards."""
@@ -61,7 +62,7 @@ def _bg_step(bgr, cx, cy, phi, s_in, s_out, nl, ds):
     return (a - b) / nl
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _rim_median(values, ok, min_count):
     """Per ray, the median of ``values`` over the rays within 1/16 of the rim each side (about
     1/8 of it, the ring wrapping round) where ``ok``; NaN where fewer than ``min_count``."""
@@ -94,7 +95,7 @@ def _rim_median(values, ok, min_count):
     return out
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _rim_median_plain(values, ok, min_count, half):
     """:func:`_rim_median` window by window (np.median of each): what it does with NaN."""
     n = values.shape[0]
@@ -112,7 +113,7 @@ def _rim_median_plain(values, ok, min_count, half):
     return out
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _sorted_insert(buf, m, v):
     """Insert v into the ascending buf[:m]; returns m + 1."""
     k = m
@@ -123,7 +124,7 @@ def _sorted_insert(buf, m, v):
     return m + 1
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _sorted_remove(buf, m, v):
     """Remove one value equal to v from the ascending buf[:m]; returns m - 1."""
     k = 0
@@ -134,7 +135,7 @@ def _sorted_remove(buf, m, v):
     return m - 1
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx, cy):
     """Per ray: the steepest step of the ball's polarity in [r - w, r + w], then the edge
     position from the integral of the normalised profile across a window of 2 ne + 2 samples
@@ -372,7 +373,7 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
     return s_edge, con, osd, valid, a_used, b_used, spread
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _solve3(m, v):
     det = (m[0, 0] * (m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1])
            - m[0, 1] * (m[1, 0] * m[2, 2] - m[1, 2] * m[2, 0])
@@ -391,7 +392,7 @@ def _solve3(m, v):
     return out
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _fit_circle(xs, ys, r_known, free, tukey_c, sigma_floor):
     """Robust geometric circle fit: algebraic (Kasa) start, then Gauss-Newton on the
     point-to-circle distances with Tukey biweights (scale from the MAD, floored at
@@ -463,7 +464,7 @@ def _fit_circle(xs, ys, r_known, free, tukey_c, sigma_floor):
     return cx, cy, r, wts, res
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _edge_cdf(t, a, b):
     """Area of a unit pixel on the inner side of a straight edge at signed distance t from its
     centre, for an edge normal (cos, sin) with |cos| = a >= |sin| = b: the CDF of the sum of
@@ -486,7 +487,7 @@ def _edge_cdf(t, a, b):
     return 1.0, 0.0
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
     """Refine the circle on the pixels themselves: each pixel within 1.5 px of the rim, on a
     ray kept by the robust fit, is modelled as b + (a - b) * (area of the pixel inside the
@@ -630,7 +631,7 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
     return cx, cy, r, sig, npix
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor, local, b_lv,
             flank):
     """Edge points of the clean rays: the ball's typical contrast (a tight band first, widened
@@ -710,7 +711,7 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor,
     return 0, xs, ys, idx
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _rim_sectors(con, valid, out_sd, b_lv, noise):
     """The rays whose outside is the background itself (``ok``: there the contrast varies with
     the ball's inside only) and among them the low-contrast sector (``low``: the contrast along
@@ -738,7 +739,7 @@ def _rim_sectors(con, valid, out_sd, b_lv, noise):
     return ok, low
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _mirror_signature(con, valid, out_sd, b_lv, noise, least):
     """Whether the rim looks like a mirror's: where its outside is the background itself, the
     contrast along it falls into a low sector (the rim mirrors something bright, the backdrop)
@@ -753,7 +754,7 @@ def _mirror_signature(con, valid, out_sd, b_lv, noise, least):
     return nlow >= least * m and m - nlow >= least * m
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _fit_stats(wts, res):
     """Inliers, their median residual and weighted rms residual."""
     inl = wts > 0
@@ -764,7 +765,7 @@ def _fit_stats(wts, res):
     return n_in, np.median(res[inl]), np.sqrt((wts * res * res).sum() / max(sw, 1e-12))
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, cx, cy, inset, kappa, most, relative):
     """Move each ray's edge out by the Fresnel rise of a mirror ball's rim: within a fraction
     of a pixel of the silhouette the ball reflects more (grazing incidence) than where its
@@ -806,7 +807,7 @@ def _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, cx, cy, inset, kappa, most, rela
     return shift
 
 
-@numba.njit(cache=True)
+@njit(nogil=True)
 def _ring_sums(fr, bg, x0, y0, cx, cy, r_in, r_out):
     """(sum of ``fr``, sum of ``bg``, pixels) over the pixels of the crops ``fr``, ``bg`` (whose
     top-left pixel is (x0, y0) of the frame) at a distance in [r_in, r_out] from (cx, cy), the
