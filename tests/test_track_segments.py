@@ -106,7 +106,7 @@ def test_a_fast_ball_s_second_segment_differs_in_the_locator_s_last_digits_only(
 
 def test_segments_on_threads_and_one_after_another_give_the_same_track(monkeypatch):
     rec, frames = _recording()
-    monkeypatch.setattr(track, "_cpus", lambda: 2)
+    monkeypatch.setattr(track, "_free_cpus", lambda: 2)
     runs, threads = [], []
     for concurrent in (False, True):
         src = _Source(frames, concurrent=concurrent)
@@ -118,6 +118,33 @@ def test_segments_on_threads_and_one_after_another_give_the_same_track(monkeypat
     # one after another in the caller's thread; concurrently on two others
     assert threads[0] == {threading.get_ident()}
     assert len(threads[1] - {threading.get_ident()}) == 2
+    # no CPU free: one after another, the same track
+    monkeypatch.setattr(track, "_free_cpus", lambda: 1)
+    src = _Source(frames)
+    busy = track_recording(src, rec.setup, rec.background, progress=False,
+                           center=rec.scene.center, segments=2)
+    pd.testing.assert_frame_equal(busy[0], runs[0][0], check_exact=True)
+    assert src.threads == {threading.get_ident()}
+
+
+def test_the_free_cpus_are_the_process_s_less_the_threads_running_elsewhere(monkeypatch,
+                                                                            tmp_path):
+    import builtins
+
+    real_open = builtins.open
+    loadavg = tmp_path / "loadavg"
+
+    def fake_open(path, *a, **k):
+        return real_open(loadavg if path == "/proc/loadavg" else path, *a, **k)
+
+    monkeypatch.setattr(builtins, "open", fake_open)
+    monkeypatch.setattr(track, "_cpus", lambda: 2)
+    for line, free in (("0.5 0.4 0.3 1/300 77", 2), ("1.9 1.0 0.8 2/300 77", 1),
+                       ("11.0 9.0 8.0 13/500 77", 1)):
+        loadavg.write_text(line + "\n")
+        assert track._free_cpus() == free
+    loadavg.write_text("garbled\n")  # unreadable: every CPU of the process
+    assert track._free_cpus() == 2
 
 
 def test_a_repeated_frame_at_a_segment_s_start_is_flagged_as_in_one_pass():
@@ -137,7 +164,7 @@ def _track_threads():
 
 def test_an_error_in_one_segment_is_raised_and_no_thread_is_left(monkeypatch):
     rec, frames = _recording()
-    monkeypatch.setattr(track, "_cpus", lambda: 2)
+    monkeypatch.setattr(track, "_free_cpus", lambda: 2)
     before = set(_track_threads())
     with pytest.raises(RecordingError, match="frame 60 is corrupt"):
         _track(rec, frames, 2, bad={60})
