@@ -328,7 +328,8 @@ def bench_e2e(quick: bool) -> list[Row]:
                         "frames/s", "target 1000 frames/s", 1000.0, fps / 1000.0, "speed-up",
                         "wall time of the case's measure stage: the store opened, background, "
                         "trough centre, each tracked region read with the sensor model, the "
-                        "locator (the recording's halves on 2 threads), fits, checks and budget "
+                        "locator (the recording's halves, on 2 threads when a core is free), fits, "
+                        "checks and budget "
                         "(the process's imports not counted)"))
         alone = throughput("10mm", 150 if quick else 600)
         rows.append(Row("end-to-end", "measure end to end beside the locator alone (frames/s)",
