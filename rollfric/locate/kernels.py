@@ -215,10 +215,10 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
             v = prof[i, kb + ne + 2 + j]
             b += v
             b2 += v * v
-        a_near[i] = 0.0  # the level over the nh samples next to the edge window
+        an = 0.0  # the level over the nh samples next to the edge window
         for j in range(nh):
-            a_near[i] += prof[i, kb - ne - 1 - j]
-        a_near[i] /= nh
+            an += prof[i, kb - ne - 1 - j]
+        a_near[i] = an / nh
         a /= nl
         b /= nl
         # the level a further nl samples inside: a flat inside (a rim's reflection), a
@@ -324,9 +324,10 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
             continue
         acc = 0.0
         nw = 2 * ne + 2
+        clip = cres[i]
         for j in range(nw):
             f = (prof[i, kb - ne + j] - b) / c
-            if cres[i]:
+            if clip:
                 f = min(f, 1.0)
             acc += 0.5 * f if (j == 0 or j == nw - 1) else f
         se = s0 + (kb - ne) * ds + ds * acc
@@ -339,7 +340,7 @@ def _edges(prof, s0, ds, r, w, ne, nl, ksm, min_rel, local_lv, wide_out, bgr, cx
         gs = 0.0
         gm = 0.0
         for j in range(kb - ne - nl // 2, kb + ne + 1 + nl // 2):
-            if cres[i]:
+            if clip:
                 g = max(min((prof[i, j] - b) / c, 1.0) - min((prof[i, j + 1] - b) / c, 1.0), 0.0)
             else:
                 g = max((prof[i, j] - prof[i, j + 1]) / c, 0.0)
@@ -660,11 +661,12 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor,
     # outside is the background (a shadow, a glitch or an occluder changes the outside: those
     # rays keep the median)
     cref = np.full(n, cmed)
+    low = np.zeros(n, np.bool_)
     if local:
         # the rays whose outside is not the background keep one typical contrast: that of
         # the rim outside the mirrored sector (the median over both is between them)
-        _, lowb = _rim_sectors(con, valid, out_sd, b_lv, noise)
-        full = valid & ~lowb
+        _, low = _rim_sectors(con, valid, out_sd, b_lv, noise)
+        full = valid & ~low
         if full.sum() >= min_rays:
             cref[:] = np.median(con[full])
         loc = _rim_median(con, valid, max(2, n // 16))
@@ -680,7 +682,6 @@ def _select(s_edge, con, out_sd, valid, lcx, lcy, bands, min_rays, noise, floor,
         if cnt >= max(min_rays, 0.4 * nv):
             break
     if local and flank > 0:
-        ok, low = _rim_sectors(con, valid, out_sd, b_lv, noise)
         near = np.zeros(n, np.bool_)
         for i in range(n):
             if low[i]:
