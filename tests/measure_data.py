@@ -6,10 +6,12 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import threading
 
 import numpy as np
 
 from rollfric import eom
+from rollfric.io import RecordingError
 from rollfric.setup import Setup
 from validation.drawn_frames import Scene, make_frames
 
@@ -70,3 +72,42 @@ def write_lab(folder, n=60, noise=1.0):
                                                                         strict=True)]
     (folder / "track.csv").write_text("\n".join(lines) + "\n")
     return folder
+
+
+class MemorySource:
+    """An in-memory RegionSource (frames and regions as a reader gives them) that records which
+    threads read it (``threads``) and every region read (``reads``).
+
+    ``bad``: frame -> the first column whose reads fail (0: the whole frame is corrupt; a
+    whole-frame read of a bad frame always fails). ``concurrent``: its ``concurrent_reads``
+    (rollfric may read it from several threads at once)."""
+
+    def __init__(self, frames, *, concurrent=False, bad=None):
+        self.frames = frames
+        self.shape = (len(frames),) + frames[0].shape
+        self.dtype = frames[0].dtype
+        self.fps = None
+        self.background = None
+        self.attrs = {}
+        self.concurrent_reads = concurrent
+        self.bad = dict(bad or {})
+        self.threads = set()
+        self.reads = []
+
+    def __len__(self):
+        return self.shape[0]
+
+    def __getitem__(self, i):
+        self.threads.add(threading.get_ident())
+        if i in self.bad:
+            raise RecordingError(f"frame {i} is corrupt")
+        return self.frames[i].copy()
+
+    def read(self, i, roi):
+        self.threads.add(threading.get_ident())
+        y0, y1, x0, x1 = roi
+        self.reads.append((i, roi))
+        if i in self.bad and x1 > self.bad[i]:
+            raise RecordingError(f"frame {i} is corrupt" if self.bad[i] == 0 else
+                                 f"frame {i}'s columns from {self.bad[i]} are corrupt")
+        return self.frames[i][y0:y1, x0:x1].copy()

@@ -8,43 +8,12 @@ import threading
 import numpy as np
 import pandas as pd
 import pytest
+from measure_data import MemorySource as _Source
 from measure_data import make_recording
 
 from rollfric.io import RecordingError
 from rollfric.readahead import ReadAhead
 from rollfric.track import measure, track_recording
-
-
-class _Source:
-    """An in-memory RegionSource that records which thread made each read."""
-
-    def __init__(self, frames, bad=()):
-        self.frames = frames
-        self.shape = (len(frames),) + frames[0].shape
-        self.dtype = frames[0].dtype
-        self.fps = None
-        self.background = None
-        self.attrs = {}
-        self.bad = dict(bad)  # frame -> column from which its reads fail
-        self.threads = set()
-        self.reads = []
-
-    def __len__(self):
-        return self.shape[0]
-
-    def __getitem__(self, i):
-        self.threads.add(threading.get_ident())
-        if i in self.bad:
-            raise RecordingError(f"frame {i} is corrupt")
-        return self.frames[i].copy()
-
-    def read(self, i, roi):
-        self.threads.add(threading.get_ident())
-        y0, y1, x0, x1 = roi
-        self.reads.append((i, roi))
-        if i in self.bad and x1 > self.bad[i]:
-            raise RecordingError(f"frame {i}'s columns from {self.bad[i]} are corrupt")
-        return self.frames[i][y0:y1, x0:x1].copy()
 
 
 def _frames(n=12, h=40, w=50, seed=0):

@@ -8,43 +8,12 @@ import threading
 import numpy as np
 import pandas as pd
 import pytest
-from measure_data import make_recording
+from measure_data import MemorySource, make_recording
 
 from rollfric import track
 from rollfric.errors import InputError
 from rollfric.io import RecordingError
 from rollfric.track import SEGMENT_MIN_FRAMES, track_recording, track_segments
-
-
-class _Source:
-    """An in-memory RegionSource that records which threads read it."""
-
-    def __init__(self, frames, *, concurrent=True, bad=()):
-        self.frames = frames
-        self.shape = (len(frames),) + frames[0].shape
-        self.dtype = frames[0].dtype
-        self.fps = None
-        self.background = None
-        self.attrs = {}
-        self.concurrent_reads = concurrent
-        self.bad = set(bad)
-        self.threads = set()
-
-    def __len__(self):
-        return self.shape[0]
-
-    def _frame(self, i):
-        self.threads.add(threading.get_ident())
-        if i in self.bad:
-            raise RecordingError(f"frame {i} is corrupt")
-        return self.frames[i]
-
-    def __getitem__(self, i):
-        return self._frame(i).copy()
-
-    def read(self, i, roi):
-        y0, y1, x0, x1 = roi
-        return self._frame(i)[y0:y1, x0:x1].copy()
 
 
 def test_the_segments_cover_the_recording_in_order():
@@ -68,7 +37,8 @@ def _recording(fps=1000.0):
 
 
 def _track(rec, frames, segments, **kw):
-    return track_recording(_Source(frames, **kw), rec.setup, rec.background, progress=False,
+    source = MemorySource(frames, **{"concurrent": True, **kw})
+    return track_recording(source, rec.setup, rec.background, progress=False,
                            center=rec.scene.center, segments=segments)
 
 
@@ -109,7 +79,7 @@ def test_segments_on_threads_and_one_after_another_give_the_same_track(monkeypat
     monkeypatch.setattr(track, "_free_cpus", lambda: 2)
     runs, threads = [], []
     for concurrent in (False, True):
-        src = _Source(frames, concurrent=concurrent)
+        src = MemorySource(frames, concurrent=concurrent)
         runs.append(track_recording(src, rec.setup, rec.background, progress=False,
                                     center=rec.scene.center, segments=2))
         threads.append(src.threads)
@@ -120,7 +90,7 @@ def test_segments_on_threads_and_one_after_another_give_the_same_track(monkeypat
     assert len(threads[1] - {threading.get_ident()}) == 2
     # no CPU free: one after another, the same track
     monkeypatch.setattr(track, "_free_cpus", lambda: 1)
-    src = _Source(frames)
+    src = MemorySource(frames, concurrent=True)
     busy = track_recording(src, rec.setup, rec.background, progress=False,
                            center=rec.scene.center, segments=2)
     pd.testing.assert_frame_equal(busy[0], runs[0][0], check_exact=True)
@@ -167,7 +137,7 @@ def test_an_error_in_one_segment_is_raised_and_no_thread_is_left(monkeypatch):
     monkeypatch.setattr(track, "_free_cpus", lambda: 2)
     before = set(_track_threads())
     with pytest.raises(RecordingError, match="frame 60 is corrupt"):
-        _track(rec, frames, 2, bad={60})
+        _track(rec, frames, 2, bad={60: 0})
     for t in set(_track_threads()) - before:
         t.join(timeout=10.0)
         assert not t.is_alive()
