@@ -806,9 +806,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                 ok = accept(loc)
                 if ok and method == "subpixel":
                     cal.add(loc)
-                    if not keep:
-                        pass
-                    elif loc.radius_free:
+                if keep and ok and method == "subpixel":
+                    if loc.radius_free:
                         if loc.inlier_frac < CAL_MIN_INLIER:
                             revisit[i] = math.inf  # a free radius on a partial arc: always again
                     elif r_kn is None or loc.inlier_frac < CAL_MIN_INLIER:
@@ -823,15 +822,13 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                     hist.append((i, loc.x, loc.y))
                     if len(hist) > 4:
                         hist.pop(0)
-                if not keep:
-                    pass
-                elif ok:
+                if keep and ok:
                     r_loc = loc.r if math.isfinite(loc.r) else r_px  # thesis-small: no radius
                     identical[i] = prev is not None and same_pixels(frame, prev, loc.x, loc.y,
                                                                     r_loc)
                     rows[i] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac, 1.0,
                                ring_gain(frame, background, loc.x, loc.y, r_loc))
-                else:
+                elif keep:
                     rows[i, 5] = 0.0
                     lost[i] = bool(loc.found)
                 prev = frame
