@@ -367,7 +367,7 @@ def _sticks(th, mu0):
     return abs(math.sin(th)) <= mu0 * math.cos(th) or math.sin(th) == 0.0
 
 
-@njit
+@njit(nogil=True)  # nogil: independent fits run on threads (rollfric.cpus)
 def _solve_rk4(t, theta0, omega0, mu0, mu1, L, g, h_max):
     n = t.shape[0]
     theta = np.empty(n)

@@ -22,7 +22,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from scipy import optimize, signal
 
-from rollfric import eom, filtering
+from rollfric import cpus, eom, filtering
 from rollfric.errors import InputError
 from rollfric.filtering import on_grid
 from rollfric.registry import FIT_METHODS
@@ -438,12 +438,15 @@ def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulo
         if any(abs(mu_s - m) <= 0.1 * max(m, 1e-4) for _, m in starts):
             continue
         starts.append((label, mu_s))
-    coarse = []
-    for label, mu_s in starts:
+    def coarse_fit(start):
+        label, mu_s = start
         x0 = {"mu": mu_s, "theta0": g0["theta0"], "omega0": g0["omega0"],
               "offset": g0["offset"], "mu1": 0.0}
         x0 = np.clip(np.array([x0[n] for n in names], dtype=float), lower, upper)
-        coarse.append((label, solve(x0, everything, STAGE1_NFEV, 1e-10)))
+        return label, solve(x0, everything, STAGE1_NFEV, 1e-10)
+
+    # the starts are independent: on the CPUs that are free, the same fits (rollfric.cpus)
+    coarse = cpus.map_ordered(coarse_fit, starts, name="rollfric-fit")
     # polish every coarse fit that came near the best (a coarse fit that ranks first may
     # still stall in a flat valley): keep the best polished one
     coarse.sort(key=lambda c: c[1].cost)

@@ -13,19 +13,17 @@ thesis's theta = arcsin((x - xc) / L_px) with L = R - r (``angle="arcsin"``).
 
 from __future__ import annotations
 
-import concurrent.futures
 import dataclasses
 import functools
 import logging
 import math
-import os
 import sys
 import threading
 
 import numpy as np
 import pandas as pd
 
-from rollfric import io, locate, plausibility, quality, timing
+from rollfric import cpus, io, locate, plausibility, quality, timing
 from rollfric.background import median_background
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
@@ -599,28 +597,6 @@ def track_segments(n: int, segments: int | str = "auto") -> list[tuple[int, int]
     return list(zip(bounds[:-1], bounds[1:], strict=True))
 
 
-def _cpus() -> int:
-    """The CPUs this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
-
-
-def _free_cpus() -> int:
-    """The CPUs this thread and the ones it may start have now: this process's CPUs less the
-    threads running elsewhere at this instant (Linux's /proc/loadavg; all of them where it
-    cannot be read). On a busy machine a second tracking thread only waits for the GIL while
-    the first is descheduled: measured at load 8-12 on 2 cores, 4001 frames took a median
-    31.6 s on two threads against 23.4 s on one."""
-    try:
-        with open("/proc/loadavg") as f:
-            running = int(f.read().split()[3].split("/")[0])  # this thread included
-    except (OSError, ValueError, IndexError):
-        return _cpus()
-    return max(1, _cpus() - max(0, running - 1))
-
-
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
                     angle: str = "atan2", center: tuple[float, float] | None = None,
                     progress: bool = True, opts=None,
@@ -848,15 +824,9 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     # the segments on threads when the reader allows reads from two threads at once (the
     # locator's kernels, decoding and a synthetic recording's sensor model release the GIL)
     # and CPUs are free; else one after another: the track is the same either way
-    workers = min(len(spans), _free_cpus()) if getattr(source, "concurrent_reads", False) \
-        and len(spans) > 1 else 1
-    if workers > 1:
-        with concurrent.futures.ThreadPoolExecutor(
-                max_workers=workers, thread_name_prefix="rollfric-track") as pool:
-            futures = [pool.submit(track_span, a, b) for a, b in spans]
-            done = [f.result() for f in futures]
-    else:
-        done = [track_span(a, b) for a, b in spans]
+    workers = cpus.free_cpus() if getattr(source, "concurrent_reads", False) else 1
+    done = cpus.map_ordered(lambda span: track_span(*span), spans, workers=workers,
+                            name="rollfric-track")
     bar.close()
     if len(done) == 1:
         cal, _, revisit = done[0]
@@ -1441,29 +1411,35 @@ def turning_gaps(t, theta, result, setup: Setup, offset: bool, fit_kwargs=None):
         d = th[finite] - np.asarray(res.curve, dtype=float)[finite]
         return float(np.mean(d[np.isfinite(d)] ** 2))
 
+    def refit(k):
+        t2 = t.copy()
+        t2[k + 1:] += 1.0 / setup.fps
+        return t2, fitmod.fit_mu(t2, th, setup, method="lsq", offset=offset,
+                                 **(fit_kwargs or {}))
+
+    def better(k, fitted):
+        # correlated residuals (a systematic misfit, not noise) hold fewer independent
+        # samples: n (1 - rho) / (1 + rho), rho the lag-1 autocorrelation of the new fit's
+        # residual over the samples it used
+        r2 = fitted[1]
+        res2 = th - np.asarray(r2.curve, dtype=float)
+        if r2.used is not None and r2.used.shape == res2.shape:
+            res2 = np.where(r2.used, res2, np.nan)
+        rho = quality.lag1_autocorrelation(res2)
+        rho = min(max(rho, 0.0), 0.999) if math.isfinite(rho) else 0.999
+        n = int(finite.sum()) * (1.0 - rho) / (1.0 + rho)
+        return timing.likelihood_ratio(ssr(result), ssr(r2), n) >= timing.TURN_LR_MIN
+
     found = []
     for _ in range(timing.TURN_MAX):
-        step = None
-        for k, _z in timing.turning_gap_candidates(t, th, result.curve,
-                                                   setup.fps)[:timing.TURN_TRIES]:
-            t2 = t.copy()
-            t2[k + 1:] += 1.0 / setup.fps
-            r2 = fitmod.fit_mu(t2, th, setup, method="lsq", offset=offset, **(fit_kwargs or {}))
-            # correlated residuals (a systematic misfit, not noise) hold fewer independent
-            # samples: n (1 - rho) / (1 + rho), rho the lag-1 autocorrelation of the new fit's
-            # residual over the samples it used
-            res2 = th - np.asarray(r2.curve, dtype=float)
-            if r2.used is not None and r2.used.shape == res2.shape:
-                res2 = np.where(r2.used, res2, np.nan)
-            rho = quality.lag1_autocorrelation(res2)
-            rho = min(max(rho, 0.0), 0.999) if math.isfinite(rho) else 0.999
-            n = int(finite.sum()) * (1.0 - rho) / (1.0 + rho)
-            if timing.likelihood_ratio(ssr(result), ssr(r2), n) >= timing.TURN_LR_MIN:
-                step = (k, t2, r2)
-                break
+        # the candidates' refits are independent: on the CPUs that are free, the first that
+        # passes in their order is the loop's (rollfric.cpus.first_ordered)
+        cands = [k for k, _z in timing.turning_gap_candidates(t, th, result.curve,
+                                                              setup.fps)[:timing.TURN_TRIES]]
+        step = cpus.first_ordered(refit, cands, better, name="rollfric-fit")
         if step is None:
             break
-        k, t, result = step
+        k, (t, result) = step
         found.append((int(k), 1))
     return t, result, tuple(found)
 

@@ -48,7 +48,7 @@ import time
 import numpy as np
 from scipy import optimize
 
-from rollfric import eom
+from rollfric import cpus, eom
 from rollfric.errors import InputError
 from rollfric.hac import autocorrelation, hac_covariance  # noqa: F401 (re-exported)
 from rollfric.setup import LAB_KEYS, Setup
@@ -262,12 +262,36 @@ class _Refitter:
         off + (1 + g1) theta + g2 theta^2 + g3 theta^3 (what a wrong centre, radius, frame
         rate, pixel scale or a lens does to the angles, to third order): a fit whose residuals
         are the noise, not the misfit a setup error leaves."""
+        key, t, th = self._key(setup, jacobian, augmented)
+        if key not in self._cache:
+            self._cache[key] = self._solve(t, th, setup, jacobian, augmented)
+            self.count += 1
+        return self._cache[key]
+
+    def prefetch(self, jobs) -> None:
+        """Make the fits ``jobs`` = [(setup, jacobian, augmented), ...] that are not made yet
+        on the CPUs that are free (:func:`rollfric.cpus.map_ordered`): :meth:`fit` then finds
+        them made. Each is the fit :meth:`fit` would make, so the results, and ``count``, are
+        those of calling :meth:`fit` with them one after another."""
+        todo = {}
+        for setup, jacobian, augmented in jobs:
+            key, t, th = self._key(setup, jacobian, augmented)
+            if key not in self._cache and key not in todo:
+                todo[key] = (t, th, setup, jacobian, augmented)
+        done = cpus.map_ordered(lambda job: self._solve(*job), todo.values(),
+                                name="rollfric-budget")
+        for key, out in zip(todo, done, strict=True):
+            self._cache[key] = out
+            self.count += 1
+
+    def _key(self, setup: Setup, jacobian: bool, augmented: bool):
         t, th = self.meas.series(setup)
         t, th = t[self.mask], th[self.mask]
+        return (t.tobytes(), th.tobytes(), setup.track_radius, setup.gravity, jacobian,
+                augmented), t, th
+
+    def _solve(self, t, th, setup: Setup, jacobian: bool, augmented: bool):
         L0, g = setup.track_radius, setup.gravity
-        key = (t.tobytes(), th.tobytes(), L0, g, jacobian, augmented)
-        if key in self._cache:
-            return self._cache[key]
         names = list(self.names) + (["length"] if self.fit_length else [])
         start = dict(self.start, length=L0)
         if augmented:
@@ -297,11 +321,8 @@ class _Refitter:
         sol = optimize.least_squares(residual, x0, bounds=(lower, upper), x_scale=scale,
                                      xtol=1e-10, ftol=1e-10, gtol=1e-10,
                                      max_nfev=200)
-        self.count += 1
-        out = (dict(zip(names, (float(v) for v in sol.x), strict=True)),
-               sol.jac if jacobian else None, sol.fun)
-        self._cache[key] = out
-        return out
+        return (dict(zip(names, (float(v) for v in sol.x), strict=True)),
+                sol.jac if jacobian else None, sol.fun)
 
     def mu(self, setup: Setup) -> float:
         return self.fit(setup)[0]["mu"]
@@ -361,6 +382,16 @@ def _acts(meas: Measurement, field: str) -> str:
     if field == "pixel_size" and meas.angle == "atan2":
         return "atan2 angles do not depend on the pixel scale"
     return ""
+
+
+def _why_not(meas: Measurement, field: str, fit_length: bool) -> str:
+    """'' when ``field`` acts on mu in the budget, else why not (:func:`_acts`; with
+    ``fit_length`` the inputs that act only through L or g do not)."""
+    why = _acts(meas, field)
+    if fit_length and field in ("cylinder_radius", "ball_diameter", "gravity") and not why:
+        if not (meas.from_centres and meas.angle == "arcsin"):
+            why = "acts only through L/g, which is fitted (self-calibration)"
+    return why
 
 
 # -- beyond first order: GUM 5.1.2, note ----------------------------------------------------
@@ -472,6 +503,13 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     meas, contour = _contour_centre_as_input(meas)
     setup = meas.setup
     refit = _Refitter(meas, result, fit_length=fit_length)
+    inputs = [(*i, _why_not(meas, i[1], fit_length)) for i in _inputs(setup)]
+    # the nominal fits and each acting input's fits at +-u are independent of one another:
+    # made at once on the CPUs that are free, then found made below (the same fits)
+    refit.prefetch([(setup, True, False), (setup, False, True), (setup, False, False)]
+                   + [(_moved(setup, field, comp, sign * u, factor), False, False)
+                      for _, field, comp, _, u, factor, why in inputs if u != 0.0 and not why
+                      for sign in (1.0, -1.0)])
     params, jac, res = refit.fit(setup, jacobian=True)
     names = list(params)
     aug, _, noise = refit.fit(setup, augmented=True)
@@ -499,11 +537,7 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     if fit_length:
         i_l = names.index("length")
         u_l2 = max(hac[i_l, i_l], ordinary[i_l, i_l], 0.0)
-    for source, field, comp, value, u, factor in _inputs(setup):
-        why = _acts(meas, field)
-        if fit_length and field in ("cylinder_radius", "ball_diameter", "gravity") and not why:
-            if not (meas.from_centres and meas.angle == "arcsin"):
-                why = "acts only through L/g, which is fitted (self-calibration)"
+    for source, field, comp, value, u, factor, why in inputs:
         if u == 0.0:
             exact.append(source)
             continue

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from measure_data import MemorySource, make_recording
 
-from rollfric import track
+from rollfric import cpus
 from rollfric.errors import InputError
 from rollfric.io import RecordingError
 from rollfric.track import SEGMENT_MIN_FRAMES, track_recording, track_segments
@@ -76,7 +76,7 @@ def test_a_fast_ball_s_second_segment_differs_in_the_locator_s_last_digits_only(
 
 def test_segments_on_threads_and_one_after_another_give_the_same_track(monkeypatch):
     rec, frames = _recording()
-    monkeypatch.setattr(track, "_free_cpus", lambda: 2)
+    monkeypatch.setattr(cpus, "free_cpus", lambda: 2)
     runs, threads = [], []
     for concurrent in (False, True):
         src = MemorySource(frames, concurrent=concurrent)
@@ -89,7 +89,7 @@ def test_segments_on_threads_and_one_after_another_give_the_same_track(monkeypat
     assert threads[0] == {threading.get_ident()}
     assert len(threads[1] - {threading.get_ident()}) == 2
     # no CPU free: one after another, the same track
-    monkeypatch.setattr(track, "_free_cpus", lambda: 1)
+    monkeypatch.setattr(cpus, "free_cpus", lambda: 1)
     src = MemorySource(frames, concurrent=True)
     busy = track_recording(src, rec.setup, rec.background, progress=False,
                            center=rec.scene.center, segments=2)
@@ -108,13 +108,13 @@ def test_the_free_cpus_are_the_process_s_less_the_threads_running_elsewhere(monk
         return real_open(loadavg if path == "/proc/loadavg" else path, *a, **k)
 
     monkeypatch.setattr(builtins, "open", fake_open)
-    monkeypatch.setattr(track, "_cpus", lambda: 2)
+    monkeypatch.setattr(cpus, "cpus", lambda: 2)
     for line, free in (("0.5 0.4 0.3 1/300 77", 2), ("1.9 1.0 0.8 2/300 77", 1),
                        ("11.0 9.0 8.0 13/500 77", 1)):
         loadavg.write_text(line + "\n")
-        assert track._free_cpus() == free
+        assert cpus.free_cpus() == free
     loadavg.write_text("garbled\n")  # unreadable: every CPU of the process
-    assert track._free_cpus() == 2
+    assert cpus.free_cpus() == 2
 
 
 def test_a_repeated_frame_at_a_segment_s_start_is_flagged_as_in_one_pass():
@@ -134,7 +134,7 @@ def _track_threads():
 
 def test_an_error_in_one_segment_is_raised_and_no_thread_is_left(monkeypatch):
     rec, frames = _recording()
-    monkeypatch.setattr(track, "_free_cpus", lambda: 2)
+    monkeypatch.setattr(cpus, "free_cpus", lambda: 2)
     before = set(_track_threads())
     with pytest.raises(RecordingError, match="frame 60 is corrupt"):
         _track(rec, frames, 2, bad={60: 0})
