@@ -146,29 +146,43 @@ def _edges(img, px, py, nx, ny, levels=()):
 
 
 def _ransac_circle(xs, ys, r_expected, rng, iters=400, tol=2.0):
+    """The circle through 3 of the points (drawn ``iters`` times) with the most points within
+    ``tol`` px, weighted by a prior on ``r_expected``: (x, y, r), or None. The candidates are
+    drawn one by one (the generator's stream) and scored together, each with the arithmetic
+    of one at a time, so the circle is that of a loop over them (the first of equal scores)."""
     n = len(xs)
-    best = (-1.0, None)
-    for _ in range(iters):
-        i, j, k = rng.choice(n, 3, replace=False)
-        ax, ay, bx, by, cx_, cy_ = xs[i], ys[i], xs[j], ys[j], xs[k], ys[k]
-        d = 2 * (ax * (by - cy_) + bx * (cy_ - ay) + cx_ * (ay - by))
-        if abs(d) < 1e-9:
-            continue
+    tri = np.array([rng.choice(n, 3, replace=False) for _ in range(iters)]).reshape(-1, 3)
+    ax, ay, bx, by, cx_, cy_ = xs[tri[:, 0]], ys[tri[:, 0]], xs[tri[:, 1]], ys[tri[:, 1]], \
+        xs[tri[:, 2]], ys[tri[:, 2]]
+    d = 2 * (ax * (by - cy_) + bx * (cy_ - ay) + cx_ * (ay - by))
+    ok = np.abs(d) >= 1e-9
+    with np.errstate(divide="ignore", invalid="ignore"):
         ux = ((ax * ax + ay * ay) * (by - cy_) + (bx * bx + by * by) * (cy_ - ay)
               + (cx_ * cx_ + cy_ * cy_) * (ay - by)) / d
         uy = ((ax * ax + ay * ay) * (cx_ - bx) + (bx * bx + by * by) * (ax - cx_)
               + (cx_ * cx_ + cy_ * cy_) * (bx - ax)) / d
-        r = math.hypot(ax - ux, ay - uy)
+    cands = []  # (index, x, y, r, prior) of the circles scored, in the order drawn
+    for m in np.flatnonzero(ok):
+        x, y = float(ux[m]), float(uy[m])
+        r = math.hypot(float(ax[m]) - x, float(ay[m]) - y)
         if r_expected is not None:
             if abs(r - r_expected) > 0.3 * r_expected:
                 continue
             prior = math.exp(-0.5 * ((r - r_expected) / (0.05 * r_expected)) ** 2)
         else:
             prior = 1.0
-        inl = np.abs(np.hypot(xs - ux, ys - uy) - r) < tol
-        score = inl.sum() * prior
-        if score > best[0]:
-            best = (score, (ux, uy, r))
+        cands.append((x, y, r, prior))
+    best = (-1.0, None)
+    for k in range(0, len(cands), 64):  # 64 circles' distances at a time
+        part = cands[k:k + 64]
+        cx = np.array([c[0] for c in part])[:, None]
+        cy = np.array([c[1] for c in part])[:, None]
+        r = np.array([c[2] for c in part])[:, None]
+        count = (np.abs(np.hypot(xs[None, :] - cx, ys[None, :] - cy) - r) < tol).sum(axis=1)
+        for c, m in zip(part, count, strict=True):
+            score = m * c[3]
+            if score > best[0]:
+                best = (score, c[:3])
     return best[1]
 
 
@@ -206,7 +220,7 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     """
     img = background.astype(np.float32)
     img = cv2.GaussianBlur(img, (0, 0), 1.5)
-    lo, hi = float(np.percentile(img, 0.5)), float(np.percentile(img, 99.5))
+    lo, hi = (float(v) for v in np.percentile(img, [0.5, 99.5]))  # one partition, the same
     if hi - lo <= 0:
         raise ContourError("background image is flat: no cylinder contour visible; give "
                            "[cylinder] center_px in the setup")

@@ -96,3 +96,54 @@ def test_a_saturated_edge_is_flagged():
     c = find_cylinder_center(img, radius_px=R)
     assert c.saturated_fraction > 0.5 and c.center_u_edge[1] > 0.01
     assert find_cylinder_center(draw_trough(), radius_px=R).saturated_fraction == 0.0
+
+
+def _ransac_one_at_a_time(xs, ys, r_expected, rng, iters=400, tol=2.0):
+    """The RANSAC circle as a loop, one candidate drawn and scored at a time (the code before
+    the candidates were scored together, 2026-11-23)."""
+    n = len(xs)
+    best = (-1.0, None)
+    for _ in range(iters):
+        i, j, k = rng.choice(n, 3, replace=False)
+        ax, ay, bx, by, cx_, cy_ = xs[i], ys[i], xs[j], ys[j], xs[k], ys[k]
+        d = 2 * (ax * (by - cy_) + bx * (cy_ - ay) + cx_ * (ay - by))
+        if abs(d) < 1e-9:
+            continue
+        ux = ((ax * ax + ay * ay) * (by - cy_) + (bx * bx + by * by) * (cy_ - ay)
+              + (cx_ * cx_ + cy_ * cy_) * (ay - by)) / d
+        uy = ((ax * ax + ay * ay) * (cx_ - bx) + (bx * bx + by * by) * (ax - cx_)
+              + (cx_ * cx_ + cy_ * cy_) * (bx - ax)) / d
+        r = math.hypot(ax - ux, ay - uy)
+        if r_expected is not None:
+            if abs(r - r_expected) > 0.3 * r_expected:
+                continue
+            prior = math.exp(-0.5 * ((r - r_expected) / (0.05 * r_expected)) ** 2)
+        else:
+            prior = 1.0
+        inl = np.abs(np.hypot(xs - ux, ys - uy) - r) < tol
+        score = inl.sum() * prior
+        if score > best[0]:
+            best = (score, (ux, uy, r))
+    return best[1]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_ransac_scored_together_is_the_loop_one_at_a_time(seed):
+    rng = np.random.default_rng(100 + seed)
+    # two concentric contours (a thick line's sides), a second circle, scattered edges, and
+    # collinear points (no circle through them)
+    a = rng.uniform(0.3, 2.8, 1500)
+    pts = [np.c_[XC + R * np.sin(a), YC + R * np.cos(a)] + rng.normal(0, 0.7, (1500, 2)),
+           np.c_[XC + (R + 3) * np.sin(a[:400]), YC + (R + 3) * np.cos(a[:400])],
+           np.c_[300 + 90 * np.sin(a[:300]), 200 + 90 * np.cos(a[:300])],
+           rng.uniform(0, 1280, (500, 2)), np.c_[np.arange(40.0), np.full(40, 5.0)]]
+    xy = np.round(np.concatenate(pts), 0 if seed % 2 else 3)  # pixel centres, or not
+    xs, ys = xy[:, 0], xy[:, 1]
+    for r_expected in (R, None, 90.0):
+        loop = _ransac_one_at_a_time(xs, ys, r_expected, np.random.default_rng(seed))
+        rng_now = np.random.default_rng(seed)
+        now = cylinder._ransac_circle(xs, ys, r_expected, rng_now)
+        assert now == loop  # to the bit
+        after = np.random.default_rng(seed)
+        _ransac_one_at_a_time(xs, ys, r_expected, after)
+        assert rng_now.bit_generator.state == after.bit_generator.state  # the same draws

@@ -115,6 +115,24 @@ def test_sensor_is_block_local(bit_depth, noise):
         s.apply(counts[:10, :10], scale, 0, (0, 10, 0, 11))
 
 
+@pytest.mark.parametrize("shape", [(150, 203), (1024, 1280)])
+def test_the_fixed_pattern_is_drawn_on_the_full_pixel_grid(shape):
+    # the vignetting from a row and a column broadcast (np.ogrid) is the formula on every
+    # pixel's own coordinates (np.mgrid, the code before 2026-11-23), to the bit
+    from synth.sensor import _fixed_pattern
+
+    cfg = synth.SensorConfig(vignetting=0.08, prnu=0.005, dsnu=3.0)
+    gain, offset = _fixed_pattern(cfg, shape, 5)
+    h, w = shape
+    y, x = np.mgrid[0:h, 0:w]
+    r2 = ((x - (w - 1) / 2) ** 2 + (y - (h - 1) / 2) ** 2) / (((w - 1) / 2) ** 2
+                                                                + ((h - 1) / 2) ** 2)
+    rng = np.random.default_rng([5, 0])
+    prnu, dsnu = rng.standard_normal(shape), rng.standard_normal(shape)
+    assert np.array_equal(gain, np.ones(shape) * (1.0 - 0.08 * r2) * (1.0 + 0.005 * prnu))
+    assert np.array_equal(offset, 3.0 * np.abs(dsnu))
+
+
 def test_hash_noise_is_a_function_of_seed_frame_and_pixel():
     # "hash/1": a pixel's draw depends on (seed, frame, pixel) only - not on the frame's size or
     # the region asked for - and the draws are independent standard normals
