@@ -19,6 +19,7 @@ import logging
 import math
 import sys
 import threading
+import time
 
 import numpy as np
 import pandas as pd
@@ -133,6 +134,11 @@ class TrackInfo:
         that does not depend on the frame times rejected (:data:`LOCATOR_FLAGS`; a ball
         leaving a deep shadow): the located centres', not the timing's (a quality reason
         "located_frames").
+    seconds : dict of str to float
+        Wall time of each stage of :func:`measure` (s): "open" (the recording, the setup, the
+        frame times), "background", "trough centre", "tracking", "fit", "turning points"
+        (the dropped-frame search where the ball turns), "ellipse check", "checks"; empty
+        from :func:`track_recording` alone. Not written to fit.json.
     """
 
     setup: Setup
@@ -163,6 +169,7 @@ class TrackInfo:
     frames_dropped: tuple = ()
     timing_irregular: tuple = ()
     located_irregular: tuple = ()
+    seconds: dict = dataclasses.field(default_factory=dict)
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -1206,6 +1213,14 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     from rollfric import fit as fitmod
     from rollfric.setup import load_setup
 
+    seconds: dict = {}  # stage -> wall time (TrackInfo.seconds)
+    mark = [time.perf_counter()]
+
+    def lap(stage):
+        now = time.perf_counter()
+        seconds[stage] = seconds.get(stage, 0.0) + now - mark[0]
+        mark[0] = now
+
     source = io.open_recording(recording) if isinstance(recording, (str, bytes)) or \
         hasattr(recording, "__fspath__") else recording
     if setup is None:
@@ -1224,8 +1239,10 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     time_notes = time_notes + ([fps_note] if fps_note else [])
     for msg in time_notes:
         logger.warning(msg)
+    lap("open")
     bg, bg_desc, bg_notes = resolve_background(source, background, median_frames=median_frames,
                                                r_px=ball_radius_px(setup))
+    lap("background")
     center_u, contour_notes = None, []
     ellipse = None
     if setup.center_px is not None:
@@ -1269,6 +1286,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                     "expose the background less or give [cylinder] center_px")
             logger.warning(note)
             contour_notes.append(note)
+    lap("trough centre")
     df, info = track_recording(source, setup, bg, method=method, angle=angle, center=center,
                                progress=progress,
                                times=None if times_desc == TIMES_FPS else t, drops=drops,
@@ -1285,6 +1303,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     if n_found < len(df):
         logger.info(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of "
                     "the fit)")
+    lap("tracking")
     result = None
     if fit:
         if len(df) < fitmod.MIN_SAMPLES:
@@ -1301,6 +1320,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                         f"{why}")
         result = fitmod.fit_mu(t_s, th, setup, method=fit_method, offset=use,
                                **(fit_kwargs or {}))
+        lap("fit")
         if info.times == TIMES_FPS and drops and fit_method == "lsq":
             t_new, result, turned = turning_gaps(t_s, th, result, setup, use, fit_kwargs)
             if turned:
@@ -1312,12 +1332,14 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                 logger.warning(msg)
                 info = dataclasses.replace(info, frames_dropped=dropped,
                                            warnings=info.warnings + (msg,))
+            lap("turning points")
         coded = [("background_repaired", f"{msg}: a background image without the ball "
                   "(--background) rules out a trace of it") for msg in bg_notes]
         if ellipse is not None:
             info, ell_coded = _ellipse_check(ellipse, info, t_s, th, setup, result, use,
                                              fit_method, fit_kwargs)
             coded += ell_coded
+            lap("ellipse check")
         coded += [("ball_radius", msg) for msg in info.warnings_radius]
         if info.timing_irregular:
             coded.append(("timing", irregular_message(info.timing_irregular)))
@@ -1330,7 +1352,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                             flag_counts=info.flags)
         result = dataclasses.replace(
             result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
-    return df, info, result
+        lap("checks")
+    return df, dataclasses.replace(info, seconds=seconds), result
 
 
 def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fit_kwargs):

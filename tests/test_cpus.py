@@ -125,3 +125,23 @@ def test_the_budget_s_refits_on_threads_are_the_refits_in_one_thread(monkeypatch
     one, two = _both(monkeypatch, lambda: budget(meas, result))
     assert one.n_refits == two.n_refits > 8  # 5 inputs act: their 10 refits, and the nominal
     assert _same(_fields(one), _fields(two))
+
+
+def test_measure_on_threads_is_measure_in_one_thread_and_times_its_stages(monkeypatch):
+    # 1000 frames: the recording's halves on two threads too, the fits on two
+    from measure_data import MemorySource, make_recording
+
+    from rollfric import track
+
+    rec = make_recording(1000, mu=0.01, theta0=0.5, fps=200.0, noise=1.0, seed=2)
+    src = MemorySource(rec.frames, concurrent=True)
+    (df1, info1, r1), (df2, info2, r2) = _both(
+        monkeypatch, lambda: track.measure(src, rec.setup, rec.background))
+    assert len(src.threads) > 1  # the second run read from two threads
+    assert df1.equals(df2) and _same(_fields(r1), _fields(r2))
+    assert dataclasses.replace(info1, seconds={}) == dataclasses.replace(info2, seconds={})
+    for info in (info1, info2):
+        assert set(info.seconds) == {"open", "background", "trough centre", "tracking", "fit",
+                                     "turning points", "ellipse check", "checks"}
+        assert all(v >= 0.0 for v in info.seconds.values())
+        assert info.seconds["tracking"] > 0.0 and info.seconds["fit"] > 0.0

@@ -331,6 +331,15 @@ def bench_e2e(quick: bool) -> list[Row]:
                         "locator (the recording's halves, on 2 threads when a core is free), fits, "
                         "checks and budget "
                         "(the process's imports not counted)"))
+        # where the measure stage's wall time goes (rollfric.track.measure's own stages)
+        parts = dict(getattr(res.track_info, "seconds", None) or {})
+        if parts:
+            parts["the store opened, the setup read (before measure())"] = max(
+                0.0, m["t_measure_s"] - sum(parts.values()))
+            rows += [Row("end-to-end", f"measure stage: {k}", v, "s", note=(
+                f"wall time, {100 * v / m['t_measure_s']:.0f} % of the measure stage; fits on "
+                "2 threads and the recording's halves on 2 threads when a core is free"))
+                for k, v in parts.items()]
         alone = throughput("10mm", 150 if quick else 600)
         rows.append(Row("end-to-end", "measure end to end beside the locator alone (frames/s)",
                         fps, "frames/s", "the streaming loop alone (recognition section)",
