@@ -250,16 +250,36 @@ def _through_lens(tiles, rendered, bg, k, lens) -> list:
 MAX_POOL_RESTARTS = 3
 
 
+def pool_context():
+    """The multiprocessing context render processes start in: forked from a fork server that
+    has imported what they need once (:mod:`synth.preload`; the server makes no EGL context,
+    which would not survive a fork), else spawned (where there is no fork server).
+
+    Each process then makes its own EGL context, as a spawned one does, and draws the same
+    bytes; a recording's start-up loses the imports of every process but the server's (~2 s
+    of CPU each), and a later recording of the same process reuses the server.
+
+    Returns
+    -------
+    multiprocessing.context.BaseContext
+    """
+    if "forkserver" not in mp.get_all_start_methods():
+        return mp.get_context("spawn")
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(["synth.preload"])  # used when the server starts
+    return ctx
+
+
 @contextlib.contextmanager
 def _early_pool(workers, init):
-    """``workers`` spawned render processes started now, each running ``_worker_start(*init)``
-    (imports, EGL, the renderer) while the caller goes on (the background's render); None
-    for 0 workers. Shut down on leaving (already done unless the render failed before using
-    it)."""
+    """``workers`` render processes (:func:`pool_context`) started now, each running
+    ``_worker_start(*init)`` (imports, EGL, the renderer) while the caller goes on (the
+    background's render); None for 0 workers. Shut down on leaving (already done unless the
+    render failed before using it)."""
     if not workers:
         yield None
         return
-    pool = cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"),
+    pool = cf.ProcessPoolExecutor(workers, mp_context=pool_context(),
                                   initializer=_worker_start, initargs=init)
     try:
         for _ in range(workers):  # a process is spawned per task while none is idle
@@ -271,7 +291,8 @@ def _early_pool(workers, init):
 
 def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worker_init,
                      batch_fn=_worker_batch, pool=None) -> None:
-    """Render batches in ``workers`` spawned processes (EGL contexts do not survive fork).
+    """Render batches in ``workers`` processes (:func:`pool_context`: forked from a fork server
+    that made no EGL context, or spawned; EGL contexts do not survive fork).
 
     A batch writes only its own frames' chunks, so a batch whose process died (llvmpipe has
     crashed a worker once in a 4000-frame run on this machine) is simply rendered again in a
@@ -279,7 +300,7 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
     and ``batch_fn(indices, centres)`` renders a batch (default: _worker_init, _worker_batch);
     ``pool``: a pool already started with that initializer (:func:`_early_pool`), used first.
     """
-    ctx = mp.get_context("spawn")
+    ctx = pool_context()
     pending = list(range(len(batches)))
     for attempt in range(MAX_POOL_RESTARTS + 1):
         failed = []
@@ -314,9 +335,10 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     camera would have seen it and store it as a recording at ``out`` (a ``.zarr`` directory).
 
     ``frames`` limits the number of frames (the first ones); ``workers`` processes render in
-    parallel (default: the number of CPUs, at most 2; spawned, as EGL contexts do not survive
-    fork), each with ``threads`` llvmpipe threads (default 1 when several processes run); the
-    sensor model is stored, not applied: frames get their noise when read. ``timing``
+    parallel (default: the number of CPUs, at most 2; forked from a fork server that made no
+    EGL context, or spawned, as EGL contexts do not survive fork), each with ``threads``
+    llvmpipe threads (default 1 when several processes run); the sensor model is stored, not
+    applied: frames get their noise when read. ``timing``
     (:class:`synth.timing.FrameTiming`): the camera's jitter and dropped frames, drawn with
     ``seed``; the frames and the truth are then at the real sample times (``truth/t_s``), the
     lost camera frames are listed in the attrs (``timing``), and with ``timing.timestamps`` the

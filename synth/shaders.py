@@ -31,6 +31,7 @@ import functools
 import os
 import shutil
 import tempfile
+from multiprocessing.util import Finalize
 
 # pyrender's function, replaced from this line up to the next function
 _PCF_HEAD = "float PCF(sampler2D depths, vec2 size, vec2 uv, float compare){"
@@ -107,7 +108,8 @@ def gather_mesh_shader(text: str) -> str:
 @functools.cache
 def shader_dir(n_directional: int, n_spot: int, n_point: int) -> str:
     """A directory holding pyrender's shaders with ``mesh.frag`` patched for a scene with these
-    numbers of lights (one per process and light counts, removed at exit)."""
+    numbers of lights (one per process and light counts, removed at exit, also by a forked
+    render process)."""
     from synth.pyrender_adapter import load
 
     src = os.path.join(os.path.dirname(load().__file__), "shaders")
@@ -115,6 +117,9 @@ def shader_dir(n_directional: int, n_spot: int, n_point: int) -> str:
         text = fixed_light_loops(gather_mesh_shader(f.read()), n_directional, n_spot, n_point)
     out = tempfile.mkdtemp(prefix="synth-shaders-")
     atexit.register(shutil.rmtree, out, ignore_errors=True)
+    # a forked render process (synth.pipeline.pool_context) leaves by os._exit, which runs no
+    # atexit functions but multiprocessing's finalizers (in the process that made the folder)
+    Finalize(None, shutil.rmtree, (out,), {"ignore_errors": True}, exitpriority=0)
     for name in os.listdir(src):
         shutil.copy(os.path.join(src, name), out)
     with open(os.path.join(out, "mesh.frag"), "w") as f:

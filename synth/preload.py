@@ -1,0 +1,23 @@
+"""What a render process imports, loaded once in the fork server its processes are forked from.
+
+:func:`synth.pipeline.pool_context` starts render processes from a fork server that has
+imported this module: pyrender (with trimesh, SciPy, networkx, pyglet and PyOpenGL on the EGL
+platform), Zarr, numba and synth's renderer modules, ~2 s of CPU a process when each process
+imports them itself. The server only imports: it makes no EGL display or context and starts no
+llvmpipe thread (those do not survive a fork), so each forked process starts its own, as a
+spawned one does.
+"""
+
+from __future__ import annotations
+
+from synth import pyrender_adapter
+
+pyrender_adapter.load()  # sets PYOPENGL_PLATFORM=egl (unless set) before PyOpenGL's import
+
+import zarr  # noqa: E402, F401
+
+import synth.leandraw  # noqa: E402, F401
+import synth.pipeline  # noqa: E402, F401
+import synth.scene  # noqa: E402, F401
+import synth.shaders  # noqa: E402, F401
+import synth.store  # noqa: E402, F401
