@@ -561,10 +561,12 @@ class SceneRenderer:
             for m, v in zip(static, visible, strict=True):
                 m.is_visible = v
 
-    def _shadow_box(self, inner, light_node, flags):
-        """Texel box (x, y, w, h) of the lamp's shadow map that the ball covers, with margin."""
-        V, P = pyrender_adapter.light_cam_matrices(inner)(self.scene, light_node, flags)
-        c = self.scene.get_pose(self._ball_node)[:3, 3]
+    def _shadow_box(self, inner, light_node, flags, mats=None, centre=None):
+        """Texel box (x, y, w, h) of the lamp's shadow map that the ball covers, with margin
+        (``mats``: the lamp's shadow-camera (V, P) and ``centre``: the ball's, when known)."""
+        V, P = mats if mats is not None else \
+            pyrender_adapter.light_cam_matrices(inner)(self.scene, light_node, flags)
+        c = centre if centre is not None else self.scene.get_pose(self._ball_node)[:3, 3]
         cv = V @ np.append(c, 1.0)
         r = 1.5 * self.ball_radius
         pts = np.array([[cv[0] + dx, cv[1] + dy, cv[2] + dz, 1.0]
