@@ -519,22 +519,24 @@ class LeanDraw:
                     pa.update_context(inner, sr.scene, self.flags)
                     self.ball = sr._ball_node
                     self._build(self._order())
-                order = self._order()
-                if order != self.order:
-                    self._build(order)
                 mats = [pa.light_cam_matrices(inner)(sr.scene, ln, self.flags)
                         for ln in self.lamps] if self.shadows else []
                 same = self._light_mats is not None and all(
                     a[0] is b[0] and a[1] is b[1]
                     for a, b in zip(mats, self._light_mats, strict=True))
                 if not (self.ready and same):
+                    # the lamps' shadow cameras are new whenever a lamp or the scene's bounds
+                    # moved (the ball's set_pose renews the bounds, and their cache compares
+                    # the lamps' poses): only then can pyrender's order of the static meshes
+                    # (the ball's place in it does not matter here: it is drawn last) or the
+                    # lamps' distances to the triangles have changed
+                    order = self._order()
+                    if order != self.order or self._far_lamps is not None and not \
+                            np.array_equal(self._far_lamps, self._lamp_positions()):
+                        self._build(order)
                     self._light_mats = mats
                     self._set_static()
                 M = np.asarray(pose, dtype=float)
-                if self._far_lamps is not None and not np.array_equal(
-                        self._far_lamps, self._lamp_positions()):
-                    self._build(order)  # a lamp moved: the triangles' distances again
-                    self._set_static()
                 reach = None if self._far_lamps is None else self._reach(M[None, :3, 3])
                 t0 = lap("set-up", t0)
                 if self.shadows:

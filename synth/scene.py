@@ -574,10 +574,10 @@ class SceneRenderer:
         clip = pts @ P.T
         ndc = clip[:, :2] / clip[:, 3:4]
         t = (ndc + 1.0) / 2.0 * SHADOW_TEX_SZ
-        x0 = int(np.clip(math.floor(t[:, 0].min()) - 4, 0, SHADOW_TEX_SZ))
-        y0 = int(np.clip(math.floor(t[:, 1].min()) - 4, 0, SHADOW_TEX_SZ))
-        x1 = int(np.clip(math.ceil(t[:, 0].max()) + 4, 0, SHADOW_TEX_SZ))
-        y1 = int(np.clip(math.ceil(t[:, 1].max()) + 4, 0, SHADOW_TEX_SZ))
+        x0 = min(max(math.floor(t[:, 0].min()) - 4, 0), SHADOW_TEX_SZ)
+        y0 = min(max(math.floor(t[:, 1].min()) - 4, 0), SHADOW_TEX_SZ)
+        x1 = min(max(math.ceil(t[:, 0].max()) + 4, 0), SHADOW_TEX_SZ)
+        y1 = min(max(math.ceil(t[:, 1].max()) + 4, 0), SHADOW_TEX_SZ)
         return (x0, y0, max(x1 - x0, 1), max(y1 - y0, 1))
 
     def _make_shadow_cache(self, inner, flags, static) -> dict:
