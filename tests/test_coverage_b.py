@@ -98,3 +98,40 @@ def test_two_studies_reported_together(tmp_path):
     assert (out / "coverage.png").is_file()
     with pytest.raises(SystemExit):  # several studies need --out
         main(["--from-sweep", str(tmp_path / "a"), str(tmp_path / "b")])
+
+
+def test_blind_error_split_into_the_setups_part_and_the_rest_on_the_same_recording():
+    """from_sweep with an oracle run: (blind mu - oracle mu) / u_mu is the setup's part of the
+    blind error, (oracle mu - truth) / u_mu the rest; the summary compares the setup's part
+    with the budget's own linear prediction (z_linear), case by case."""
+    from validation.coverage import from_sweep, summarize
+
+    n = 6
+    seeds = list(range(n))
+    mu_true = [0.005] * n
+    mu_o = [0.005 + 1e-6 * k for k in range(n)]  # the oracle's: truth + a small rest
+    setup = [2e-4, -1e-4, 0.5e-4, 3e-4, -2.5e-4, 1e-4]  # the setup's part of the error
+    u = [1e-4, 2e-4, 1e-4, 1.5e-4, 1e-4, 2e-4]
+    mu_b = [o + d for o, d in zip(mu_o, setup, strict=True)]
+    lin = [d / uu + 0.1 * (-1) ** k for k, (d, uu) in enumerate(zip(setup, u, strict=True))]
+    blind = pd.DataFrame({"case_id": [f"b{k}" for k in seeds], "status": "ok",
+                          "render.seed": seeds, "mu_recovered": mu_b, "mu_true": mu_true,
+                          "u_mu": u, "U_mu": [2 * v for v in u],
+                          "z_budget": [(b - t) / uu
+                                       for b, t, uu in zip(mu_b, mu_true, u, strict=True)],
+                          "z_linear": lin, "t_budget_s": 0.1, "t_measure_s": 1.0})
+    oracle = pd.DataFrame({"case_id": [f"o{k}" for k in seeds], "status": "ok",
+                           "render.seed": seeds[::-1], "mu_recovered": mu_o[::-1],
+                           "mu_true": mu_true, "z_stat": 0.0, "z_budget": 0.0,
+                           "mu_stderr": 1e-5})
+    df = from_sweep(blind, oracle)
+    for k in seeds:  # matched on the swept key, not on the row order
+        assert df["z_setup"][k] == pytest.approx(setup[k] / u[k])
+        assert df["z_rest"][k] == pytest.approx(1e-6 * k / u[k])
+    s = summarize(df)
+    d = [setup[k] / u[k] - lin[k] for k in seeds]
+    assert s["setup_minus_linear_mean"] == pytest.approx(sum(d) / n)
+    assert s["setup_minus_linear_sd"] == pytest.approx(pd.Series(d).std())
+    assert s["rest_part_rms"] == pytest.approx(
+        math.sqrt(sum((1e-6 * k / u[k]) ** 2 for k in seeds) / n))
+    assert 0.9 < s["setup_vs_linear_corr"] < 1.0

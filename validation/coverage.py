@@ -279,6 +279,18 @@ def summarize(df: pd.DataFrame) -> dict:
                  oracle_within_u_budget_se=se(frac(zb, 1.0), nb),
                  oracle_z_rms_budget=float(np.sqrt(np.nanmean(zb.to_numpy(float) ** 2))),
                  **misses(zb, "oracle_budget"))
+    if "z_setup" in df and "z_linear" in df:
+        zs, zl = df["z_setup"].to_numpy(float), df["z_linear"].to_numpy(float)
+        ok = np.isfinite(zs) & np.isfinite(zl)
+        if ok.sum() > 2:
+            d = zs[ok] - zl[ok]
+            s.update(setup_part_rms=float(np.sqrt(np.mean(zs[ok] ** 2))),
+                     setup_part_mean=float(np.mean(zs[ok])),
+                     setup_vs_linear_corr=float(np.corrcoef(zs[ok], zl[ok])[0, 1]),
+                     setup_minus_linear_mean=float(np.mean(d)),
+                     setup_minus_linear_sd=float(np.std(d, ddof=1)),
+                     rest_part_rms=float(np.sqrt(np.nanmean(df["z_rest"].to_numpy(float)
+                                                            ** 2))))
     for ar, g in df.groupby("ar") if df["ar"].nunique() > 1 else ():
         s[f"oracle_within_2u_stat_ar{ar:g}"] = frac(g["z_oracle"], 2.0)
         s[f"oracle_ordinary_within_2se_ar{ar:g}"] = frac(g["z_oracle_ordinary"], 2.0)
@@ -338,6 +350,13 @@ def from_sweep(results: pd.DataFrame, oracle: pd.DataFrame | None = None,
     df["z_oracle_budget"] = src["z_budget"].to_numpy(float)
     df["z_oracle_ordinary"] = ((src["mu_recovered"] - src["mu_true"])
                                / src["mu_stderr"]).to_numpy(float)
+    # the blind error split on the same recording: the setup's part (blind - oracle mu) and
+    # the rest (oracle - truth), both in the blind u_mu; z_setup against z_linear (the
+    # budget's first-order prediction of the setup's part) checks its sensitivities
+    u = ok["u_mu"].to_numpy(float) if "u_mu" in ok else df["U_mu"].to_numpy(float) / 2.0
+    mu_o = src["mu_recovered"].to_numpy(float)
+    df["z_setup"] = (ok["mu_recovered"].to_numpy(float) - mu_o) / u
+    df["z_rest"] = (mu_o - src["mu_true"].to_numpy(float)) / u
     return df
 
 
