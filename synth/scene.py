@@ -652,11 +652,11 @@ class SceneRenderer:
         zb = -self.config.backdrop_distance
         zlo, zhi = -self.config.trough_length / 2, self.config.trough_length / 2
         rings, cos_a, sin_a = _SHADOW_RAYS
-        boxes = []
-        for lamp in self.lamps:
+        # the rays of every lamp and centre are followed together (the same arithmetic, ray
+        # by ray, as one lamp and centre at a time: NumPy's overhead is most of it)
+        circs, origins, lamp_of = [], [], []
+        for k, lamp in enumerate(self.lamps):
             P = np.asarray(lamp.position)
-            fov = min(2 * lamp.outer_cone + np.pi / 16, np.pi)
-            pts, margins = [], []
             for C in np.atleast_2d(centres):
                 d_vec = C - P
                 d = np.linalg.norm(d_vec)
@@ -666,40 +666,51 @@ class SceneRenderer:
                 a = _cross(u, (0.0, 0.0, 1.0) if abs(u[2]) < 0.9 else (1.0, 0.0, 0.0))
                 a /= np.linalg.norm(a)
                 b = _cross(u, a)
-                circ = off + (rho * rings)[:, None] * (cos_a[:, None] * a + sin_a[:, None] * b)
-                dirs = circ - P
-                # backdrop hit
-                t_hit = (zb - P[2]) / dirs[:, 2]
-                # bore hit: leaving the cylinder of radius R beyond the tangent circle
-                A = dirs[:, 0] ** 2 + dirs[:, 1] ** 2
-                B = 2 * (P[0] * dirs[:, 0] + P[1] * dirs[:, 1])
-                Cq = P[0] ** 2 + P[1] ** 2 - R * R
-                disc = B * B - 4 * A * Cq
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    t_cyl = (-B + np.sqrt(np.maximum(disc, 0))) / (2 * A)
-                zc = P[2] + t_cyl * dirs[:, 2]
-                on_bore = (disc > 0) & (t_cyl > 1.0) & (t_cyl < t_hit) & (zc >= zlo) & \
-                    (zc <= zhi)
-                t_hit = np.where(on_bore, t_cyl, t_hit)
-                hits = P + t_hit[:, None] * dirs
-                # an orthographic camera sees the bore edge-on (no pixels); a pinhole sees the
-                # part of the bore behind the front edge
-                bore_seen = on_bore & (cam.projection == "perspective" or cam.tilted)
-                keep = bore_seen | (~on_bore & ~self._behind_trough(hits))
-                pts.append(hits[keep])
-                if keep.any():
-                    # texel footprint grows as 1 / cos(incidence) on the receiving surface
-                    d = dirs[keep] / np.linalg.norm(dirs[keep], axis=1, keepdims=True)
-                    hk = hits[keep]
-                    normal = np.where(on_bore[keep][:, None],
-                                      -np.column_stack([hk[:, 0], hk[:, 1], 0 * hk[:, 2]]) / R,
-                                      np.array([0.0, 0.0, 1.0]))
-                    cos_inc = np.clip(np.abs(np.einsum("ij,ij->i", d, normal)), 0.3, 1.0)
-                    margins.append((np.linalg.norm(hk - P, axis=1) / cos_inc).max())
-            if not margins:
+                circs.append(off + (rho * rings)[:, None] * (cos_a[:, None] * a
+                                                             + sin_a[:, None] * b))
+                origins.append(np.broadcast_to(P, (rings.size, 3)))
+                lamp_of.append(np.full(rings.size, k))
+        if not circs:
+            return []
+        P = np.concatenate(origins)
+        lamp_of = np.concatenate(lamp_of)
+        dirs = np.concatenate(circs) - P
+        # backdrop hit
+        t_hit = (zb - P[:, 2]) / dirs[:, 2]
+        # bore hit: leaving the cylinder of radius R beyond the tangent circle
+        A = dirs[:, 0] ** 2 + dirs[:, 1] ** 2
+        B = 2 * (P[:, 0] * dirs[:, 0] + P[:, 1] * dirs[:, 1])
+        Cq = P[:, 0] ** 2 + P[:, 1] ** 2 - R * R
+        disc = B * B - 4 * A * Cq
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t_cyl = (-B + np.sqrt(np.maximum(disc, 0))) / (2 * A)
+        zc = P[:, 2] + t_cyl * dirs[:, 2]
+        on_bore = (disc > 0) & (t_cyl > 1.0) & (t_cyl < t_hit) & (zc >= zlo) & (zc <= zhi)
+        t_hit = np.where(on_bore, t_cyl, t_hit)
+        hits = P + t_hit[:, None] * dirs
+        # an orthographic camera sees the bore edge-on (no pixels); a pinhole sees the part of
+        # the bore behind the front edge
+        bore_seen = on_bore & (cam.projection == "perspective" or cam.tilted)
+        keep = bore_seen | (~on_bore & ~self._behind_trough(hits))
+        if not keep.any():
+            return []
+        dirs, hits, P, on_bore, lamp_of = (x[keep] for x in (dirs, hits, P, on_bore, lamp_of))
+        # texel footprint grows as 1 / cos(incidence) on the receiving surface
+        d = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+        normal = np.where(on_bore[:, None],
+                          -np.column_stack([hits[:, 0], hits[:, 1], 0 * hits[:, 2]]) / R,
+                          np.array([0.0, 0.0, 1.0]))
+        cos_inc = np.clip(np.abs(np.einsum("ij,ij->i", d, normal)), 0.3, 1.0)
+        reach = np.linalg.norm(hits - P, axis=1) / cos_inc
+        q_all = cam.project(hits)
+        boxes = []
+        for k, lamp in enumerate(self.lamps):
+            mine = lamp_of == k
+            if not mine.any():
                 continue  # this lamp's shadow falls only where the trough hides the backdrop
-            q = cam.project(np.vstack(pts))
-            texel = max(margins) * 2 * math.tan(fov / 2) / SHADOW_TEX_SZ
+            q = q_all[mine]
+            fov = min(2 * lamp.outer_cone + np.pi / 16, np.pi)
+            texel = reach[mine].max() * 2 * math.tan(fov / 2) / SHADOW_TEX_SZ
             # the 3x3 PCF of bilinear lookups reaches 2.5 texels from the shadow's edge
             pm = 2.5 * texel / cam.pixel_size + margin_px
             # an out-of-round bore is within ovality / 4 of the round one the rays hit
