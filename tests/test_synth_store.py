@@ -243,6 +243,27 @@ def test_two_processes_render_the_same_bytes(traj, rec_path, tmp_path):
         assert a[i].tobytes() == b[i].tobytes()
 
 
+def test_render_processes_draw_the_same_bytes(tmp_path):
+    """A recording of 5 batches on 2 render processes (forked from the fork server where there
+    is one: synth.pipeline.pool_context) holds the bytes of the recording one process draws
+    (the recording above is too short for a second process)."""
+    import zarr
+
+    from synth import pipeline
+
+    tr = sim.simulate(sim.Scenario(theta0=0.03, duration=0.079))
+    assert -(-len(tr) // pipeline.BATCH) == 5
+    kw = {"scene": synth.SceneConfig(camera=CAM), "sensor": synth.noise_preset("realistic"),
+          "seed": 7}
+    ref = synth.render(tr, tmp_path / "one.zarr", workers=1, **kw)
+    out = synth.render(tr, tmp_path / "two.zarr", workers=2, **kw)
+    np.testing.assert_array_equal(zarr.open_group(str(ref), mode="r")["clean_diff"][...],
+                                  zarr.open_group(str(out), mode="r")["clean_diff"][...])
+    a, b = synth.open_recording(ref), synth.open_recording(out)
+    for i in range(len(tr)):
+        assert a.frames[i].tobytes() == b.frames[i].tobytes()
+
+
 def test_export_like_a_lab_camera(rec_path, tmp_path):
     import cv2
     import pandas as pd
