@@ -8,6 +8,7 @@ import functools
 import math
 import multiprocessing as mp
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -253,7 +254,8 @@ MAX_POOL_RESTARTS = 3
 def pool_context():
     """The multiprocessing context render processes start in: forked from a fork server that
     has imported what they need once (:mod:`synth.preload`; the server makes no EGL context,
-    which would not survive a fork), else spawned (where there is no fork server).
+    which would not survive a fork) on Linux, spawned elsewhere (macOS's system frameworks,
+    which pyglet may load, do not survive a fork either; Windows has no fork server).
 
     Each process then makes its own EGL context, as a spawned one does, and draws the same
     bytes; a recording's start-up loses the imports of every process but the server's (~2 s
@@ -263,7 +265,7 @@ def pool_context():
     -------
     multiprocessing.context.BaseContext
     """
-    if "forkserver" not in mp.get_all_start_methods():
+    if not sys.platform.startswith("linux") or "forkserver" not in mp.get_all_start_methods():
         return mp.get_context("spawn")
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(["synth.preload"])  # used when the server starts
