@@ -618,12 +618,17 @@ def fit_mu(t, theta, setup: Setup, *, method: str = "lsq", offset: bool = False,
     from rollfric import quality
 
     check_angles(theta)
-    result = FIT_METHODS.load(method)(t, theta, setup, offset=offset, model=model, **kwargs)
+    guess = None
     if checks:
         try:
             guess = initial_guess(t, theta, setup)
-        except InputError:  # the fit succeeded; a record too short to filter has no swings
+        except InputError:  # the fit may succeed; a record too short to filter has no swings
             guess = None
+        if method == "lsq" and guess is not None and "guess" not in kwargs:
+            # the self-start the least-squares fit makes of the same t, theta: made once
+            kwargs = dict(kwargs, guess=guess)
+    result = FIT_METHODS.load(method)(t, theta, setup, offset=offset, model=model, **kwargs)
+    if checks:
         reasons = quality.check_fit(t, theta, result, setup, offset=offset,
                                     model=model if method == "lsq" else "coulomb", guess=guess,
                                     mu_max=MU_MAX, noise_floor=NOISE_FLOOR)
