@@ -505,11 +505,13 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     refit = _Refitter(meas, result, fit_length=fit_length)
     inputs = [(*i, _why_not(meas, i[1], fit_length)) for i in _inputs(setup)]
     # the nominal fits and each acting input's fits at +-u are independent of one another:
-    # made at once on the CPUs that are free, then found made below (the same fits)
-    refit.prefetch([(setup, True, False), (setup, False, True), (setup, False, False)]
+    # made at once on the CPUs that are free, then found made below (the same fits; listed in
+    # the order they are used, so a fit that fails raises as it would there)
+    refit.prefetch([(setup, True, False), (setup, False, True)]
                    + [(_moved(setup, field, comp, sign * u, factor), False, False)
                       for _, field, comp, _, u, factor, why in inputs if u != 0.0 and not why
-                      for sign in (1.0, -1.0)])
+                      for sign in (1.0, -1.0)]
+                   + [(setup, False, False)])
     params, jac, res = refit.fit(setup, jacobian=True)
     names = list(params)
     aug, _, noise = refit.fit(setup, augmented=True)
