@@ -117,6 +117,64 @@ def _tile_frames(sr, traj, indices, bg, draw, fulls, timings=None):
     return times, px, worst
 
 
+def schedule_split(schedule: dict, n_frames: int, total: float) -> dict:
+    """Split a recording's wall time into start-up and frames from its own batches' times
+    (``synth.render(..., schedule=...)``), so that no other recording (made under another
+    load) enters the split.
+
+    Parameters
+    ----------
+    schedule : dict
+        The recording's schedule: ``start``, ``submitted`` and ``batches`` (first frame,
+        process id, start, end), ``time.time()`` seconds.
+    n_frames : int
+        Frames of the recording.
+    total : float
+        Its wall time (s).
+
+    Returns
+    -------
+    dict
+        ``steady_s``: seconds per frame of the batches after each process's first, on all
+        processes together (their busy time over their frames, divided by the processes);
+        ``quarters_s``: the same for the batches of each quarter of the recording's frames;
+        ``to_first_batch_s``: from the call to the first batch's start (the fork server and
+        its imports, the processes' EGL and renderer, the background, the store);
+        ``first_batch_excess_s``: the first batches' time beyond as many steady frames (the
+        first frame by pyrender's path: programs, shadow maps), the mean over the processes;
+        ``end_idle_s``: how long the first process to finish waited for the last;
+        ``startup_s``: ``total`` less ``n_frames`` steady frames (all that is not frames).
+        NaN where the recording ran in one process (no batches recorded).
+    """
+    from synth.pipeline import BATCH
+
+    nan = float("nan")
+    rows = sorted(schedule.get("batches") or [], key=lambda b: b[2])
+    if not rows:
+        return {"steady_s": nan, "quarters_s": [nan] * 4, "to_first_batch_s": nan,
+                "first_batch_excess_s": nan, "end_idle_s": nan, "startup_s": nan}
+    size = {b[0]: min(BATCH, n_frames - b[0]) for b in rows}
+    pids = sorted({b[1] for b in rows})
+    procs = schedule.get("workers") or len(pids)  # more ids than workers: a pool restarted
+    first = {pid: next(b for b in rows if b[1] == pid) for pid in pids}
+    rest = [b for b in rows if b is not first[b[1]]] or rows
+
+    def per_frame(batches):
+        frames = sum(size[b[0]] for b in batches)
+        return sum(b[3] - b[2] for b in batches) / frames / procs if frames else nan
+
+    steady = per_frame(rest)
+    quarters = [per_frame([b for b in rest if k * n_frames <= 4 * b[0] < (k + 1) * n_frames])
+                for k in range(4)]
+    excess = float(np.mean([first[p][3] - first[p][2] - size[first[p][0]] * steady * procs
+                            for p in pids]))
+    ends = sorted(max(b[3] for b in rows if b[1] == p) for p in pids)
+    return {"steady_s": steady, "quarters_s": quarters,
+            "to_first_batch_s": rows[0][2] - schedule["start"],
+            "first_batch_excess_s": excess, "end_idle_s": ends[-1] - ends[0],
+            "startup_s": total - n_frames * steady}
+
+
 def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | None = None,
                      scene=None) -> dict:
     """Measure ms/frame (stock full frame vs synth's tiles by the lean path and by pyrender's
@@ -186,32 +244,22 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
     tmp = Path(tempfile.mkdtemp(prefix="synth-bench-"))
     try:
         t0 = time.perf_counter()
+        sched: dict = {}
         out = synth.render(traj, tmp / "bench.zarr", scene=scene,
                            sensor=synth.noise_preset("realistic"), seed=0, workers=workers,
-                           frames=min(n_seq, len(traj)))
+                           frames=min(n_seq, len(traj)), schedule=sched)
         t_seq = time.perf_counter() - t0
         n_done = min(n_seq, len(traj))
-        # two shorter recordings on as many processes after it, in the same process: both
-        # reuse the render processes' fork server the first one started (its imports), so
-        # their difference is the frames' time alone; the start-up (processes, imports, EGL,
-        # background, first frame by pyrender's path) is the rest of each recording's time
-        steady, startup, startup_warm = t_seq / n_done, float("nan"), float("nan")
-        if n_done >= 4 * BATCH:
-            n_short = min(2 * BATCH * workers, n_done // 4)
-            n_mid = max(min(1000, n_done // 2), 2 * n_short)
-            t_part = {}
-            for n_part in (n_short, n_mid):
-                t0 = time.perf_counter()
-                synth.render(traj, tmp / f"part{n_part}.zarr", scene=scene,
-                             sensor=synth.noise_preset("realistic"), seed=0, workers=workers,
-                             frames=n_part)
-                t_part[n_part] = time.perf_counter() - t0
-            if t_part[n_mid] > t_part[n_short]:
-                steady = (t_part[n_mid] - t_part[n_short]) / (n_mid - n_short)
-                startup = t_seq - n_done * steady
-                startup_warm = t_part[n_short] - n_short * steady
-            else:  # the machine slowed down between the two (loaded): no difference to take
-                steady = float("nan")
+        split = schedule_split(sched, n_done, t_seq)
+        # a shorter recording after it in the same process: it reuses the render processes'
+        # fork server the first one started (its imports)
+        later: dict = {}
+        n_short = min(2 * BATCH * workers, n_done)
+        t0 = time.perf_counter()
+        synth.render(traj, tmp / "later.zarr", scene=scene,
+                     sensor=synth.noise_preset("realistic"), seed=0, workers=workers,
+                     frames=n_short, schedule=later)
+        split_later = schedule_split(later, n_short, time.perf_counter() - t0)
         size = _dir_size(out)
         disk = _disk_usage(out)
         rec = synth.open_recording(out)
@@ -274,10 +322,14 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "sequence_ms_per_frame": round(1e3 * t_seq / n_done, 2),
         "speedup_sequence": round(full_ms / (1e3 * t_seq / n_done), 1),
         "est_4000_frames_s": round(4000 * t_seq / n_done, 1),
-        "sequence_startup_s": round(startup, 2),
-        "sequence_startup_later_s": round(startup_warm, 2),
-        "sequence_steady_ms_per_frame": round(1e3 * steady, 2),
-        "speedup_sequence_steady": round(full_ms / (1e3 * steady), 1),
+        "sequence_startup_s": round(split["startup_s"], 2),
+        "sequence_to_first_batch_s": round(split["to_first_batch_s"], 2),
+        "sequence_first_batch_excess_s": round(split["first_batch_excess_s"], 2),
+        "sequence_end_idle_s": round(split["end_idle_s"], 2),
+        "sequence_startup_later_s": round(split_later["startup_s"], 2),
+        "sequence_steady_ms_per_frame": round(1e3 * split["steady_s"], 2),
+        "sequence_steady_quarters_ms": [round(1e3 * q, 2) for q in split["quarters_s"]],
+        "speedup_sequence_steady": round(full_ms / (1e3 * split["steady_s"]), 1),
         "store_mb": round(size / 1e6, 2),
         "est_store_4000_mb": round(size / 1e6 * 4000 / n_done, 1),
         "store_disk_mb": round(disk / 1e6, 2),

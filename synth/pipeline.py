@@ -9,6 +9,8 @@ import math
 import multiprocessing as mp
 import os
 import sys
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -196,10 +198,14 @@ def _worker_open(store_path, defocus=None):
 
 def _worker_batch_in(store_path, indices, centres):
     """:func:`_worker_batch` in a process started by :func:`_worker_start`: the store is opened
-    at its first batch (it is written after the processes start)."""
+    at its first batch (it is written after the processes start). Returns (frames, (first
+    index, process id, start, end)), the times by ``time.time()`` (the recording's schedule,
+    :func:`render`'s ``stats``)."""
+    t0 = time.time()
     if _W.get("store") != store_path:
         _worker_open(store_path)
-    return _worker_batch(indices, centres)
+    n = _worker_batch(indices, centres)
+    return n, (int(indices[0]), os.getpid(), t0, time.time())
 
 
 def _worker_batch(indices, centres):
@@ -283,16 +289,20 @@ def _early_pool(workers, init):
         return
     pool = cf.ProcessPoolExecutor(workers, mp_context=pool_context(),
                                   initializer=_worker_start, initargs=init)
+    # a process is spawned per task while none is idle; from a thread, as the first process
+    # of a fork server waits for the server's imports (~2 s), the background's render meanwhile
+    starter = threading.Thread(target=lambda: [pool.submit(_worker_ready)
+                                               for _ in range(workers)], daemon=True)
+    starter.start()
     try:
-        for _ in range(workers):  # a process is spawned per task while none is idle
-            pool.submit(_worker_ready)
         yield pool
     finally:
+        starter.join()
         pool.shutdown(cancel_futures=True)
 
 
 def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worker_init,
-                     batch_fn=_worker_batch, pool=None) -> None:
+                     batch_fn=_worker_batch, pool=None, schedule=None) -> None:
     """Render batches in ``workers`` processes (:func:`pool_context`: forked from a fork server
     that made no EGL context, or spawned; EGL contexts do not survive fork).
 
@@ -301,6 +311,8 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
     fresh pool, at most MAX_POOL_RESTARTS times. ``initializer(*init)`` prepares each process
     and ``batch_fn(indices, centres)`` renders a batch (default: _worker_init, _worker_batch);
     ``pool``: a pool already started with that initializer (:func:`_early_pool`), used first.
+    A batch function may return (frames, info) instead of frames: each info is appended to the
+    list ``schedule`` (if given).
     """
     ctx = pool_context()
     pending = list(range(len(batches)))
@@ -314,9 +326,15 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
                     for k in pending}
             for f in cf.as_completed(futs):
                 try:
-                    bar.update(f.result())
+                    done = f.result()
                 except cf.process.BrokenProcessPool:
                     failed.append(futs[f])
+                    continue
+                if isinstance(done, tuple):
+                    done, info = done
+                    if schedule is not None:
+                        schedule.append(info)
+                bar.update(done)
         pool = None
         if not failed:
             return
@@ -332,7 +350,7 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
 def render(trajectory, out, *, scene: SceneConfig | None = None,
            sensor: SensorConfig | None = None, seed: int = 0, progress: bool = False,
            workers: int | None = None, overwrite: bool = False, frames: int | None = None,
-           threads: int | None = None, timing=None) -> Path:
+           threads: int | None = None, timing=None, schedule: dict | None = None) -> Path:
     """Render ``trajectory`` (sim.Trajectory, trajectory CSV or scenario TOML) as the lab
     camera would have seen it and store it as a recording at ``out`` (a ``.zarr`` directory).
 
@@ -344,8 +362,14 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     (:class:`synth.timing.FrameTiming`): the camera's jitter and dropped frames, drawn with
     ``seed``; the frames and the truth are then at the real sample times (``truth/t_s``), the
     lost camera frames are listed in the attrs (``timing``), and with ``timing.timestamps`` the
-    store carries each frame's time (array ``timestamps``, s). Returns the path.
+    store carries each frame's time (array ``timestamps``, s). ``schedule``: a dict to receive
+    when things happened (``time.time()``, for benchmarks; the bytes are the same): ``start``,
+    ``submitted`` (the background and store written, the batches handed to the processes),
+    ``workers`` and,
+    with early-started render processes, ``batches``, a list of (first frame, process id,
+    start, end) per batch. Returns the path.
     """
+    t_start = time.time()
     import zarr
     from tqdm import tqdm
     from zarr.codecs import ZstdCodec
@@ -443,6 +467,9 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             ts.attrs["description"] = "time of each frame's exposure (s), the camera's clock"
         batches = [np.arange(s, min(s + BATCH, n)) for s in range(0, n, BATCH)]
         bar = tqdm(total=n, unit="frame", desc="render", disable=not progress)
+        if schedule is not None:
+            schedule.update(start=t_start, submitted=time.time(), batches=[],
+                            workers=workers)
         init = (scene.to_dict(), r_ball, r_cyl, str(tmp), threads, oval, int(seed), defocus)
         if workers == 1:
             _worker_init(*init)
@@ -454,7 +481,8 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
                 _W.clear()
         elif pool is not None:
             _render_parallel(batches, centres, workers, start, bar, initializer=_worker_start,
-                             batch_fn=functools.partial(_worker_batch_in, str(tmp)), pool=pool)
+                             batch_fn=functools.partial(_worker_batch_in, str(tmp)), pool=pool,
+                             schedule=None if schedule is None else schedule["batches"])
         else:
             _render_parallel(batches, centres, workers, init, bar)
         bar.close()

@@ -256,7 +256,12 @@ def test_render_processes_draw_the_same_bytes(tmp_path):
     kw = {"scene": synth.SceneConfig(camera=CAM), "sensor": synth.noise_preset("realistic"),
           "seed": 7}
     ref = synth.render(tr, tmp_path / "one.zarr", workers=1, **kw)
-    out = synth.render(tr, tmp_path / "two.zarr", workers=2, **kw)
+    sched: dict = {}
+    out = synth.render(tr, tmp_path / "two.zarr", workers=2, schedule=sched, **kw)
+    # the schedule lists each batch once, from at most 2 processes, after the start
+    assert sorted(b[0] for b in sched["batches"]) == list(range(0, len(tr), pipeline.BATCH))
+    assert len({b[1] for b in sched["batches"]}) <= 2 and sched["workers"] == 2
+    assert all(sched["start"] <= sched["submitted"] <= b[2] <= b[3] for b in sched["batches"])
     np.testing.assert_array_equal(zarr.open_group(str(ref), mode="r")["clean_diff"][...],
                                   zarr.open_group(str(out), mode="r")["clean_diff"][...])
     a, b = synth.open_recording(ref), synth.open_recording(out)
