@@ -278,6 +278,16 @@ def pool_context():
     return ctx
 
 
+def _start_processes(pool, workers) -> None:
+    """Submit a no-op task per process (the pool forks one per task while none is idle); a
+    pool that broke meanwhile is reported by the batches' own submission."""
+    try:
+        for _ in range(workers):
+            pool.submit(_worker_ready)
+    except RuntimeError:  # BrokenProcessPool is one
+        pass
+
+
 @contextlib.contextmanager
 def _early_pool(workers, init):
     """``workers`` render processes (:func:`pool_context`) started now, each running
@@ -291,8 +301,7 @@ def _early_pool(workers, init):
                                   initializer=_worker_start, initargs=init)
     # a process is spawned per task while none is idle; from a thread, as the first process
     # of a fork server waits for the server's imports (~2 s), the background's render meanwhile
-    starter = threading.Thread(target=lambda: [pool.submit(_worker_ready)
-                                               for _ in range(workers)], daemon=True)
+    starter = threading.Thread(target=_start_processes, args=(pool, workers), daemon=True)
     starter.start()
     try:
         yield pool
