@@ -175,6 +175,24 @@ def schedule_split(schedule: dict, n_frames: int, total: float) -> dict:
             "startup_s": total - n_frames * steady}
 
 
+def pool_restarted(schedule: dict) -> bool:
+    """Whether a recording's render processes died and its batches were rendered again by a
+    fresh pool (``synth.render`` says so on its progress bar): its batches then come from more
+    processes than ``workers``, and its wall time is not a frame's cost.
+
+    Parameters
+    ----------
+    schedule : dict
+        The recording's schedule (``synth.render(..., schedule=...)``).
+
+    Returns
+    -------
+    bool
+    """
+    pids = {b[1] for b in schedule.get("batches") or []}
+    return bool(schedule.get("workers")) and len(pids) > schedule["workers"]
+
+
 def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | None = None,
                      scene=None) -> dict:
     """Measure ms/frame (stock full frame vs synth's tiles by the lean path and by pyrender's
@@ -326,6 +344,7 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "sequence_to_first_batch_s": round(split["to_first_batch_s"], 2),
         "sequence_first_batch_excess_s": round(split["first_batch_excess_s"], 2),
         "sequence_end_idle_s": round(split["end_idle_s"], 2),
+        "sequence_pool_restarted": pool_restarted(sched),
         "sequence_startup_later_s": round(split_later["startup_s"], 2),
         "sequence_steady_ms_per_frame": round(1e3 * split["steady_s"], 2),
         "sequence_steady_quarters_ms": [round(1e3 * q, 2) for q in split["quarters_s"]],

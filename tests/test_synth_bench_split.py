@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from synth.bench import schedule_split
+from synth.bench import pool_restarted, schedule_split
 from synth.pipeline import BATCH
 
 
@@ -52,3 +52,12 @@ def test_a_slow_tail_and_a_last_short_batch():
 def test_no_batches_gives_nan():
     out = schedule_split({"start": 0.0, "submitted": 0.0}, 10, 1.0)
     assert all(math.isnan(v) for k, v in out.items() if k != "quarters_s")
+
+
+def test_a_pool_restart_is_seen_in_the_schedule():
+    sched = _schedule(10 * BATCH, to_first=1.0, first_extra=0.0, per_frame=0.01)
+    assert not pool_restarted(sched)
+    # a process died: its unfinished batches were rendered by a fresh pool's processes
+    sched["batches"] += [(10 * BATCH, 3, 200.0, 200.2), (11 * BATCH, 4, 200.0, 200.2)]
+    assert pool_restarted(sched)
+    assert not pool_restarted({"start": 0.0, "submitted": 0.0})
