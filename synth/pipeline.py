@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import faulthandler
 import functools
 import math
 import multiprocessing as mp
@@ -150,9 +151,29 @@ def _worker_init(scene_dict, ball_radius, cylinder_radius, store_path, threads, 
     _worker_open(store_path, defocus)
 
 
+def crash_report() -> bool:
+    """Have this process write the Python stacks of all its threads to stderr if it crashes
+    (a segfault, an abort: :mod:`faulthandler`), as render processes do. A render process dies
+    now and then in libc's malloc (segfaults in the kernel log: 4 on 2026-11-23, over the day's
+    studies and benches; cause not found): the lost batches are rendered again, and the
+    stacks say where it happened.
+
+    Returns
+    -------
+    bool
+        Whether it is on (not where stderr has no file descriptor).
+    """
+    try:
+        faulthandler.enable(all_threads=True)
+    except (AttributeError, OSError, RuntimeError, ValueError):  # no usable stderr
+        return False
+    return True
+
+
 def _worker_start(scene_dict, ball_radius, cylinder_radius, threads, oval=(0.0, 0.0), seed=0):
     """A render process's renderer (its imports, EGL context, programs and meshes): what needs
     no store, so the processes can start while the main process renders the background."""
+    crash_report()
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     cfg = SceneConfig.from_dict(scene_dict)
     _W["cfg"] = cfg
@@ -350,7 +371,8 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
         if attempt == MAX_POOL_RESTARTS:
             raise RuntimeError(f"render processes kept dying: {len(failed)} batches of "
                                f"{BATCH} frames not rendered after {attempt} restarts")
-        bar.write(f"a render process died; rendering {len(failed)} batches again")
+        bar.write(f"a render process died; rendering {len(failed)} batches again (its threads' "
+                  "Python stacks, if it crashed, are above on stderr)")
         pending = sorted(failed)
 
 
