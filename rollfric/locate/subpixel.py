@@ -18,16 +18,7 @@ import math
 import cv2
 import numpy as np
 
-from rollfric.locate.kernels import (
-    _edges,
-    _fit_circle,
-    _fit_stats,
-    _mirror_rim,
-    _mirror_signature,
-    _pixel_fit,
-    _profiles,
-    _select,
-)
+from rollfric.locate.kernels import _pass, _pass_raw
 from rollfric.locate.location import Location
 from rollfric.locate.regions import _crop, _full_scale
 from rollfric.locate.search import coarse_candidates
@@ -338,7 +329,14 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
                   rk) -> Location:
     """:func:`locate_subpixel` from a guess; ``partial``: accept a known-radius fit of a
     partial arc (at least ``opts.min_arc_frac`` of the rim) near the guess; ``rk``: (radius
-    of the known-radius fits, its relative uncertainty)."""
+    of the known-radius fits, its relative uncertainty).
+
+    Each pass (coarse ones until the centre settles, then a fine one) is one call of the
+    GIL-free kernel :func:`rollfric.locate.kernels._pass_raw` on the crops of the frame and
+    the background (profiles, edges, mirror checks, clean rays, robust circle fit, pixel fit);
+    a pinhole's stretched silhouette or a frame that is not uint8 / uint16 goes through
+    OpenCV first (the subtraction, the squeeze) and then :func:`rollfric.locate.kernels._pass`.
+    Here only what steers the passes and judges the result."""
     r_kn, r_kn_sig = rk
     w = search if search is not None else 0.3 * r_px + 2.0
     w = max(w, 1.5)
@@ -357,7 +355,14 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
     fine = False
     if opts.radius not in ("auto", "free", "known"):
         raise ValueError(f"radius must be auto, free or known, got {opts.radius!r}")
-    free = opts.radius == "free" or (opts.radius == "auto" and r_px >= 12)
+    big = r_px >= 12
+    free = opts.radius == "free" or (opts.radius == "auto" and big)
+    mirror_rim = -1 if opts.mirror_rim is None else int(bool(opts.mirror_rim))
+    local = -1 if opts.local_contrast is None else int(bool(opts.local_contrast))
+    nz = -1.0 if noise is None else float(noise)
+    floor = 0.004 * _full_scale(frame.dtype)
+    bg_dtype = background.dtype
+    raw = bg_dtype == frame.dtype and bg_dtype in (np.uint8, np.uint16)
     loc = Location.missing("no edge found")
     for p in range(opts.passes + 1):
         n = n_fine if fine else n_coarse
@@ -378,103 +383,86 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
         if fr is None:
             return Location.missing("ball outside the frame")
         bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
-        rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
-        bgr = bg.astype(np.float32)
         lcx, lcy = cx - x0c, cy - y0c
-        if stretch is not None:
-            # a pinhole's ellipse made a circle again about the current centre: everything
-            # below works on the squeezed crop, its centre is taken back at the end
-            rel = _squeeze(rel, (lcx, lcy), *stretch)
-            bgr = _squeeze(bgr, (lcx, lcy), *stretch)
-        prof = _profiles(rel, lcx, lcy, s0, ds, ns, n)
-        s_edge, con, out_sd, valid, a_lv, b_lv, spread = _edges(prof, s0, ds, r, w, ne, nl,
-                                                        opts.level_smooth, opts.min_contrast_rel,
-                                                        opts.rim_levels,
-                                                        opts.sharp_excess if opts.sharp_rays
-                                                        and r_px >= 12 and w <= 3.0 else 0.0,
-                                                        bgr, lcx, lcy)
-        rim_shift = None
-        mirror = (opts.mirror_rim, opts.local_contrast)
-        if None in mirror:
-            sig = bool(r_px >= 12 and _mirror_signature(
-                con, valid, out_sd, b_lv, -1.0 if noise is None else float(noise),
-                opts.mirror_sector))
-            mirror = tuple(sig if m is None else bool(m) for m in mirror)
-        if mirror[0]:
-            inset = (ne + 0.5 * nl + 1) * ds
-            kappa = _fresnel_kappa(round(r_px, 1), inset, opts.steel_eta, opts.steel_k)
-            rim_shift = _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, lcx, lcy,
-                                    inset, kappa, 1.5, opts.mirror_relative)
-        status, xs, ys, idx = _select(s_edge, con, out_sd, valid, lcx, lcy,
-                                      opts.contrast_bands, opts.min_rays,
-                                      -1.0 if noise is None else float(noise),
-                                      0.004 * _full_scale(frame.dtype),
-                                      mirror[1] and r_px >= 12, b_lv,
-                                      int(round(opts.mirror_flank / 360.0 * n)))
+        inset = (ne + 0.5 * nl + 1) * ds
+        # the Fresnel rise's width (cached), where the rim's correction may be on
+        kappa = _fresnel_kappa(round(r_px, 1), inset, opts.steel_eta, opts.steel_k) \
+            if mirror_rim == 1 or (mirror_rim < 0 and big) else 0.0
+        args = (lcx, lcy, s0, ds, ns, n, r, w, ne, nl, opts.level_smooth, opts.min_contrast_rel,
+                opts.rim_levels,
+                opts.sharp_excess if opts.sharp_rays and big and w <= 3.0 else 0.0,
+                mirror_rim, local, big, nz, opts.mirror_sector, inset, kappa,
+                opts.mirror_relative, opts.contrast_bands, opts.min_rays, floor,
+                int(round(opts.mirror_flank / 360.0 * n)), free, opts.free_min_frac, r_kn,
+                opts.tukey_c, opts.sigma_floor, fine and opts.pixel_fit)
+        if stretch is None and raw:
+            out = _pass_raw(fr, bg, *args)
+        else:
+            rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
+            bgr = bg.astype(np.float32)
+            if stretch is not None:
+                # a pinhole's ellipse made a circle again about the current centre: everything
+                # below works on the squeezed crop, its centre is taken back at the end
+                rel = _squeeze(rel, (lcx, lcy), *stretch)
+                bgr = _squeeze(bgr, (lcx, lcy), *stretch)
+            out = _pass(rel, bgr, *args)
+        status, fcx, fcy, fr_, free_p, n_in, med_res, rms, pcx, pcy, pr, psig, inl, rim, \
+            rim_shift = out
         if status:
-            return Location.missing(_SELECT_FAIL[status])
-        # a free radius only on most of the rim: on a partial arc (the rest of the rim without
-        # contrast against a shadow or the trough) the radius and the centre are confounded,
-        # and the known radius is what makes the arc usable
-        free_p = free and len(xs) >= opts.free_min_frac * n
-        fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_kn, free_p, opts.tukey_c,
-                                              opts.sigma_floor)
-        n_in, med_res, rms = _fit_stats(wts, res)
-        if free_p and (n_in < opts.free_min_frac * n or not math.isfinite(fcx)):
-            free_p = False
-            fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_kn, False, opts.tukey_c,
-                                                  opts.sigma_floor)
-            n_in, med_res, rms = _fit_stats(wts, res)
-        if n_in < opts.min_rays or not math.isfinite(fcx):
-            return Location.missing("robust circle fit failed")
-        # the ball's radius as seen: the fitted one, or (known radius) the known one plus the
-        # median offset of the edge points from that circle
+            return Location.missing(_SELECT_FAIL.get(status, "robust circle fit failed"))
+        # the ball's radius as seen: the fitted one (free on most of the rim only: on a partial
+        # arc the radius and the centre are confounded, and the known radius is what makes the
+        # arc usable), or (known radius) the known one plus the median offset of the edge
+        # points from that circle
         r_seen = fr_ if free_p else r_kn + med_res
         if abs(r_seen - r_px) > opts.max_radius_dev * r_px:
             return Location.missing(f"the ball's edge lies on a circle of {r_seen:.2f} px "
                                     f"radius, not {r_px:.2f} px")
         sigma = rms * math.sqrt(2.0 / n_in)
-        inl = idx[wts > 0]
         if fine and opts.pixel_fit:
-            ray_ok = np.zeros(n, np.bool_)
-            ray_ok[inl] = True
-            pcx, pcy, pr, psig, npix = _pixel_fit(rel, bgr, fcx, fcy, fr_ if free_p else r_kn,
-                                                  free_p, ray_ok, a_lv, b_lv,
-                                                  (ne + 0.5 * nl + 1) * ds, 5)
             if math.isfinite(pcx) and math.hypot(pcx - fcx, pcy - fcy) < 0.5:
-                if rim_shift is not None:
+                if rim:
                     # the pixels' edge model has the same Fresnel rise: the circle moves by
                     # the least-squares circle through the rays' shifts
                     pcx, pcy, pr = _shift_circle(pcx, pcy, pr, inl, n, rim_shift[inl], free_p)
                 fcx, fcy, sigma = pcx, pcy, psig
                 if free_p:
                     r_seen = pr
-        if not free_p:
-            # a known radius that is off by dr moves the centre of a partial arc by |b| dr,
-            # b = (N^T N)^-1 N^T 1 over the arc's unit normals N (0 on the full rim)
-            sigma = math.hypot(sigma, _arc_leverage(inl, n) * r_kn_sig * r_kn)
         if stretch is not None:
             (ux, uy), kst = stretch
             along = (kst - 1.0) * ((fcx - lcx) * ux + (fcy - lcy) * uy)
             fcx, fcy = fcx + along * ux, fcy + along * uy
         shift = math.hypot(fcx - lcx, fcy - lcy)
         cx, cy, r = fcx + x0c, fcy + y0c, float(r_seen)
-        frac = n_in / n
-        need = opts.min_inlier_frac if free_p or not partial else min(opts.min_inlier_frac,
-                                                                        opts.min_arc_frac)
-        if frac < need:
-            ok, why = False, f"only {100 * frac:.0f} % of the edge fits a circle"
-        elif not sigma <= opts.max_sigma:
-            ok, why = False, f"centre uncertain ({sigma:.2f} px)"
-        elif math.hypot(cx - guess[0], cy - guess[1]) > w0 + 1.0:
-            ok, why = False, "the fitted circle lies outside the searched band"
-        else:
-            ok, why = True, ""
-        loc = Location(x=cx, y=cy, r=r, found=ok, sigma=sigma, inlier_frac=frac, reason=why,
-                       radius_free=bool(free_p))
-        if fine:
+        last = fine or p == opts.passes
+        if last:
+            # (only the pass whose result is returned is judged)
+            loc = _judge(cx, cy, r, sigma, n_in, n, free_p, partial, inl, rk, guess, w0, opts)
             break
         w = min(w, max(1.5, 2.0 * shift + 1.0))
         if shift < 0.1 or p >= opts.passes - 1:
             fine = True
     return loc
+
+
+def _judge(cx, cy, r, sigma, n_in, n, free_p, partial, inl, rk, guess, w0, opts) -> Location:
+    """The Location of a pass's circle: found when enough of the rim fits, the centre is
+    certain enough and lies within the searched band."""
+    r_kn, r_kn_sig = rk
+    if not free_p:
+        # a known radius that is off by dr moves the centre of a partial arc by |b| dr,
+        # b = (N^T N)^-1 N^T 1 over the arc's unit normals N (0 on the full rim)
+        sigma = math.hypot(sigma, _arc_leverage(inl, n) * r_kn_sig * r_kn)
+    frac = n_in / n
+    need = opts.min_inlier_frac if free_p or not partial else min(opts.min_inlier_frac,
+                                                                    opts.min_arc_frac)
+    if frac < need:
+        ok, why = False, f"only {100 * frac:.0f} % of the edge fits a circle"
+    elif not sigma <= opts.max_sigma:
+        ok, why = False, f"centre uncertain ({sigma:.2f} px)"
+    elif math.hypot(cx - guess[0], cy - guess[1]) > w0 + 1.0:
+        ok, why = False, "the fitted circle lies outside the searched band"
+    else:
+        ok, why = True, ""
+    return Location(x=cx, y=cy, r=r, found=ok, sigma=sigma, inlier_frac=frac, reason=why,
+                    radius_free=bool(free_p))

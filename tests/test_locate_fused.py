@@ -1,0 +1,431 @@
+"""The sub-pixel locator's pass as one kernel call (rollfric.locate.kernels._pass_raw, issue 16)
+gives the answers of the pass made kernel by kernel from Python (``_reference_guess`` below,
+the code before the fold, kept as the oracle), to the bit: on analytically drawn balls (8 and
+16 bit, small balls of a known radius, noise, spots and shadows), a mirror ball's rim, partial
+arcs, a pinhole's stretched silhouette, balls at and beyond the frame's edge, frames without a
+ball, rendered frames (orthographic and in perspective) and whole measured tracks."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import struct
+
+import cv2
+import numpy as np
+import pytest
+
+from rollfric.locate import subpixel
+from rollfric.locate.kernels import (
+    _edges,
+    _fit_circle,
+    _fit_stats,
+    _mirror_rim,
+    _mirror_signature,
+    _pixel_fit,
+    _profiles,
+    _select,
+)
+from rollfric.locate.location import Location
+from rollfric.locate.regions import _crop, _full_scale
+from rollfric.locate.subpixel import (
+    AUTO_MIRROR,
+    MIRROR,
+    NO_MIRROR,
+    SubpixelOptions,
+    _arc_leverage,
+    _fresnel_kappa,
+    _n_rays,
+    _shift_circle,
+    _squeeze,
+    locate_subpixel,
+    silhouette_stretch,
+    subpixel_locator,
+)
+from validation.drawn_frames import Scene, disk_coverage, make_frames
+
+_SELECT_FAIL = {
+    1: "too few edge points (ball missing, occluded or at the border)",
+    2: "ball edge contrast below the noise",
+    3: "too few clean edge points (shadows or occlusion)",
+}
+
+
+def _reference_guess(frame, background, r_px, guess, search, opts, noise, partial,
+                     rk) -> Location:
+    """rollfric.locate.subpixel._locate_guess as it was before its passes were folded into one
+    kernel call (main at 4b9d5a4): the kernels called one by one, the lines between in
+    Python."""
+    r_kn, r_kn_sig = rk
+    w = search if search is not None else 0.3 * r_px + 2.0
+    w = max(w, 1.5)
+    w0 = w
+    h, wd = frame.shape
+    cx, cy = float(guess[0]), float(guess[1])
+    if not (-r_px < cx < wd - 1 + r_px and -r_px < cy < h - 1 + r_px):
+        return Location.missing("predicted centre outside the frame")
+    r = float(r_px)
+    edge_half = min(opts.edge_half, max(1.5, 0.25 * r_px))
+    level_len = min(opts.level_len, max(0.75, 0.2 * r_px))
+    n_coarse = _n_rays(r_px)
+    n_fine = max(n_coarse, _n_rays(r_px, opts.ray_spacing, opts.max_rays))
+    fine = False
+    free = opts.radius == "free" or (opts.radius == "auto" and r_px >= 12)
+    loc = Location.missing("no edge found")
+    for p in range(opts.passes + 1):
+        n = n_fine if fine else n_coarse
+        ds = opts.ds if w <= 3.0 else 2 * opts.ds
+        ne = max(2, int(round(edge_half / ds)))
+        nl = max(2, int(round(level_len / ds)))
+        m = (ne + 2 * nl + 3) * ds
+        s0 = max(0.5, r - w - m)
+        ns = int(math.ceil((r + w + m - s0) / ds)) + 1
+        stretch = None
+        if opts.pinhole is not None:
+            ux, uy, kst = silhouette_stretch((cx, cy), r_px, opts.pinhole)
+            stretch = ((ux, uy), kst) if kst > 1.0 + 1e-6 else None
+        grow = stretch[1] if stretch is not None else 1.0
+        half = int(math.ceil(grow * (s0 + ns * ds))) + 2
+        x0, y0 = int(math.floor(cx)) - half, int(math.floor(cy)) - half
+        fr, x0c, y0c = _crop(frame, x0, y0, x0 + 2 * half + 2, y0 + 2 * half + 2)
+        if fr is None:
+            return Location.missing("ball outside the frame")
+        bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
+        rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
+        bgr = bg.astype(np.float32)
+        lcx, lcy = cx - x0c, cy - y0c
+        if stretch is not None:
+            rel = _squeeze(rel, (lcx, lcy), *stretch)
+            bgr = _squeeze(bgr, (lcx, lcy), *stretch)
+        prof = _profiles(rel, lcx, lcy, s0, ds, ns, n)
+        s_edge, con, out_sd, valid, a_lv, b_lv, spread = _edges(
+            prof, s0, ds, r, w, ne, nl, opts.level_smooth, opts.min_contrast_rel,
+            opts.rim_levels, opts.sharp_excess if opts.sharp_rays and r_px >= 12 and w <= 3.0
+            else 0.0, bgr, lcx, lcy)
+        rim_shift = None
+        mirror = (opts.mirror_rim, opts.local_contrast)
+        if None in mirror:
+            sig = bool(r_px >= 12 and _mirror_signature(
+                con, valid, out_sd, b_lv, -1.0 if noise is None else float(noise),
+                opts.mirror_sector))
+            mirror = tuple(sig if m is None else bool(m) for m in mirror)
+        if mirror[0]:
+            inset = (ne + 0.5 * nl + 1) * ds
+            kappa = _fresnel_kappa(round(r_px, 1), inset, opts.steel_eta, opts.steel_k)
+            rim_shift = _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, lcx, lcy,
+                                    inset, kappa, 1.5, opts.mirror_relative)
+        status, xs, ys, idx = _select(s_edge, con, out_sd, valid, lcx, lcy,
+                                      opts.contrast_bands, opts.min_rays,
+                                      -1.0 if noise is None else float(noise),
+                                      0.004 * _full_scale(frame.dtype),
+                                      mirror[1] and r_px >= 12, b_lv,
+                                      int(round(opts.mirror_flank / 360.0 * n)))
+        if status:
+            return Location.missing(_SELECT_FAIL[status])
+        free_p = free and len(xs) >= opts.free_min_frac * n
+        fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_kn, free_p, opts.tukey_c,
+                                              opts.sigma_floor)
+        n_in, med_res, rms = _fit_stats(wts, res)
+        if free_p and (n_in < opts.free_min_frac * n or not math.isfinite(fcx)):
+            free_p = False
+            fcx, fcy, fr_, wts, res = _fit_circle(xs, ys, r_kn, False, opts.tukey_c,
+                                                  opts.sigma_floor)
+            n_in, med_res, rms = _fit_stats(wts, res)
+        if n_in < opts.min_rays or not math.isfinite(fcx):
+            return Location.missing("robust circle fit failed")
+        r_seen = fr_ if free_p else r_kn + med_res
+        if abs(r_seen - r_px) > opts.max_radius_dev * r_px:
+            return Location.missing(f"the ball's edge lies on a circle of {r_seen:.2f} px "
+                                    f"radius, not {r_px:.2f} px")
+        sigma = rms * math.sqrt(2.0 / n_in)
+        inl = idx[wts > 0]
+        if fine and opts.pixel_fit:
+            ray_ok = np.zeros(n, np.bool_)
+            ray_ok[inl] = True
+            pcx, pcy, pr, psig, npix = _pixel_fit(rel, bgr, fcx, fcy, fr_ if free_p else r_kn,
+                                                  free_p, ray_ok, a_lv, b_lv,
+                                                  (ne + 0.5 * nl + 1) * ds, 5)
+            if math.isfinite(pcx) and math.hypot(pcx - fcx, pcy - fcy) < 0.5:
+                if rim_shift is not None:
+                    pcx, pcy, pr = _shift_circle(pcx, pcy, pr, inl, n, rim_shift[inl], free_p)
+                fcx, fcy, sigma = pcx, pcy, psig
+                if free_p:
+                    r_seen = pr
+        if not free_p:
+            sigma = math.hypot(sigma, _arc_leverage(inl, n) * r_kn_sig * r_kn)
+        if stretch is not None:
+            (ux, uy), kst = stretch
+            along = (kst - 1.0) * ((fcx - lcx) * ux + (fcy - lcy) * uy)
+            fcx, fcy = fcx + along * ux, fcy + along * uy
+        shift = math.hypot(fcx - lcx, fcy - lcy)
+        cx, cy, r = fcx + x0c, fcy + y0c, float(r_seen)
+        frac = n_in / n
+        need = opts.min_inlier_frac if free_p or not partial else min(opts.min_inlier_frac,
+                                                                        opts.min_arc_frac)
+        if frac < need:
+            ok, why = False, f"only {100 * frac:.0f} % of the edge fits a circle"
+        elif not sigma <= opts.max_sigma:
+            ok, why = False, f"centre uncertain ({sigma:.2f} px)"
+        elif math.hypot(cx - guess[0], cy - guess[1]) > w0 + 1.0:
+            ok, why = False, "the fitted circle lies outside the searched band"
+        else:
+            ok, why = True, ""
+        loc = Location(x=cx, y=cy, r=r, found=ok, sigma=sigma, inlier_frac=frac, reason=why,
+                       radius_free=bool(free_p))
+        if fine:
+            break
+        w = min(w, max(1.5, 2.0 * shift + 1.0))
+        if shift < 0.1 or p >= opts.passes - 1:
+            fine = True
+    return loc
+
+
+def _bits(v):
+    """A value as compared: floats by their bits (every NaN alike), the rest as they are."""
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else struct.pack("<d", v)
+    return v
+
+
+def _same_location(a: Location, b: Location) -> bool:
+    return all(_bits(getattr(a, f.name)) == _bits(getattr(b, f.name))
+               and type(getattr(a, f.name)) is type(getattr(b, f.name))
+               for f in dataclasses.fields(Location))
+
+
+class _Count:
+    """How often the pass took which way: the cases below must reach each."""
+
+    def __init__(self):
+        self.found = self.missing = 0
+        self.reasons = set()
+
+
+def _check(monkeypatch, count, fn, *args, **kwargs):
+    """fn(*args, **kwargs) with the folded pass and with the reference: the same Location to
+    the bit."""
+    new = fn(*args, **kwargs)
+    with monkeypatch.context() as m:
+        m.setattr(subpixel, "_locate_guess", _reference_guess)
+        old = fn(*args, **kwargs)
+    assert _same_location(new, old), (new, old)
+    if count is not None:
+        if new.found:
+            count.found += 1
+        else:
+            count.missing += 1
+            count.reasons.add(" ".join(new.reason.split()[:3]))
+    return new
+
+
+def _guesses(rng, cx, cy, k=3, spread=2.5):
+    return [(cx + rng.uniform(-spread, spread), cy + rng.uniform(-spread, spread))
+            for _ in range(k)]
+
+
+@pytest.mark.parametrize("bit_depth", [8, 16])
+@pytest.mark.parametrize("r_px,noise,shadow", [(37.23, 0.0, 0.0), (37.23, 3.0, 0.5),
+                                               (47.2, 2.0, 0.0), (18.6, 2.0, 0.3),
+                                               (5.88, 1.0, 0.0), (9.0, 0.0, 0.0)])
+def test_drawn_balls_to_the_bit(monkeypatch, bit_depth, r_px, noise, shadow):
+    scene = Scene(width=240, height=200, center=(120.0, 100.0 - 598.0), R_px=635.14,
+                  r_px=r_px, bit_depth=bit_depth, noise=noise * (257 if bit_depth == 16 else 1),
+                  shadow=shadow)
+    rng = np.random.default_rng(int(10 * r_px) + bit_depth)
+    centres = [(120 + rng.uniform(-20, 20), 100 + rng.uniform(-15, 15)) for _ in range(4)]
+    bg, frames = make_frames(scene, centres, seed=int(r_px))
+    count = _Count()
+    for f, (cx, cy) in zip(frames, centres, strict=True):
+        for g in _guesses(rng, cx, cy):
+            _check(monkeypatch, count, locate_subpixel, f, bg, r_px, guess=g)
+            # the tracker's call: a partial arc's known radius and its uncertainty
+            _check(monkeypatch, count, subpixel_locator, f, bg, r_px, g, scene.center,
+                   r_known=r_px * 1.01, r_known_sigma=0.004)
+        # no guess: the full search's candidates
+        _check(monkeypatch, count, subpixel_locator, f, bg, r_px, None, scene.center)
+        # a known radius, and one free, whatever the size
+        for radius in ("known", "free"):
+            _check(monkeypatch, count, locate_subpixel, f, bg, r_px, guess=(cx + 1.0, cy - 1.0),
+                   opts=SubpixelOptions(radius=radius))
+    assert count.found > 0
+
+
+def test_balls_at_and_beyond_the_frame_edge_and_frames_without_a_ball(monkeypatch):
+    r_px = 37.23
+    scene = Scene(width=240, height=200, center=(120.0, 100.0 - 598.0), r_px=r_px, noise=2.0)
+    centres = [(3.0, 100.0), (-20.0, 90.0), (236.5, 50.0), (260.0, 120.0), (120.0, -30.0),
+               (120.4, 197.7), (10.0, 12.0), (None, None)]
+    bg, frames = make_frames(scene, centres, seed=5)
+    rng = np.random.default_rng(7)
+    count = _Count()
+    for f, (cx, cy) in zip(frames, centres, strict=True):
+        near = [(cx, cy)] if cx is not None else [(120.0, 100.0), (5.0, 5.0), (250.0, 220.0),
+                                                  (-40.0, 100.0)]
+        for x, y in near:
+            for g in [(x, y)] + _guesses(rng, x, y, 2, 4.0):
+                _check(monkeypatch, count, locate_subpixel, f, bg, r_px, guess=g)
+                _check(monkeypatch, count, subpixel_locator, f, bg, r_px, g, scene.center)
+    assert count.found > 0 and count.missing > 0
+    assert len(count.reasons) >= 3, count.reasons  # several ways of not finding it
+
+
+def _shadow_frame(cx, cy, shadow_frac, r=37.2, noise=2.0, seed=0):
+    """A dark ball whose rim lies ``shadow_frac`` in a shadow of its own level
+    (tests/test_measure_partial.py)."""
+    h, w = 200, 240
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    t = r * math.cos(math.pi * shadow_frac)
+    shade = np.clip(((xx - cx) + (yy - cy)) / math.sqrt(2) - t + 0.5, 0.0, 1.0)
+    bg = 120.0 * (1 - shade) + 20.0 * shade
+    cov = disk_coverage(h, w, cx, cy, r)
+    img = bg * (1 - cov) + 20.0 * cov
+    rng = np.random.default_rng(seed)
+    f = np.clip(np.rint(img + rng.normal(0, noise, img.shape)), 0, 255).astype(np.uint8)
+    return f, np.clip(np.rint(bg), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("shadow_frac", [0.33, 0.5, 0.6, 0.75, 0.85])
+def test_partial_arcs_to_the_bit(monkeypatch, shadow_frac):
+    rng = np.random.default_rng(int(100 * shadow_frac))
+    count = _Count()
+    for k in range(3):
+        cx, cy = rng.uniform(100, 140), rng.uniform(85, 115)
+        f, bg = _shadow_frame(cx, cy, shadow_frac, seed=k)
+        for g in _guesses(rng, cx, cy, 2, 2.0):
+            _check(monkeypatch, count, locate_subpixel, f, bg, 37.2, guess=g)
+            _check(monkeypatch, count, locate_subpixel, f, bg, 37.2, guess=g, r_known=37.0,
+                   r_known_sigma=0.01, noise=2.0)
+        # a new start: the most disk-like candidate's partial arc
+        _check(monkeypatch, count, subpixel_locator, f, bg, 37.2, None, (120.0, -500.0))
+    assert count.found + count.missing == 3 * 5
+
+
+@pytest.mark.parametrize("opts", [None, AUTO_MIRROR, MIRROR, NO_MIRROR,
+                                  SubpixelOptions(mirror_rim=True, local_contrast=None),
+                                  SubpixelOptions(pixel_fit=False, passes=1)])
+@pytest.mark.parametrize("pixel_mm", [0.1343, 0.2686])
+def test_mirror_balls_to_the_bit(monkeypatch, opts, pixel_mm):
+    from validation.mirror_frames import MirrorScene, make_mirror_frames
+
+    rng = np.random.default_rng(3)
+    count = _Count()
+    kw = {} if opts is None else {"opts": opts}
+    for i in range(3):
+        th = rng.uniform(-0.3, 0.3)
+        tx, ty = 100 + rng.uniform(-0.5, 0.5), 100 + rng.uniform(-0.5, 0.5)
+        lpx = (85.3 - 5.0) / pixel_mm
+        sc = MirrorScene(width=200, height=200, pixel_mm=pixel_mm, noise=2.0,
+                         center=(tx - lpx * math.sin(th), ty - lpx * math.cos(th)))
+        bg, (f,) = make_mirror_frames(sc, [(tx, ty)], seed=i)
+        for g in _guesses(rng, tx, ty, 2, 1.5):
+            _check(monkeypatch, count, locate_subpixel, f, bg, sc.r_px, guess=g, **kw)
+    assert count.found > 0
+
+
+def _ellipse_frame(c, r_px, pinhole, size=200, noise=2.0, seed=0, chord=None):
+    """A dark ball's silhouette stretched as a pinhole stretches it about ``c``
+    (:func:`silhouette_stretch`: axes k r_px along u and r_px across), 8 x 8 samples a pixel,
+    on a bright backdrop (below row ``chord`` as dark as the ball)."""
+    ux, uy, k = silhouette_stretch(c, r_px, pinhole)
+    ss = 8
+    sub = (np.arange(ss) + 0.5) / ss - 0.5
+    yy, xx = np.mgrid[0:size, 0:size].astype(float)
+    dx = xx[..., None, None] + sub[None, None, None, :] - c[0]
+    dy = yy[..., None, None] + sub[None, None, :, None] - c[1]
+    along, across = dx * ux + dy * uy, -dx * uy + dy * ux
+    cov = ((along / (k * r_px)) ** 2 + (across / r_px) ** 2 <= 1.0).mean(axis=(2, 3))
+    bg = 200.0 + 12.0 * (xx / size - 0.5)
+    if chord is not None:
+        bg = np.where(yy > chord, 30.0, bg)
+    img = bg * (1 - cov) + 30.0 * cov
+    rng = np.random.default_rng(seed)
+    f = np.clip(np.rint(img + rng.normal(0, noise, img.shape)), 0, 255).astype(np.uint8)
+    return f, np.clip(np.rint(bg), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("focal,chord", [(3723.0, None), (1489.0, None), (1489.0, 118.0)])
+def test_a_pinhole_s_stretched_silhouette_to_the_bit(monkeypatch, focal, chord):
+    pp = (100.0, -500.0)
+    opts = SubpixelOptions(pinhole=(*pp, focal))
+    rng = np.random.default_rng(int(focal))
+    count = _Count()
+    for i in range(3):
+        c = (100 + rng.uniform(-3, 3), 100 + rng.uniform(-3, 3))
+        f, bg = _ellipse_frame(c, 37.23, opts.pinhole, seed=i, chord=chord)
+        for g in _guesses(rng, *c, 2, 1.5):
+            new = _check(monkeypatch, count, locate_subpixel, f, bg, 37.23, guess=g, opts=opts)
+            if new.found:  # the stretch was undone: the ellipse's centre
+                assert math.hypot(new.x - c[0], new.y - c[1]) < 0.1
+    assert count.found > 0
+
+
+def test_frames_of_other_types_go_through_opencv_to_the_bit(monkeypatch):
+    # float frames (and a uint8 frame beside a float background) take OpenCV's subtraction
+    scene = Scene(width=200, height=200, center=(100.0, 100.0 - 598.0), noise=2.0)
+    bg, (f,) = make_frames(scene, [(101.3, 99.2)], seed=2)
+    for fr, b in ((f.astype(np.float32), bg.astype(np.float32)), (f, bg.astype(np.float32)),
+                  (f.astype(np.float64), bg.astype(np.float64))):
+        loc = _check(monkeypatch, None, locate_subpixel, fr, b, 37.23, guess=(102.0, 98.0))
+        assert loc.found
+
+
+def _same_frame(a, b):
+    return list(a.columns) == list(b.columns) and all(
+        [_bits(float(x)) if isinstance(x, float | np.floating) else x for x in a[k]]
+        == [_bits(float(x)) if isinstance(x, float | np.floating) else x for x in b[k]]
+        for k in a.columns)
+
+
+@pytest.mark.parametrize("kw", [{"noise": 1.0, "missing": (5, 6, 40), "seed": 2},
+                                {"bit_depth": 16, "noise": 2.0, "ball_mm": 3.0, "seed": 4}])
+def test_measured_tracks_to_the_bit(monkeypatch, kw):
+    from measure_data import MemorySource, make_recording
+
+    from rollfric import track
+
+    rec = make_recording(240, mu=0.01, theta0=0.5, fps=200.0, **kw)
+
+    def run():
+        df, info, res = track.measure(MemorySource(rec.frames), rec.setup, rec.background)
+        return df, res
+
+    (df_new, r_new) = run()
+    with monkeypatch.context() as m:
+        m.setattr(subpixel, "_locate_guess", _reference_guess)
+        (df_old, r_old) = run()
+    assert df_new["found"].sum() > 160  # most frames located (and so compared)
+    assert _same_frame(df_new, df_old)
+    assert _bits(float(r_new.mu)) == _bits(float(r_old.mu))
+
+
+def test_rendered_frames_to_the_bit(monkeypatch, tmp_path):
+    # synth's renders: the thesis camera (orthographic) and one in perspective at 0.3 m, whose
+    # ball shows a partial arc over the bore's edge and a stretched silhouette
+    import os
+
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    import sim
+    import synth
+
+    traj = sim.simulate(sim.Scenario(theta0=math.radians(20.0), duration=0.004))
+    count = _Count()
+    for name, cam in (("ortho", synth.CameraModel()),
+                      ("persp", synth.CameraModel(projection="perspective", working_distance=0.3,
+                                                  principal_px=(639.5, 511.5)))):
+        rec = synth.open_recording(synth.render(traj, tmp_path / f"{name}.zarr",
+                                                scene=synth.SceneConfig(camera=cam),
+                                                sensor=synth.noise_preset("realistic"), seed=0,
+                                                workers=1))
+        truth = rec.truth[["sil_x_px", "sil_y_px"]].to_numpy()
+        r_px = 5e-3 / 0.1343e-3
+        opts = [SubpixelOptions()]
+        if name == "persp":
+            opts.append(SubpixelOptions(pinhole=(639.5, 511.5, 0.3 / 0.1343e-3)))
+        bg = rec.background
+        for i in range(len(rec)):
+            f = rec.frames[i]
+            g = (truth[i, 0] + 0.7, truth[i, 1] - 0.4)
+            for o in opts:
+                _check(monkeypatch, count, locate_subpixel, f, bg, r_px, guess=g, opts=o)
+            _check(monkeypatch, count, subpixel_locator, f, bg, r_px, None, (640.0, 380.0))
+    assert count.found > 0
