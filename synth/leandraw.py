@@ -576,10 +576,9 @@ class LeanDraw:
         again."""
         sr = self.sr
         centres = np.array([np.asarray(p, float)[:3, 3] for p in poses])
-        last = sr._footprint
-        if last is not None and last[0].shape == centres.shape and np.array_equal(last[0],
-                                                                                  centres):
-            return last[2], last[3]
+        known = sr.footprint(centres)
+        if known is not None:
+            return known[1], known[2]
         shadows = sr.shadow_boxes(centres) if self.shadows else []
         return sr.ball_box(centres), shadows
 

@@ -236,9 +236,11 @@ def _worker_batch(indices, centres):
     k = centres.shape[1]
     lens = _W.get("lens")
     dfc = _W.get("defocus")
+    many = getattr(sr, "tiles_for_many", None)  # the batch's footprints at once (pyrender)
+    batch_tiles = many(list(centres)) if many is not None else None
     for n, i in enumerate(indices):
         poses = [sr.ball_pose(c) for c in centres[n]]
-        tiles = sr.tiles_for(centres[n])
+        tiles = batch_tiles[n] if batch_tiles is not None else sr.tiles_for(centres[n])
         patches = []
         if tiles and dfc is not None:  # rendered wider, blurred and cut back (synth.defocus)
             regions = dfc[0].render_frame(sr, poses, centres[n], tiles, dfc[1], index=int(i))

@@ -31,6 +31,7 @@ SHADOW_TEX_SZ = 2048  # pyrender.constants.SHADOW_TEX_SZ
 # two tiles are drawn as one when that shades at most this many extra pixels (a forward pass
 # has a fixed cost of a few thousand pixels' shading on llvmpipe)
 MERGE_PX = 4000
+FOOTPRINTS = 64  # frames whose footprint (tiles_for) a renderer keeps for the lean path
 
 
 def _look_at(position, target) -> np.ndarray:
@@ -269,7 +270,8 @@ class SceneRenderer:
         self._shadow_cache = None
         self._shadow_prev: dict = {}  # lamp -> texel box the ball covered last
         self._lean = None  # synth.leandraw.LeanDraw, once pyrender has drawn a tile frame
-        self._footprint = None  # (centres, tiles, ball box, shadow boxes) of the last tiles_for
+        # centres' bytes -> (tiles, ball box, shadow boxes) of the last FOOTPRINTS tiles_for
+        self._footprints: dict = {}
 
     def silhouette_mode(self) -> None:
         """Switch to an unlit white ball on black (no trough, no backdrop, no shadows): the
@@ -646,34 +648,56 @@ class SceneRenderer:
         or the backdrop plane. The box holds the projections of all hits, widened by the
         shadow filter's reach (2.5 shadow-map texels at the hit distance).
         """
+        return SceneRenderer.shadow_boxes_many(self, [centres], margin_px)[0]
+
+    def shadow_boxes_many(self, frames, margin_px: float = 1.5) -> list:
+        """:meth:`shadow_boxes` of several frames' ``centres`` (each (K, 3)) at once: the same
+        arithmetic ray by ray (NumPy's per-call overhead, most of a frame's footprint, is paid
+        once for all of them), the same boxes.
+
+        Parameters
+        ----------
+        frames : sequence of numpy.ndarray
+            Each frame's ball centres (K, 3), m.
+        margin_px : float
+            Added around each box, px.
+
+        Returns
+        -------
+        list of list
+            Per frame, the boxes (x0, y0, x1, y1) of :meth:`shadow_boxes`.
+        """
         cam = self.camera
         r = self.ball_radius
         R = self.cylinder_radius
         zb = -self.config.backdrop_distance
         zlo, zhi = -self.config.trough_length / 2, self.config.trough_length / 2
         rings, cos_a, sin_a = _SHADOW_RAYS
-        # the rays of every lamp and centre are followed together (the same arithmetic, ray
-        # by ray, as one lamp and centre at a time: NumPy's overhead is most of it)
-        circs, origins, lamp_of = [], [], []
-        for k, lamp in enumerate(self.lamps):
-            P = np.asarray(lamp.position)
-            for C in np.atleast_2d(centres):
-                d_vec = C - P
-                d = np.linalg.norm(d_vec)
-                u = d_vec / d
-                off = C - u * (r * r / d)
-                rho = r * math.sqrt(1 - (r / d) ** 2)
-                a = _cross(u, (0.0, 0.0, 1.0) if abs(u[2]) < 0.9 else (1.0, 0.0, 0.0))
-                a /= np.linalg.norm(a)
-                b = _cross(u, a)
-                circs.append(off + (rho * rings)[:, None] * (cos_a[:, None] * a
-                                                             + sin_a[:, None] * b))
-                origins.append(np.broadcast_to(P, (rings.size, 3)))
-                lamp_of.append(np.full(rings.size, k))
+        n_lamps = len(self.lamps)
+        # the rays of every frame, lamp and centre are followed together, grouped by frame
+        # and lamp (the same arithmetic, ray by ray, as one lamp and centre at a time)
+        circs, origins, group = [], [], []
+        for f, centres in enumerate(frames):
+            for k, lamp in enumerate(self.lamps):
+                P = np.asarray(lamp.position)
+                for C in np.atleast_2d(centres):
+                    d_vec = C - P
+                    d = np.linalg.norm(d_vec)
+                    u = d_vec / d
+                    off = C - u * (r * r / d)
+                    rho = r * math.sqrt(1 - (r / d) ** 2)
+                    a = _cross(u, (0.0, 0.0, 1.0) if abs(u[2]) < 0.9 else (1.0, 0.0, 0.0))
+                    a /= np.linalg.norm(a)
+                    b = _cross(u, a)
+                    circs.append(off + (rho * rings)[:, None] * (cos_a[:, None] * a
+                                                                 + sin_a[:, None] * b))
+                    origins.append(np.broadcast_to(P, (rings.size, 3)))
+                    group.append(np.full(rings.size, f * n_lamps + k))
+        out: list = [[] for _ in frames]
         if not circs:
-            return []
+            return out
         P = np.concatenate(origins)
-        lamp_of = np.concatenate(lamp_of)
+        group = np.concatenate(group)
         dirs = np.concatenate(circs) - P
         # backdrop hit
         t_hit = (zb - P[:, 2]) / dirs[:, 2]
@@ -693,8 +717,8 @@ class SceneRenderer:
         bore_seen = on_bore & (cam.projection == "perspective" or cam.tilted)
         keep = bore_seen | (~on_bore & ~self._behind_trough(hits))
         if not keep.any():
-            return []
-        dirs, hits, P, on_bore, lamp_of = (x[keep] for x in (dirs, hits, P, on_bore, lamp_of))
+            return out
+        dirs, hits, P, on_bore, group = (x[keep] for x in (dirs, hits, P, on_bore, group))
         # texel footprint grows as 1 / cos(incidence) on the receiving surface
         d = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
         normal = np.where(on_bore[:, None],
@@ -703,20 +727,22 @@ class SceneRenderer:
         cos_inc = np.clip(np.abs(np.einsum("ij,ij->i", d, normal)), 0.3, 1.0)
         reach = np.linalg.norm(hits - P, axis=1) / cos_inc
         q_all = cam.project(hits)
-        boxes = []
-        for k, lamp in enumerate(self.lamps):
-            mine = lamp_of == k
-            if not mine.any():
-                continue  # this lamp's shadow falls only where the trough hides the backdrop
-            q = q_all[mine]
-            fov = min(2 * lamp.outer_cone + np.pi / 16, np.pi)
-            texel = reach[mine].max() * 2 * math.tan(fov / 2) / SHADOW_TEX_SZ
-            # the 3x3 PCF of bilinear lookups reaches 2.5 texels from the shadow's edge
-            pm = 2.5 * texel / cam.pixel_size + margin_px
-            # an out-of-round bore is within ovality / 4 of the round one the rays hit
-            pm += 0.25 * self.section.ovality / cam.pixel_size
-            boxes.append(_box(np.vstack([q.min(0) - pm, q.max(0) + pm])))
-        return boxes
+        # the kept rays of group g (frame g // lamps, lamp g % lamps) are q_all[ends[g]:ends[g+1]]
+        ends = np.searchsorted(group, np.arange(len(frames) * n_lamps + 1))
+        for f in range(len(frames)):
+            for k, lamp in enumerate(self.lamps):
+                a, b = ends[f * n_lamps + k], ends[f * n_lamps + k + 1]
+                if a == b:
+                    continue  # this lamp's shadow falls only where the trough hides the backdrop
+                q = q_all[a:b]
+                fov = min(2 * lamp.outer_cone + np.pi / 16, np.pi)
+                texel = reach[a:b].max() * 2 * math.tan(fov / 2) / SHADOW_TEX_SZ
+                # the 3x3 PCF of bilinear lookups reaches 2.5 texels from the shadow's edge
+                pm = 2.5 * texel / cam.pixel_size + margin_px
+                # an out-of-round bore is within ovality / 4 of the round one the rays hit
+                pm += 0.25 * self.section.ovality / cam.pixel_size
+                out[f].append(_box(np.vstack([q.min(0) - pm, q.max(0) + pm])))
+        return out
 
     def _behind_trough(self, points: np.ndarray) -> np.ndarray:
         """True for backdrop points the trough's wall certainly hides from the camera."""
@@ -746,12 +772,37 @@ class SceneRenderer:
     def tiles_for(self, centres: np.ndarray) -> list:
         """Tiles (x0, y0, w, h) inside the frame covering ball and shadows; boxes whose union
         adds at most MERGE_PX pixels are merged."""
-        ball = self.ball_box(centres)
+        centres = np.array(centres, dtype=float, copy=True).reshape(-1, 3)
         shadows = self.shadow_boxes(centres) if self.config.shadows else []
-        boxes = [ball, *shadows]
+        return SceneRenderer._tiles(self, centres, self.ball_box(centres), shadows)
+
+    def tiles_for_many(self, frames) -> list:
+        """:meth:`tiles_for` of several frames' ball centres at once (a render process's batch:
+        the shadows' rays of all of them followed together, :meth:`shadow_boxes_many`), the
+        same tiles; the lean path finds each frame's boxes again by its centres.
+
+        Parameters
+        ----------
+        frames : sequence of numpy.ndarray
+            Each frame's ball centres (K, 3), m (K motion-blur sub-frames).
+
+        Returns
+        -------
+        list of list
+            Per frame, its tiles (x0, y0, w, h).
+        """
+        frames = [np.array(c, dtype=float, copy=True).reshape(-1, 3) for c in frames]
+        shadows = self.shadow_boxes_many(frames) if self.config.shadows else \
+            [[] for _ in frames]
+        return [self._tiles(c, self.ball_box(c), s)
+                for c, s in zip(frames, shadows, strict=True)]
+
+    def _tiles(self, centres, ball, shadows) -> list:
+        """The tiles of the ball's box and the shadows' boxes (clipped to the frame, merged),
+        kept with the boxes for the lean path (:meth:`footprint`)."""
         W, H = self.camera.width, self.camera.height
         clipped = []
-        for x0, y0, x1, y1 in boxes:
+        for x0, y0, x1, y1 in [ball, *shadows]:
             x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
             if x1 > x0 and y1 > y0:
                 clipped.append((x0, y0, x1, y1))
@@ -760,9 +811,21 @@ class SceneRenderer:
         tiles = [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in clipped]
         # what the lean path redraws inside these tiles (synth.leandraw: the ball in its box,
         # the static surfaces in the shadows' boxes; the rest is the static layer)
-        self._footprint = (np.array(centres, dtype=float, copy=True).reshape(-1, 3),
-                           tuple(tiles), ball, tuple(shadows))
+        kept = getattr(self, "_footprints", None)
+        if kept is None:
+            kept = self._footprints = {}
+        key = centres.tobytes()
+        kept.pop(key, None)
+        kept[key] = (tuple(tiles), ball, tuple(shadows))
+        while len(kept) > FOOTPRINTS:
+            del kept[next(iter(kept))]
         return tiles
+
+    def footprint(self, centres):
+        """(tiles, ball box, shadow boxes) that :meth:`tiles_for` or :meth:`tiles_for_many`
+        found for these ``centres`` (K, 3) among its last FOOTPRINTS frames, or None."""
+        c = np.ascontiguousarray(np.asarray(centres, dtype=float).reshape(-1, 3))
+        return self._footprints.get(c.tobytes())
 
 
 def _cache_light_matrices(inner) -> None:

@@ -129,6 +129,33 @@ def test_tiles_equal_full_frame_render(projection, lighting):
     assert any(merged), "no merged tile: the test would not check merging"
 
 
+@pytest.mark.parametrize("case", ["thesis", "perspective", "harsh", "tilted", "blur"])
+def test_footprints_of_a_batch_equal_frame_by_frame(case):
+    """tiles_for_many (a render process's batch: the shadows' rays of all its frames followed
+    together) gives each frame the tiles, ball box and shadow boxes that tiles_for of that
+    frame alone gives, and the lean path finds them by the frame's centres."""
+    from synth.config import lighting_preset
+
+    cam = CameraModel()
+    lighting = "harsh" if case == "harsh" else "thesis"
+    if case == "perspective":
+        cam = dataclasses.replace(cam, projection="perspective")
+    if case == "tilted":
+        cam = dataclasses.replace(cam, yaw=0.02, pitch=-0.015, roll=0.01)
+    cfg = SceneConfig(camera=cam, lighting=lighting_preset(lighting))
+    k = 3 if case == "blur" else 1
+    thetas = np.linspace(-0.45, 0.45, 40 * k).reshape(40, k)
+    frames = [np.array([_centre(t, z=0.001 * t) for t in row]) for row in thetas]
+    batch, single = SceneRenderer(cfg, R_BALL, R_CYL), SceneRenderer(cfg, R_BALL, R_CYL)
+    got = batch.tiles_for_many(frames[:16]) + batch.tiles_for_many(frames[16:])
+    for c, tiles in zip(frames, got, strict=True):
+        assert tiles == single.tiles_for(c)
+        assert batch.footprint(c) == (tuple(tiles), single.ball_box(c),
+                                      tuple(single.shadow_boxes(c)))
+    assert sum(len(batch.footprint(c)[2]) for c in frames) >= 40  # shadows were checked
+    assert batch.footprint(frames[0] + 1e-9) is None
+
+
 def test_motion_blur_subframes_average():
     """Two sub-frames at the same pose equal twice the single render."""
     cam = CameraModel(width=96, height=80, center_px=(48.0, -560.0))
