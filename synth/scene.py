@@ -339,9 +339,13 @@ class SceneRenderer:
             self.scene.set_pose(self._ball_node, pose)
 
     def _reduce(self, color: np.ndarray) -> np.ndarray:
-        """(h ss, w ss, 3) uint8 -> (h, w) uint32 sum over channels and supersamples."""
+        """(h ss, w ss, 3) uint8 -> (h, w) sum over channels and supersamples (uint64, as
+        NumPy's sum of uint32 gives)."""
         s = self.ss
-        c = color.astype(np.uint32).sum(axis=2)
+        # channel by channel: the same integer sums, ~20x less time than a reduction over the
+        # short last axis of the (flipped, strided) read-back view
+        c = np.add(color[..., 0], color[..., 1], dtype=np.uint64)
+        c += color[..., 2]
         if s > 1:
             h, w = c.shape[0] // s, c.shape[1] // s
             c = c.reshape(h, s, w, s).sum(axis=(1, 3))

@@ -156,6 +156,23 @@ def test_footprints_of_a_batch_equal_frame_by_frame(case):
     assert batch.footprint(frames[0] + 1e-9) is None
 
 
+@pytest.mark.parametrize("ss", [1, 2])
+def test_reduce_sums_channels_and_supersamples_exactly(ss):
+    """The read-back's sum over channels (and supersamples) equals NumPy's plain sum, values
+    and dtype, on a flipped RGBA view as read_region gives it."""
+    rng = np.random.default_rng(5)
+    raw = rng.integers(0, 256, (9 * ss, 10 * ss, 4), dtype=np.uint8)
+    raw[0, 0, :3] = 255
+    color = raw[::-1, :, :3]
+    sr = SceneRenderer(SceneConfig(camera=CameraModel(width=10, height=9), supersample=ss),
+                       R_BALL, R_CYL)
+    want = color.astype(np.uint32).sum(axis=2)
+    want = want.reshape(9, ss, 10, ss).sum(axis=(1, 3))
+    got = sr._reduce(color)
+    assert got.dtype == want.dtype
+    np.testing.assert_array_equal(got, want)
+
+
 def test_motion_blur_subframes_average():
     """Two sub-frames at the same pose equal twice the single render."""
     cam = CameraModel(width=96, height=80, center_px=(48.0, -560.0))
