@@ -12,11 +12,13 @@ import math
 import struct
 
 import cv2
+import numba
 import numpy as np
 import pytest
 
 from rollfric.locate import subpixel
 from rollfric.locate.kernels import (
+    _edge_cdf,
     _edges,
     _fit_circle,
     _fit_stats,
@@ -25,6 +27,7 @@ from rollfric.locate.kernels import (
     _pixel_fit,
     _profiles,
     _select,
+    _solve3,
 )
 from rollfric.locate.location import Location
 from rollfric.locate.regions import _crop, _full_scale
@@ -142,9 +145,10 @@ def _reference_guess(frame, background, r_px, guess, search, opts, noise, partia
         if fine and opts.pixel_fit:
             ray_ok = np.zeros(n, np.bool_)
             ray_ok[inl] = True
-            pcx, pcy, pr, psig, npix = _pixel_fit(rel, bgr, fcx, fcy, fr_ if free_p else r_kn,
-                                                  free_p, ray_ok, a_lv, b_lv,
-                                                  (ne + 0.5 * nl + 1) * ds, 5)
+            pcx, pcy, pr, psig, npix = _reference_pixel_fit(rel, bgr, fcx, fcy,
+                                                            fr_ if free_p else r_kn, free_p,
+                                                            ray_ok, a_lv, b_lv,
+                                                            (ne + 0.5 * nl + 1) * ds, 5)
             if math.isfinite(pcx) and math.hypot(pcx - fcx, pcy - fcy) < 0.5:
                 if rim_shift is not None:
                     pcx, pcy, pr = _shift_circle(pcx, pcy, pr, inl, n, rim_shift[inl], free_p)
@@ -178,6 +182,143 @@ def _reference_guess(frame, background, r_px, guess, search, opts, noise, partia
         if shift < 0.1 or p >= opts.passes - 1:
             fine = True
     return loc
+
+
+@numba.njit
+def _reference_pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
+    """rollfric.locate.kernels._pixel_fit before its second pass reused the first's pixels (main
+    at 2a10b8e), kept as the oracle."""
+    h, w = rel.shape
+    n = len(ray_ok)
+    npar = 3 if free else 2
+    sig = np.nan
+    npix = 0
+    ray_ok = ray_ok.copy()
+    ray_ss = np.zeros(n)
+    ray_n = np.zeros(n)
+    for it in range(iters):
+        # J^T J's upper triangle and J^T r as scalars (gg[p] gg[q] is gg[q] gg[p] to the bit:
+        # the lower triangle is its mirror)
+        j00 = j01 = j02 = j11 = j12 = j22 = 0.0
+        r0 = r1 = r2 = 0.0
+        ss = 0.0
+        npix = 0
+        ray_ss[:] = 0.0
+        ray_n[:] = 0.0
+        x0 = max(0, int(cx - r - 2))
+        x1 = min(w - 1, int(cx + r + 3))
+        y0 = max(0, int(cy - r - 2))
+        y1 = min(h - 1, int(cy + r + 3))
+        # per row, only the pixels within the rim's band widened by 1 px radially and 1 px
+        # each side are tested (the others fail the test |d - r| <= 1.5 by far); the pixels
+        # that pass are taken in the same order, so the sums are the same to the bit
+        ro2 = (r + 2.5) * (r + 2.5)
+        ri = r - 2.5
+        for iy in range(y0, y1 + 1):
+            dy0 = iy - cy
+            q2 = ro2 - dy0 * dy0
+            if q2 < 0.0:
+                continue
+            xo = np.sqrt(q2)
+            xi = -1.0
+            if ri > abs(dy0):
+                xi = np.sqrt(ri * ri - dy0 * dy0)
+            la = max(x0, int(math.floor(cx - xo)) - 1)
+            rb = min(x1, int(math.ceil(cx + xo)) + 1)
+            lb = rb
+            ra = rb + 1
+            if xi > 1.0:
+                lb = int(math.ceil(cx - xi)) + 1
+                ra = int(math.floor(cx + xi)) - 1
+                if ra <= lb + 1:
+                    lb = rb
+                    ra = rb + 1
+            ix = la - 1
+            while ix < rb:
+                ix += 1
+                if lb < ix < ra:  # the band's inside: on to its right part
+                    ix = ra - 1
+                    continue
+                dx = ix - cx
+                dy = iy - cy
+                d = np.sqrt(dx * dx + dy * dy)
+                u = d - r
+                if abs(u) > 1.5 or d == 0.0:
+                    continue
+                phi = np.arctan2(dy, dx)
+                if phi < 0:
+                    phi += 2 * np.pi
+                k = int(phi / (2 * np.pi / n)) % n
+                if not ray_ok[k]:
+                    continue
+                b = b_lv[k]
+                jx = int(np.rint(cx + dx * (r - inset) / d))
+                jy = int(np.rint(cy + dy * (r - inset) / d))
+                jx = min(max(jx, 0), w - 1)
+                jy = min(max(jy, 0), h - 1)
+                a = a_lv[k] + bgr[jy, jx] - bgr[iy, ix]
+                c = abs(dx) / d
+                s_ = abs(dy) / d
+                if s_ > c:
+                    c, s_ = s_, c
+                cov, dens = _edge_cdf(-u, c, s_)
+                res = rel[iy, ix] - (b + (a - b) * cov)
+                # d model / d (cx, cy, r): (a - b) * dens * (dx/d, dy/d, 1)
+                g0 = (a - b) * dens * dx / d
+                g1 = (a - b) * dens * dy / d
+                g2 = (a - b) * dens
+                r0 += g0 * res
+                j00 += g0 * g0
+                j01 += g0 * g1
+                j02 += g0 * g2
+                r1 += g1 * res
+                j11 += g1 * g1
+                j12 += g1 * g2
+                r2 += g2 * res
+                j22 += g2 * g2
+                ss += res * res
+                npix += 1
+                ray_ss[k] += res * res
+                ray_n[k] += 1
+        jtj = np.array([[j00, j01, j02], [j01, j11, j12], [j02, j12, j22]])
+        jtr = np.array([r0, r1, r2])
+        if npix < 20:
+            return np.nan, np.nan, np.nan, np.nan, npix
+        if it == 0:
+            # drop rays whose pixels do not fit (shadow edges, spots): rms residual above
+            # 2.5 x the typical ray's, then start again from the same circle
+            used = ray_n > 0
+            rr = np.sqrt(ray_ss[used] / ray_n[used])
+            thr = 2.5 * np.median(rr)
+            drop = 0
+            for q in range(n):
+                if used[q] and np.sqrt(ray_ss[q] / ray_n[q]) > thr:
+                    ray_ok[q] = False
+                    drop += 1
+            if drop > 0:
+                continue
+        if free:
+            st = _solve3(jtj, jtr)
+            s0, s1, s2 = st[0], st[1], st[2]
+        else:
+            det = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
+            if det == 0.0:
+                return np.nan, np.nan, np.nan, np.nan, npix
+            s0 = (jtj[1, 1] * jtr[0] - jtj[0, 1] * jtr[1]) / det
+            s1 = (-jtj[1, 0] * jtr[0] + jtj[0, 0] * jtr[1]) / det
+            s2 = 0.0
+        if not (np.isfinite(s0) and np.isfinite(s1) and np.isfinite(s2)):
+            return np.nan, np.nan, np.nan, np.nan, npix
+        cx += s0
+        cy += s1
+        r += s2
+        # centre standard error from the residual variance and the 2 x 2 block of J^T J
+        var = ss / max(npix - npar, 1)
+        det2 = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
+        sig = np.sqrt(var * (jtj[0, 0] + jtj[1, 1]) / det2) if det2 > 0 else np.nan
+        if abs(s0) + abs(s1) + abs(s2) < 1e-4:
+            break
+    return cx, cy, r, sig, npix
 
 
 def _bits(v):
@@ -429,3 +570,31 @@ def test_rendered_frames_to_the_bit(monkeypatch, tmp_path):
                 _check(monkeypatch, count, locate_subpixel, f, bg, r_px, guess=g, opts=o)
             _check(monkeypatch, count, subpixel_locator, f, bg, r_px, None, (640.0, 380.0))
     assert count.found > 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_pixel_fit_s_second_pass_reuses_the_first_s_pixels_to_the_bit(seed):
+    # drawn balls (shadows and spots: rays whose pixels do not fit and are dropped), circles
+    # started off the ball's, free and known radius, random rays left out, crops cut by the
+    # frame's edge
+    rng = np.random.default_rng(seed)
+    scene = Scene(width=160, height=140, center=(80.0, 70.0 - 598.0), r_px=37.23, noise=2.0,
+                  shadow=0.5 * seed / 3)
+    cases = 0
+    for k in range(12):
+        cx, cy = 80 + rng.uniform(-30, 30), 70 + rng.uniform(-25, 25)
+        bg, (f,) = make_frames(scene, [(cx, cy)], seed=seed * 100 + k)
+        rel = cv2.subtract(f, bg, dtype=cv2.CV_32F)
+        bgr = bg.astype(np.float32)
+        n = int(rng.choice([94, 234]))
+        a_lv = np.full(n, -0.66 * 255) + rng.normal(0, 2, n)
+        b_lv = rng.normal(0, 1, n)
+        a_lv[rng.integers(0, n, 6)] += 60.0  # rays whose levels are off: their pixels misfit
+        for free in (True, False):
+            ray_ok = rng.random(n) > rng.uniform(0.0, 0.6)
+            args = (rel, bgr, cx + rng.uniform(-0.6, 0.6), cy + rng.uniform(-0.6, 0.6),
+                    37.23 * rng.uniform(0.98, 1.02), free, ray_ok, a_lv, b_lv, 3.5, 5)
+            new, old = _pixel_fit(*args), _reference_pixel_fit(*args)
+            assert [_bits(float(v)) for v in new] == [_bits(float(v)) for v in old], (new, old)
+            cases += 1
+    assert cases == 24

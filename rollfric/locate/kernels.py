@@ -507,6 +507,14 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
     ray_ok = ray_ok.copy()
     ray_ss = np.zeros(n)
     ray_n = np.zeros(n)
+    # the first pass's pixels (ray, gradient, residual): after it drops rays, the second pass
+    # is about the same circle, so its pixels are the first's on the rays kept, their values
+    # the same to the bit; they are summed again from here in the same order
+    c_k = np.empty(0, np.int64)
+    c_g = np.empty((0, 3))
+    c_res = np.empty(0)
+    n_c = 0
+    reuse = False
     for it in range(iters):
         # J^T J's upper triangle and J^T r as scalars (gg[p] gg[q] is gg[q] gg[p] to the bit:
         # the lower triangle is its mirror)
@@ -516,10 +524,48 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
         npix = 0
         ray_ss[:] = 0.0
         ray_n[:] = 0.0
+        if reuse:
+            reuse = False
+            for q in range(n_c):
+                k = c_k[q]
+                if not ray_ok[k]:
+                    continue
+                g0 = c_g[q, 0]
+                g1 = c_g[q, 1]
+                g2 = c_g[q, 2]
+                res = c_res[q]
+                r0 += g0 * res
+                j00 += g0 * g0
+                j01 += g0 * g1
+                j02 += g0 * g2
+                r1 += g1 * res
+                j11 += g1 * g1
+                j12 += g1 * g2
+                r2 += g2 * res
+                j22 += g2 * g2
+                ss += res * res
+                npix += 1
+                ray_ss[k] += res * res
+                ray_n[k] += 1
+            jtj = np.array([[j00, j01, j02], [j01, j11, j12], [j02, j12, j22]])
+            jtr = np.array([r0, r1, r2])
+            if npix < 20:
+                return np.nan, np.nan, np.nan, np.nan, npix
+            cx, cy, r, sig, done, ok = _pixel_step(jtj, jtr, cx, cy, r, free, ss, npix, npar)
+            if not ok:
+                return np.nan, np.nan, np.nan, np.nan, npix
+            if done:
+                break
+            continue
         x0 = max(0, int(cx - r - 2))
         x1 = min(w - 1, int(cx + r + 3))
         y0 = max(0, int(cy - r - 2))
         y1 = min(h - 1, int(cy + r + 3))
+        if it == 0:
+            m_c = max(0, (y1 - y0 + 1) * (x1 - x0 + 1))
+            c_k = np.empty(m_c, np.int64)
+            c_g = np.empty((m_c, 3))
+            c_res = np.empty(m_c)
         # per row, only the pixels within the rim's band widened by 1 px radially and 1 px
         # each side are tested (the others fail the test |d - r| <= 1.5 by far); the pixels
         # that pass are taken in the same order, so the sums are the same to the bit
@@ -591,6 +637,13 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
                 npix += 1
                 ray_ss[k] += res * res
                 ray_n[k] += 1
+                if it == 0:
+                    c_k[n_c] = k
+                    c_g[n_c, 0] = g0
+                    c_g[n_c, 1] = g1
+                    c_g[n_c, 2] = g2
+                    c_res[n_c] = res
+                    n_c += 1
         jtj = np.array([[j00, j01, j02], [j01, j11, j12], [j02, j12, j22]])
         jtr = np.array([r0, r1, r2])
         if npix < 20:
@@ -607,29 +660,41 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
                     ray_ok[q] = False
                     drop += 1
             if drop > 0:
+                reuse = True
                 continue
-        if free:
-            st = _solve3(jtj, jtr)
-            s0, s1, s2 = st[0], st[1], st[2]
-        else:
-            det = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
-            if det == 0.0:
-                return np.nan, np.nan, np.nan, np.nan, npix
-            s0 = (jtj[1, 1] * jtr[0] - jtj[0, 1] * jtr[1]) / det
-            s1 = (-jtj[1, 0] * jtr[0] + jtj[0, 0] * jtr[1]) / det
-            s2 = 0.0
-        if not (np.isfinite(s0) and np.isfinite(s1) and np.isfinite(s2)):
+        cx, cy, r, sig, done, ok = _pixel_step(jtj, jtr, cx, cy, r, free, ss, npix, npar)
+        if not ok:
             return np.nan, np.nan, np.nan, np.nan, npix
-        cx += s0
-        cy += s1
-        r += s2
-        # centre standard error from the residual variance and the 2 x 2 block of J^T J
-        var = ss / max(npix - npar, 1)
-        det2 = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
-        sig = np.sqrt(var * (jtj[0, 0] + jtj[1, 1]) / det2) if det2 > 0 else np.nan
-        if abs(s0) + abs(s1) + abs(s2) < 1e-4:
+        if done:
             break
     return cx, cy, r, sig, npix
+
+
+@njit(nogil=True)
+def _pixel_step(jtj, jtr, cx, cy, r, free, ss, npix, npar):
+    """:func:`_pixel_fit`'s Gauss-Newton step from J^T J and J^T r: the new (cx, cy, r), the
+    centre's standard error, whether the step was small enough to stop, and whether it was
+    finite."""
+    if free:
+        st = _solve3(jtj, jtr)
+        s0, s1, s2 = st[0], st[1], st[2]
+    else:
+        det = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
+        if det == 0.0:
+            return cx, cy, r, np.nan, False, False
+        s0 = (jtj[1, 1] * jtr[0] - jtj[0, 1] * jtr[1]) / det
+        s1 = (-jtj[1, 0] * jtr[0] + jtj[0, 0] * jtr[1]) / det
+        s2 = 0.0
+    if not (np.isfinite(s0) and np.isfinite(s1) and np.isfinite(s2)):
+        return cx, cy, r, np.nan, False, False
+    cx += s0
+    cy += s1
+    r += s2
+    # centre standard error from the residual variance and the 2 x 2 block of J^T J
+    var = ss / max(npix - npar, 1)
+    det2 = jtj[0, 0] * jtj[1, 1] - jtj[0, 1] * jtj[1, 0]
+    sig = np.sqrt(var * (jtj[0, 0] + jtj[1, 1]) / det2) if det2 > 0 else np.nan
+    return cx, cy, r, sig, abs(s0) + abs(s1) + abs(s2) < 1e-4, True
 
 
 @njit(nogil=True)
