@@ -155,8 +155,9 @@ def crash_report() -> bool:
     """Have this process write the Python stacks of all its threads to stderr if it crashes
     (a segfault, an abort: :mod:`faulthandler`), as render processes do. A render process dies
     now and then in libc's malloc (segfaults in the kernel log: 4 on 2026-11-23, over the day's
-    studies and benches; cause not found): the lost batches are rendered again, and the
-    stacks say where it happened.
+    studies and benches: a 4-byte zero written at +8 of a freed block, which glibc trips over
+    later; the writer not found, see :mod:`synth.heapprobe`): the lost batches are rendered
+    again, and the stacks say where the process was when glibc tripped (not who wrote).
 
     Returns
     -------
@@ -374,7 +375,9 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
             raise RuntimeError(f"render processes kept dying: {len(failed)} batches of "
                                f"{BATCH} frames not rendered after {attempt} restarts")
         bar.write(f"a render process died; rendering {len(failed)} batches again (its threads' "
-                  "Python stacks, if it crashed, are above on stderr)")
+                  "Python stacks, if it crashed, are above on stderr; to catch a write into "
+                  "freed memory where it happens, run under synth's heap probe: "
+                  "LD_PRELOAD=$(python -m synth.heapprobe))")
         pending = sorted(failed)
 
 
