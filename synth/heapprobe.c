@@ -4,7 +4,8 @@
  *
  * free() does not give a block back to malloc at once: it fills the block's first PROBE_FILL
  * bytes with 0xA5 and keeps it in a ring of the last SYNTH_HEAPPROBE_BLOCKS blocks (default
- * 4096; blocks larger than SYNTH_HEAPPROBE_MAX_BYTES, default 1 MiB, are freed at once). When
+ * 4096; blocks larger than SYNTH_HEAPPROBE_MAX_BYTES, default 1 MiB, are freed at once; the
+ * oldest go early while the ring holds more than SYNTH_HEAPPROBE_MAX_HELD bytes, 256 MiB). When
  * a block leaves the ring (and for every block still in it when the process exits) its filled
  * bytes are checked: any byte that is no longer 0xA5 was written after the block was freed,
  * and a line starting "synth heap probe:" goes to stderr. Nothing else changes: the program's
@@ -41,6 +42,7 @@ static void (*real_free)(void *);
 static struct held ring[RING_MAX];
 static size_t ring_len, ring_used, ring_next;
 static size_t max_bytes = 1 << 20;
+static size_t max_held = (size_t)256 << 20, held;
 static volatile int ring_lock, ready;
 static long reports;
 
@@ -65,6 +67,9 @@ static void setup(void) {
     s = getenv("SYNTH_HEAPPROBE_MAX_BYTES");
     if (s)
         max_bytes = (size_t)strtoul(s, NULL, 10);
+    s = getenv("SYNTH_HEAPPROBE_MAX_HELD");
+    if (s)
+        max_held = (size_t)strtoul(s, NULL, 10);
     ready = 1;
 }
 
@@ -110,16 +115,23 @@ void free(void *p) {
     }
     memcpy(h.thread, thread_name, sizeof h.thread);
     memset(p, PROBE_BYTE, n < PROBE_FILL ? n : PROBE_FILL);
-    struct held out = {0};
-    lock();
-    if (ring_used == ring_len)
-        out = ring[ring_next];
-    else
-        ring_used++;
-    ring[ring_next] = h;
-    ring_next = (ring_next + 1) % ring_len;
-    unlock();
-    if (out.p) {
+    /* the oldest blocks go (checked, then freed) while the ring is full or would hold more
+       than max_held bytes */
+    for (;;) {
+        struct held out;
+        lock();
+        if (ring_used == 0 || (ring_used < ring_len && held + n <= max_held)) {
+            ring[ring_next] = h;
+            ring_next = (ring_next + 1) % ring_len;
+            ring_used++;
+            held += n;
+            unlock();
+            return;
+        }
+        out = ring[(ring_next + ring_len - ring_used) % ring_len];
+        held -= out.n;
+        ring_used--;
+        unlock();
         check(&out);
         real_free(out.p);
     }
@@ -127,8 +139,8 @@ void free(void *p) {
 
 __attribute__((destructor)) static void finish(void) {
     lock();
-    for (size_t k = 0; k < ring_used; k++)
-        check(&ring[k]);
+    for (size_t k = 0; k < ring_used; k++)  /* the held blocks, oldest first */
+        check(&ring[(ring_next + ring_len - ring_used + k) % ring_len]);
     unlock();
     if (getenv("SYNTH_HEAPPROBE_SUMMARY"))
         fprintf(stderr, "synth heap probe: %ld writes after free reported\n", reports);

@@ -3,7 +3,8 @@ after it was freed (issue 16: render processes dying in glibc's malloc).
 
 The probe (``synth/heapprobe.c``, built here with the machine's C compiler) holds every freed
 block of up to ``SYNTH_HEAPPROBE_MAX_BYTES`` (1 MiB) back from malloc for the next
-``SYNTH_HEAPPROBE_BLOCKS`` (4096) frees, its first 256 bytes filled with 0xA5, and checks them
+``SYNTH_HEAPPROBE_BLOCKS`` (4096) frees (fewer while it holds more than
+``SYNTH_HEAPPROBE_MAX_HELD``, 256 MiB), its first 256 bytes filled with 0xA5, and checks them
 when it lets the block go (and at exit): a changed byte was written after the free, and a line
 starting with :data:`PREFIX` on stderr says which bytes, their new values, the block's size
 and the library (with offset) and thread that freed it. glibc itself notices such a write

@@ -59,6 +59,25 @@ def test_a_write_after_free_is_reported_with_its_bytes(probe):
     assert found[0].endswith(": 00000000")
 
 
+def test_held_bytes_are_capped(probe):
+    # three 512 KiB blocks freed after the planted write: with a 1 MiB cap the probe lets the
+    # oldest blocks go (checked) at once, before the marker; without it, only at exit
+    code = WRITE_AFTER_FREE.format(write=True).replace("range(10000)", "range(0)") + """
+    for _ in range(3):
+        libc.free(libc.malloc(512 * 1024))
+    import sys
+    print("MARK", file=sys.stderr, flush=True)
+    """
+    for cap, before in (("1048576", True), (None, False)):
+        env = {"SYNTH_HEAPPROBE_MAX_HELD": cap} if cap else {}
+        out = _run(probe, code, **env)
+        assert out.returncode == 0, out.stderr
+        lines = out.stderr.splitlines()
+        found = [k for k, line in enumerate(lines) if line in heapprobe.reports(out.stderr)]
+        assert len(found) == 1, out.stderr
+        assert (found[0] < lines.index("MARK")) == before, out.stderr
+
+
 def test_no_write_no_report(probe):
     out = _run(probe, WRITE_AFTER_FREE.format(write=False), SYNTH_HEAPPROBE_SUMMARY="1")
     assert out.returncode == 0, out.stderr
