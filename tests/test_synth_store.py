@@ -383,3 +383,21 @@ def test_a_corrupt_chunk_stops_the_measurement_with_a_message(rec_path, tmp_path
         assert main(["measure", str(bad), "--out", str(out), "--no-progress"]) == 2
         assert "frame 5's chunk is corrupt" in capsys.readouterr().err
         assert not out.exists()
+
+
+def test_scratch_dir_only_with_room(tmp_path, monkeypatch):
+    """Temporary recordings go to the RAM-backed folder only when it exists, is writable and
+    has room for the frames; else to the system's temporary folder (None)."""
+    import shutil
+    from collections import namedtuple
+
+    import synth.store as store
+
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(store, "SCRATCH", str(tmp_path))
+    room = 4001 * store.SCRATCH_FRAME_BYTES + store.SCRATCH_SPARE_BYTES
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: usage(2 * room, 0, room))
+    assert store.scratch_dir(4001) == str(tmp_path)
+    assert store.scratch_dir(4002) is None
+    monkeypatch.setattr(store, "SCRATCH", str(tmp_path / "missing"))
+    assert store.scratch_dir(10) is None

@@ -181,7 +181,10 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
     if recording is not None:
         rec_path = Path(recording)
     else:
-        tmpdir = Path(tempfile.mkdtemp(prefix="rollfric-case-"))
+        from synth.store import scratch_dir
+
+        # a temporary recording: in RAM where there is room (its ~2 files a frame)
+        tmpdir = Path(tempfile.mkdtemp(prefix="rollfric-case-", dir=scratch_dir(len(traj))))
         rec_path = tmpdir / "recording.zarr"
     try:
         with _timer(timings, "render"):
