@@ -642,3 +642,23 @@ def test_the_ray_profiles_to_the_bit(seed):
         new, old = _profiles(rel, *args), _reference_profiles(rel, *args)
         assert new.shape == old.shape
         assert np.array_equal(new.view(np.int64), old.view(np.int64))
+
+
+@numba.njit
+def _order_statistics(x, q):
+    return np.sort(x)[q], np.partition(x, q)[q]
+
+
+def test_an_order_statistic_by_partition_is_the_sorted_array_s():
+    # what the edges' polarity threshold, their contrast reference and the rim's mirror
+    # sectors rely on since they select their quantile instead of sorting (finite values)
+    rng = np.random.default_rng(11)
+    for _ in range(500):
+        m = int(rng.integers(1, 300))
+        x = rng.normal(0, 50, m)
+        if rng.random() < 0.5:
+            x = np.round(x / 7.0) * 7.0  # ties
+        for frac in (0.9, 0.75, 0.1, 0.0, 1.0):
+            q = int(frac * (m - 1))
+            by_sort, by_partition = _order_statistics(x.copy(), q)
+            assert _bits(float(by_sort)) == _bits(float(by_partition))
