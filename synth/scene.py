@@ -678,31 +678,33 @@ class SceneRenderer:
         zlo, zhi = -self.config.trough_length / 2, self.config.trough_length / 2
         rings, cos_a, sin_a = _SHADOW_RAYS
         n_lamps = len(self.lamps)
-        # the rays of every frame, lamp and centre are followed together, grouped by frame
-        # and lamp (the same arithmetic, ray by ray, as one lamp and centre at a time)
-        circs, origins, group = [], [], []
-        for f, centres in enumerate(frames):
-            for k, lamp in enumerate(self.lamps):
-                P = np.asarray(lamp.position)
-                for C in np.atleast_2d(centres):
-                    d_vec = C - P
-                    d = np.linalg.norm(d_vec)
-                    u = d_vec / d
-                    off = C - u * (r * r / d)
-                    rho = r * math.sqrt(1 - (r / d) ** 2)
-                    a = _cross(u, (0.0, 0.0, 1.0) if abs(u[2]) < 0.9 else (1.0, 0.0, 0.0))
-                    a /= np.linalg.norm(a)
-                    b = _cross(u, a)
-                    circs.append(off + (rho * rings)[:, None] * (cos_a[:, None] * a
-                                                                 + sin_a[:, None] * b))
-                    origins.append(np.broadcast_to(P, (rings.size, 3)))
-                    group.append(np.full(rings.size, f * n_lamps + k))
+        # the ray circles of every frame, lamp and centre (items, in that order), the same
+        # arithmetic as one at a time: NumPy's elementwise operations over all items, the
+        # norms (NumPy's dot of each 3-vector) and the rings' radii item by item
+        items = [(np.atleast_2d(centres), np.asarray(lamp.position, dtype=float),
+                  f * n_lamps + k)
+                 for f, centres in enumerate(frames) for k, lamp in enumerate(self.lamps)]
         out: list = [[] for _ in frames]
-        if not circs:
+        if not items or not sum(len(c) for c, _, _ in items):
             return out
-        P = np.concatenate(origins)
-        group = np.concatenate(group)
-        dirs = np.concatenate(circs) - P
+        C = np.concatenate([c for c, _, _ in items])
+        lamp_pos = np.concatenate([np.broadcast_to(p, c.shape) for c, p, _ in items])
+        group = np.repeat(np.concatenate([np.full(len(c), g) for c, _, g in items]), rings.size)
+        d_vec = C - lamp_pos
+        d = np.array([np.linalg.norm(v) for v in d_vec])
+        u = d_vec / d[:, None]
+        off = C - u * (r * r / d)[:, None]
+        rho = np.array([r * math.sqrt(1 - (r / di) ** 2) for di in d])
+        # u x (0, 0, 1), or u x (1, 0, 0) where u is near the z axis
+        near_z = np.abs(u[:, 2]) >= 0.9
+        e = np.where(near_z[:, None], np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]))
+        a = _cross_rows(u, e)
+        a = a / np.array([np.linalg.norm(v) for v in a])[:, None]
+        b = _cross_rows(u, a)
+        circs = off[:, None, :] + (rho[:, None] * rings[None, :])[:, :, None] * (
+            cos_a[None, :, None] * a[:, None, :] + sin_a[None, :, None] * b[:, None, :])
+        P = np.repeat(lamp_pos, rings.size, axis=0)
+        dirs = circs.reshape(-1, 3) - P
         # backdrop hit
         t_hit = (zb - P[:, 2]) / dirs[:, 2]
         # bore hit: leaving the cylinder of radius R beyond the tangent circle
@@ -882,6 +884,14 @@ def _cross(a, b) -> np.ndarray:
     a0, a1, a2 = (float(x) for x in a)
     b0, b1, b2 = (float(x) for x in b)
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
+def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of (n, 3) arrays with the products and differences of
+    :func:`_cross` (NumPy's elementwise arithmetic: the same numbers)."""
+    return np.column_stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+                            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]])
 
 
 def _box(pts: np.ndarray):
