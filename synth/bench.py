@@ -117,6 +117,37 @@ def _tile_frames(sr, traj, indices, bg, draw, fulls, timings=None):
     return times, px, worst
 
 
+def file_create_ms(folder, n: int = 200) -> float:
+    """Milliseconds (wall) to create, write (3 kB) and close one file in a new folder inside
+    ``folder``, the median of ``n``; the files and their folder are removed. A recording is
+    ~2 chunk files a frame, and on a busy disk creating a file can cost more than rendering
+    the frame (docs/how/renderer.md): the bench states it for its recording's folder.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        Where the recording is written.
+    n : int
+        Files created.
+
+    Returns
+    -------
+    float
+        Median milliseconds a file.
+    """
+    probe = Path(tempfile.mkdtemp(prefix="file-probe-", dir=folder))
+    data = bytes(3000)
+    times = []
+    try:
+        for i in range(n):
+            t0 = time.perf_counter()
+            (probe / f"c.{i}.0.0").write_bytes(data)
+            times.append(time.perf_counter() - t0)
+    finally:
+        shutil.rmtree(probe, ignore_errors=True)
+    return 1e3 * float(np.median(times))
+
+
 def schedule_split(schedule: dict, n_frames: int, total: float) -> dict:
     """Split a recording's wall time into start-up and frames from its own batches' times
     (``synth.render(..., schedule=...)``), so that no other recording (made under another
@@ -261,6 +292,7 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
     # a whole recording, both cores
     tmp = Path(tempfile.mkdtemp(prefix="synth-bench-"))
     try:
+        create_ms = file_create_ms(tmp)
         t0 = time.perf_counter()
         sched: dict = {}
         out = synth.render(traj, tmp / "bench.zarr", scene=scene,
@@ -348,6 +380,7 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "sequence_startup_later_s": round(split_later["startup_s"], 2),
         "sequence_steady_ms_per_frame": round(1e3 * split["steady_s"], 2),
         "sequence_steady_quarters_ms": [round(1e3 * q, 2) for q in split["quarters_s"]],
+        "sequence_file_create_ms": round(create_ms, 3),
         "speedup_sequence_steady": round(full_ms / (1e3 * split["steady_s"]), 1),
         "store_mb": round(size / 1e6, 2),
         "est_store_4000_mb": round(size / 1e6 * 4000 / n_done, 1),

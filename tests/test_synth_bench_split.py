@@ -61,3 +61,12 @@ def test_a_pool_restart_is_seen_in_the_schedule():
     sched["batches"] += [(10 * BATCH, 3, 200.0, 200.2), (11 * BATCH, 4, 200.0, 200.2)]
     assert pool_restarted(sched)
     assert not pool_restarted({"start": 0.0, "submitted": 0.0})
+
+
+def test_file_create_probe_leaves_nothing(tmp_path):
+    """The bench's file-creation probe times real files and removes them and their folder."""
+    from synth.bench import file_create_ms
+
+    ms = file_create_ms(tmp_path, n=20)
+    assert 0 < ms < 1e4
+    assert list(tmp_path.iterdir()) == []

@@ -203,7 +203,8 @@ def bench_render(quick: bool) -> list[Row]:
             f"+{r.get('sequence_first_batch_excess_s', math.nan):g} s (pyrender's first frame), "
             f"end idle {r.get('sequence_end_idle_s', math.nan):g} s; a later recording of the "
             f"same process {r.get('sequence_startup_later_s', math.nan):g} s (the fork server "
-            "reused)"),
+            "reused); creating a file in the recording's folder "
+            f"{r.get('sequence_file_create_ms', math.nan):g} ms (~2 a frame)"),
         Row("rendering", "recording size for 4000 frames", r["est_store_4000_mb"], "MB",
             "8-bit frames stored raw", 4000 * 1.0e-6 * _pixels(r["frame"]),
             4000 * 1.0e-6 * _pixels(r["frame"]) / r["est_store_4000_mb"], "smaller",
