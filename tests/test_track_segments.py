@@ -117,6 +117,31 @@ def test_the_free_cpus_are_the_process_s_less_the_threads_running_elsewhere(monk
     assert cpus.free_cpus() == 2
 
 
+def test_a_thread_running_for_an_instant_does_not_take_the_free_cpu(monkeypatch):
+    import builtins
+    import io
+
+    lines = iter(["1.9 1.0 0.8 2/300 77", "1.9 1.0 0.8 2/300 77", "1.9 1.0 0.8 1/300 77",
+                  "1.9 1.0 0.8 2/300 77", "1.9 1.0 0.8 2/300 77"])
+    real_open = builtins.open
+    reads = []
+
+    def fake_open(path, *a, **k):
+        if path == "/proc/loadavg":
+            reads.append(path)
+            return io.StringIO(next(lines) + "\n")
+        return real_open(path, *a, **k)
+
+    monkeypatch.setattr(builtins, "open", fake_open)
+    monkeypatch.setattr(cpus, "cpus", lambda: 2)
+    assert cpus.free_cpus(interval=0.0) == 2  # one reading of five saw the other CPU free
+    assert len(reads) == 3  # it stops reading once nothing else runs
+    lines = iter(["1.9 1.0 0.8 2/300 77"] * 5)
+    reads.clear()
+    assert cpus.free_cpus(interval=0.0) == 1  # busy in every reading
+    assert len(reads) == 5
+
+
 def test_a_repeated_frame_at_a_segment_s_start_is_flagged_as_in_one_pass():
     rec, frames = _recording()
     (_, m), _ = track_segments(len(frames), 2)
