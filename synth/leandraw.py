@@ -35,6 +35,7 @@ flat silhouette mode) is drawn by pyrender's path: :func:`unsupported` says why.
 from __future__ import annotations
 
 import ctypes
+import os
 
 import numpy as np
 
@@ -235,6 +236,10 @@ class LeanDraw:
         self._far_lamps = None
         # "mesh" or "sphere" (SceneConfig.ball_model); set it and ``ready = False`` to switch
         self.ball_model = sr.config.ball_model
+        # the ball's mesh drawn by a fragment shader with the lamps' and camera's uniforms held
+        # as constants (synth.shaders.specialised_mesh_shader); set it and ``ready = False``
+        # to switch
+        self.specialise = True
         self._build(self._order())
 
     def close(self) -> None:
@@ -440,6 +445,9 @@ class LeanDraw:
                                  for k, ln in enumerate(self.lamps)]
         else:
             self.units = self.static_units = []
+        if self.specialise and not any(d.get("sphere") for d in self.ball_draws):
+            self.ball_draws = [self._specialised(d) for d in self.draws
+                               if d["node"] is self.ball]
         for d in self.static_draws:  # the static meshes' model matrices, as uploaded
             d["M_ptr"] = _matrix(scene.get_pose(d["node"]))
         self._light_ptrs = [(_matrix(V_l), _matrix(P_l)) for V_l, P_l in self._light_mats or ()]
@@ -448,6 +456,56 @@ class LeanDraw:
             self._static_key = key
             self._valid = None
         self.ready = True
+
+    def _specialised(self, d) -> dict:
+        """Draw ``d`` (the ball's mesh) by a program whose fragment shader holds the lamps',
+        ambient light's and camera's uniforms as constants, their values read back from
+        ``d``'s program just after pyrender's functions set them (:meth:`_set_static`); the
+        same vertex shader and defines, the shadow maps' samplers, camera matrices and material
+        set as for ``d``. A program is compiled once per process and text."""
+        import hashlib
+
+        from OpenGL import GL
+
+        from synth.shaders import (
+            light_counts,
+            program_cache,
+            shader_dir,
+            specialised_mesh_shader,
+            specialised_values_names,
+        )
+
+        sr, inner = self.sr, self.inner
+        counts = light_counts(sr.scene)
+        values = {}
+        for name, n in specialised_values_names(counts[1]):
+            buf = np.zeros(16, dtype=np.float32)
+            GL.glGetUniformfv(d["pid"], GL.glGetUniformLocation(d["pid"], name), buf)
+            values[name] = buf[:n]
+        folder = shader_dir(*counts)
+        with open(os.path.join(folder, "mesh.frag")) as f:
+            text = specialised_mesh_shader(f.read(), values, counts[1])
+        name = f"mesh-{hashlib.sha1(text.encode()).hexdigest()[:16]}.frag"
+        path = os.path.join(folder, name)
+        if not os.path.exists(path):
+            with open(path, "w") as f:
+                f.write(text)
+        if counts not in sr._programs:
+            sr._programs[counts] = program_cache(counts)
+        pr = sr._pyrender
+        prog = pa.primitive_program_as(inner, d["prim"], self.flags,
+                                       pr.constants.ProgramFlags.USE_MATERIAL, "mesh.vert", name,
+                                       sr._programs[counts])
+        pid = pa.program_id(prog)
+        V, P = pa.camera_matrices(inner, sr.scene)
+        pa.bind_program(prog)
+        prog.set_uniform("V", V)
+        prog.set_uniform("P", P)
+        pa.bind_lighting(inner, sr.scene, prog, d["node"], self.flags)  # the samplers' units
+        pa.reset_active_textures(inner)
+        material = _material_uniforms(pid, d["prim"].material)
+        return {**d, "program": prog, "pid": pid, "M": GL.glGetUniformLocation(pid, "M"),
+                "material": material, "raw_material": [_raw(u) for u in material]}
 
     def _static_fingerprint(self, V, P, cam_pos) -> bytes:
         """Everything the static layer's pixels depend on besides the programs: camera, frame

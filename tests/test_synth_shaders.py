@@ -129,3 +129,79 @@ def test_a_lamp_added_after_the_first_render_is_drawn():
     dn = sr.scale / 255
     assert np.abs(ours.astype(int) - before.astype(int)).max() / dn > 5  # the lamp lights
     assert np.abs(ours.astype(int) - stock.astype(int)).max() / dn <= 1.0
+
+
+def test_specialised_shader_holds_the_exact_values():
+    """specialised_mesh_shader: the lamps', ambient light's and camera's uniforms become
+    constants whose float32 bit patterns are the values given; the samplers stay uniforms."""
+    import re
+
+    from synth.shaders import (
+        SPOT_FIELDS,
+        shader_dir,
+        specialised_mesh_shader,
+        specialised_values_names,
+    )
+
+    with open(os.path.join(shader_dir(0, 2, 0), "mesh.frag")) as f:
+        text = f.read()
+    rng = np.random.default_rng(0)
+    values = {name: rng.normal(size=n).astype(np.float32)
+              for name, n in specialised_values_names(2)}
+    ours = specialised_mesh_shader(text, values, 2)
+    for field, glsl_type, _ in SPOT_FIELDS:
+        head = f"const {glsl_type} SPOT_{field}["
+        line = next(x for x in ours.splitlines() if x.startswith(head))
+        bits = np.array([int(b) for b in re.findall(r"uintBitsToFloat\((\d+)u\)", line)],
+                        dtype=np.uint32).view(np.float32)
+        want = np.concatenate([values[f"spot_lights[{i}].{field}"] for i in range(2)])
+        np.testing.assert_array_equal(bits, want)
+        assert f"spot_lights[i].{field}" not in ours
+    assert "spot_lights[i].shadow_map" in ours and "uniform Material material;" in ours
+    for gone in ("uniform vec3 cam_pos;", "uniform vec3 ambient_light;", "n_spot_lights) break"):
+        assert gone not in ours
+    with pytest.raises(RuntimeError, match="cam_pos"):
+        specialised_mesh_shader(text.replace("uniform vec3 cam_pos;", ""), values, 2)
+
+
+@pytest.mark.parametrize("case", ["thesis", "perspective", "harsh"])
+def test_specialised_ball_shader_draws_the_same_tiles(case):
+    """The lean path's ball drawn by the specialised shader (synth.leandraw: the lamps' and
+    camera's uniforms as constants) gives the tiles of the uniform shader bit for bit over
+    consecutive frames, and the full frame within 1 DN of stock pyrender."""
+    if case == "harsh":
+        cam = CameraModel(width=320, height=224, pixel_size=0.4e-3, center_px=(300.0, -100.0))
+        thetas = np.linspace(-0.5, -0.2, 6)
+    else:
+        cam = CameraModel(width=256, height=192, center_px=(128.0, -470.0),
+                          projection="perspective" if case == "perspective" else "orthographic",
+                          working_distance=0.6)
+        thetas = np.linspace(-0.04, 0.04, 6)
+    lighting = lighting_preset("harsh" if case == "harsh" else "thesis")
+    L = R_CYL - R_BALL
+    sr = SceneRenderer(SceneConfig(camera=cam, lighting=lighting), R_BALL, R_CYL)
+    try:
+        bg = sr.render_full()
+        cs = [np.array([L * math.sin(t), -L * math.cos(t), 0.0]) for t in thetas]
+        frames = [([sr.ball_pose(c)], sr.tiles_for(c[None])) for c in cs]
+        sr.render_tiles(*frames[0])  # pyrender's path; the lean path is built
+        got = {}
+        for flag in (False, True, False):
+            sr._lean.specialise, sr._lean.ready = flag, False
+            got[flag] = [sr.render_tiles(*f) for f in frames]
+            ball = sr._lean.ball_draws[0]
+            base = next(d for d in sr._lean.draws if d["node"] is sr._lean.ball)
+            assert (ball["pid"] != base["pid"]) == flag  # the specialised program drew
+        for a, b in zip(got[False], got[True], strict=True):
+            for x, y in zip(a, b, strict=True):
+                np.testing.assert_array_equal(x, y)
+        poses, tiles = frames[-1]
+        comp = bg.copy()
+        for (x0, y0, w, h), img in zip(tiles, got[True][-1], strict=True):
+            comp[y0:y0 + h, x0:x0 + w] = img
+        sr.set_ball(poses[0])
+        stock = sr.render_full(stock_shaders=True)
+    finally:
+        sr.close()
+    assert np.any(comp != bg)
+    assert np.abs(comp.astype(int) - stock.astype(int)).max() / (sr.scale / 255) <= 1.0
