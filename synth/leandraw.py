@@ -24,7 +24,9 @@ Everything but the ball's pose is the same in every frame of a recording, so her
   uniforms at locations looked up once, in the GL state pyrender's draw sets; the tile
   resolved and read.
 
-The same programs, buffers, uniform values and GL state as pyrender's path; the static
+The same programs (but for the ball's, whose fragment shader holds the lamps' and camera's
+uniform values as constants: :func:`synth.shaders.specialised_mesh_shader`, 0 DN), buffers,
+uniform values and GL state as pyrender's path; the static
 surfaces are drawn before the ball instead of in pyrender's order by distance, which changes
 nothing with the depth test and opaque surfaces (no two of them at the same depth), so the
 same pixels (tests/test_synth_render.py compares the two bit for bit and both with stock
