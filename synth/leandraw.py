@@ -464,7 +464,8 @@ class LeanDraw:
         ambient light's and camera's uniforms as constants, their values read back from
         ``d``'s program just after pyrender's functions set them (:meth:`_set_static`); the
         same vertex shader and defines, the shadow maps' samplers, camera matrices and material
-        set as for ``d``. A program is compiled once per process and text."""
+        set as for ``d``. A program is compiled once per process and text. ``d`` itself when
+        its program lacks one of those uniforms (a scene without shadows)."""
         import hashlib
 
         from OpenGL import GL
@@ -481,8 +482,11 @@ class LeanDraw:
         counts = light_counts(sr.scene)
         values = {}
         for name, n in specialised_values_names(counts[1]):
+            loc = GL.glGetUniformLocation(d["pid"], name)
+            if loc < 0:  # not in this program (no shadows: no shadow-camera matrices)
+                return d
             buf = np.zeros(16, dtype=np.float32)
-            GL.glGetUniformfv(d["pid"], GL.glGetUniformLocation(d["pid"], name), buf)
+            GL.glGetUniformfv(d["pid"], loc, buf)
             values[name] = buf[:n]
         folder = shader_dir(*counts)
         with open(os.path.join(folder, "mesh.frag")) as f:
