@@ -527,48 +527,19 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
     ray_ok = ray_ok.copy()
     ray_ss = np.zeros(n)
     ray_n = np.zeros(n)
-    # the first pass's pixels (ray, gradient, residual): after it drops rays, the second pass
-    # is about the same circle, so its pixels are the first's on the rays kept, their values
-    # the same to the bit; they are summed again from here in the same order
+    # every pass's pixels (ray, gradient, residual) are kept, then summed by _pixel_sums: after
+    # the first pass drops rays, the second is about the same circle, so its pixels are the
+    # first's on the rays kept, their values the same to the bit; they are summed again from
+    # the first pass's, in the same order
     c_k = np.empty(0, np.int64)
     c_g = np.empty((0, 3))
     c_res = np.empty(0)
     n_c = 0
     reuse = False
     for it in range(iters):
-        # J^T J's upper triangle and J^T r as scalars (gg[p] gg[q] is gg[q] gg[p] to the bit:
-        # the lower triangle is its mirror)
-        j00 = j01 = j02 = j11 = j12 = j22 = 0.0
-        r0 = r1 = r2 = 0.0
-        ss = 0.0
-        npix = 0
-        ray_ss[:] = 0.0
-        ray_n[:] = 0.0
         if reuse:
             reuse = False
-            for q in range(n_c):
-                k = c_k[q]
-                if not ray_ok[k]:
-                    continue
-                g0 = c_g[q, 0]
-                g1 = c_g[q, 1]
-                g2 = c_g[q, 2]
-                res = c_res[q]
-                r0 += g0 * res
-                j00 += g0 * g0
-                j01 += g0 * g1
-                j02 += g0 * g2
-                r1 += g1 * res
-                j11 += g1 * g1
-                j12 += g1 * g2
-                r2 += g2 * res
-                j22 += g2 * g2
-                ss += res * res
-                npix += 1
-                ray_ss[k] += res * res
-                ray_n[k] += 1
-            jtj = np.array([[j00, j01, j02], [j01, j11, j12], [j02, j12, j22]])
-            jtr = np.array([r0, r1, r2])
+            jtj, jtr, ss, npix = _pixel_sums(c_k, c_g, c_res, n_c, ray_ok, ray_ss, ray_n)
             if npix < 20:
                 return np.nan, np.nan, np.nan, np.nan, npix
             cx, cy, r, sig, done, ok = _pixel_step(jtj, jtr, cx, cy, r, free, ss, npix, npar)
@@ -581,11 +552,11 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
         x1 = min(w - 1, int(cx + r + 3))
         y0 = max(0, int(cy - r - 2))
         y1 = min(h - 1, int(cy + r + 3))
-        if it == 0:
-            m_c = max(0, (y1 - y0 + 1) * (x1 - x0 + 1))
-            c_k = np.empty(m_c, np.int64)
-            c_g = np.empty((m_c, 3))
-            c_res = np.empty(m_c)
+        m_c = max(0, (y1 - y0 + 1) * (x1 - x0 + 1))
+        c_k = np.empty(m_c, np.int64)
+        c_g = np.empty((m_c, 3))
+        c_res = np.empty(m_c)
+        n_c = 0
         # per row, only the pixels within the rim's band widened by 1 px radially and 1 px
         # each side are tested (the others fail the test |d - r| <= 1.5 by far); the pixels
         # that pass are taken in the same order, so the sums are the same to the bit
@@ -644,28 +615,13 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
                 g0 = (a - b) * dens * dx / d
                 g1 = (a - b) * dens * dy / d
                 g2 = (a - b) * dens
-                r0 += g0 * res
-                j00 += g0 * g0
-                j01 += g0 * g1
-                j02 += g0 * g2
-                r1 += g1 * res
-                j11 += g1 * g1
-                j12 += g1 * g2
-                r2 += g2 * res
-                j22 += g2 * g2
-                ss += res * res
-                npix += 1
-                ray_ss[k] += res * res
-                ray_n[k] += 1
-                if it == 0:
-                    c_k[n_c] = k
-                    c_g[n_c, 0] = g0
-                    c_g[n_c, 1] = g1
-                    c_g[n_c, 2] = g2
-                    c_res[n_c] = res
-                    n_c += 1
-        jtj = np.array([[j00, j01, j02], [j01, j11, j12], [j02, j12, j22]])
-        jtr = np.array([r0, r1, r2])
+                c_k[n_c] = k
+                c_g[n_c, 0] = g0
+                c_g[n_c, 1] = g1
+                c_g[n_c, 2] = g2
+                c_res[n_c] = res
+                n_c += 1
+        jtj, jtr, ss, npix = _pixel_sums(c_k, c_g, c_res, n_c, ray_ok, ray_ss, ray_n)
         if npix < 20:
             return np.nan, np.nan, np.nan, np.nan, npix
         if it == 0:
@@ -688,6 +644,44 @@ def _pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
         if done:
             break
     return cx, cy, r, sig, npix
+
+
+@njit(nogil=True)
+def _pixel_sums(c_k, c_g, c_res, n_c, ray_ok, ray_ss, ray_n):
+    """:func:`_pixel_fit`'s sums over its kept pixels ``[:n_c]`` on the rays ``ray_ok``, in
+    their order: J^T J (from its upper triangle as scalars: gg[p] gg[q] is gg[q] gg[p] to the
+    bit, so the lower triangle is its mirror), J^T r, the residuals' sum of squares and the
+    pixels' count; ``ray_ss`` and ``ray_n`` get each ray's sum of squares and count."""
+    j00 = j01 = j02 = j11 = j12 = j22 = 0.0
+    r0 = r1 = r2 = 0.0
+    ss = 0.0
+    npix = 0
+    ray_ss[:] = 0.0
+    ray_n[:] = 0.0
+    for q in range(n_c):
+        k = c_k[q]
+        if not ray_ok[k]:
+            continue
+        g0 = c_g[q, 0]
+        g1 = c_g[q, 1]
+        g2 = c_g[q, 2]
+        res = c_res[q]
+        r0 += g0 * res
+        j00 += g0 * g0
+        j01 += g0 * g1
+        j02 += g0 * g2
+        r1 += g1 * res
+        j11 += g1 * g1
+        j12 += g1 * g2
+        r2 += g2 * res
+        j22 += g2 * g2
+        ss += res * res
+        npix += 1
+        ray_ss[k] += res * res
+        ray_n[k] += 1
+    jtj = np.array([[j00, j01, j02], [j01, j11, j12], [j02, j12, j22]])
+    jtr = np.array([r0, r1, r2])
+    return jtj, jtr, ss, npix
 
 
 @njit(nogil=True)
