@@ -32,7 +32,7 @@ def cpus() -> int:
         return os.cpu_count() or 1
 
 
-def free_cpus(samples: int = 5, interval: float = 0.002) -> int:
+def free_cpus(samples: int = 1, interval: float = 0.002) -> int:
     """The CPUs this thread and the ones it may start have now: this process's CPUs less the
     threads running elsewhere (Linux's /proc/loadavg; all of them where it cannot be read). On
     a busy machine a second tracking thread only waits for the GIL while the first is
@@ -40,14 +40,16 @@ def free_cpus(samples: int = 5, interval: float = 0.002) -> int:
     threads against 23.4 s on one.
 
     The count of running threads is an instant's: a process that runs for a millisecond (a
-    render process exiting, a kernel worker) would cost a whole tracking its second thread.
-    So it is read ``samples`` times, ``interval`` seconds apart, and the fewest running count
-    (about 10 ms in all).
+    render process exiting, a kernel worker) could cost a long computation its second thread.
+    A caller whose work is long (the tracking: seconds) reads it ``samples`` times,
+    ``interval`` seconds apart, and takes the fewest running count (5 readings: about 10 ms
+    on a busy machine); a short one (a fit's starts, nested in other threads) reads it once,
+    as the wait would cost more than the thread could win.
 
     Parameters
     ----------
     samples : int
-        Readings of /proc/loadavg (at least 1).
+        Readings of /proc/loadavg (at least 1); it stops at one that sees nothing else run.
     interval : float
         Seconds between readings.
 

@@ -831,7 +831,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     # the segments on threads when the reader allows reads from two threads at once (the
     # locator's kernels, decoding and a synthetic recording's sensor model release the GIL)
     # and CPUs are free; else one after another: the track is the same either way
-    workers = cpus.free_cpus() if getattr(source, "concurrent_reads", False) else 1
+    # (five readings of the running threads: a wrong "busy" costs seconds of tracking here)
+    workers = cpus.free_cpus(samples=5) if getattr(source, "concurrent_reads", False) else 1
     logger.debug(f"tracking {n} frames in {len(spans)} segment(s) on "
                  f"{min(workers, len(spans))} thread(s)")
     done = cpus.map_ordered(lambda span: track_span(*span), spans, workers=workers,

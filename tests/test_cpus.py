@@ -86,7 +86,7 @@ def _both(monkeypatch, run):
     """run() with one CPU free (the plain loops) and with two (threads)."""
     out = []
     for free in (1, 2):
-        monkeypatch.setattr(cpus, "free_cpus", lambda free=free: free)
+        monkeypatch.setattr(cpus, "free_cpus", lambda free=free, **_: free)
         out.append(run())
     return out
 

@@ -76,7 +76,7 @@ def test_a_fast_ball_s_second_segment_differs_in_the_locator_s_last_digits_only(
 
 def test_segments_on_threads_and_one_after_another_give_the_same_track(monkeypatch):
     rec, frames = _recording()
-    monkeypatch.setattr(cpus, "free_cpus", lambda: 2)
+    monkeypatch.setattr(cpus, "free_cpus", lambda **_: 2)
     runs, threads = [], []
     for concurrent in (False, True):
         src = MemorySource(frames, concurrent=concurrent)
@@ -89,7 +89,7 @@ def test_segments_on_threads_and_one_after_another_give_the_same_track(monkeypat
     assert threads[0] == {threading.get_ident()}
     assert len(threads[1] - {threading.get_ident()}) == 2
     # no CPU free: one after another, the same track
-    monkeypatch.setattr(cpus, "free_cpus", lambda: 1)
+    monkeypatch.setattr(cpus, "free_cpus", lambda **_: 1)
     src = MemorySource(frames, concurrent=True)
     busy = track_recording(src, rec.setup, rec.background, progress=False,
                            center=rec.scene.center, segments=2)
@@ -134,12 +134,17 @@ def test_a_thread_running_for_an_instant_does_not_take_the_free_cpu(monkeypatch)
 
     monkeypatch.setattr(builtins, "open", fake_open)
     monkeypatch.setattr(cpus, "cpus", lambda: 2)
-    assert cpus.free_cpus(interval=0.0) == 2  # one reading of five saw the other CPU free
+    # one reading of five saw the other CPU free
+    assert cpus.free_cpus(samples=5, interval=0.0) == 2
     assert len(reads) == 3  # it stops reading once nothing else runs
     lines = iter(["1.9 1.0 0.8 2/300 77"] * 5)
     reads.clear()
-    assert cpus.free_cpus(interval=0.0) == 1  # busy in every reading
+    assert cpus.free_cpus(samples=5, interval=0.0) == 1  # busy in every reading
     assert len(reads) == 5
+    lines = iter(["1.9 1.0 0.8 2/300 77"] * 5)
+    reads.clear()
+    assert cpus.free_cpus() == 1  # by default one reading (a short computation's choice)
+    assert len(reads) == 1
 
 
 def test_a_repeated_frame_at_a_segment_s_start_is_flagged_as_in_one_pass():
@@ -159,7 +164,7 @@ def _track_threads():
 
 def test_an_error_in_one_segment_is_raised_and_no_thread_is_left(monkeypatch):
     rec, frames = _recording()
-    monkeypatch.setattr(cpus, "free_cpus", lambda: 2)
+    monkeypatch.setattr(cpus, "free_cpus", lambda **_: 2)
     before = set(_track_threads())
     with pytest.raises(RecordingError, match="frame 60 is corrupt"):
         _track(rec, frames, 2, bad={60: 0})
