@@ -20,7 +20,8 @@ Everything but the ball's pose is the same in every frame of a recording, so her
   scissored box of its shadow map over the cached trough; per tile, the static layer's samples
   copied in (a multisample blit), the static surfaces drawn again only in the boxes of the
   ball's shadows (:meth:`synth.scene.SceneRenderer.shadow_boxes`: outside them the ball
-  changes no shadow lookup) and the ball in its own box, with the model matrix and material
+  changes no shadow lookup; once in their union, :func:`disjoint_boxes`) and the ball in its
+  own box, with the model matrix and material
   uniforms at locations looked up once, in the GL state pyrender's draw sets; the tile
   resolved and read.
 
@@ -242,6 +243,10 @@ class LeanDraw:
         # as constants (synth.shaders.specialised_mesh_shader); set it and ``ready = False``
         # to switch
         self.specialise = True
+        # the static surfaces drawn again once in the union of the shadows' boxes (cut into
+        # boxes that do not overlap: disjoint_boxes) rather than once per box, twice where two
+        # lamps' boxes overlap (the same pixels either way); set it to switch
+        self.disjoint = True
         self._build(self._order())
 
     def close(self) -> None:
@@ -571,6 +576,8 @@ class LeanDraw:
         gl_box = [self._gl_box(t) for t in tiles]
         out = [None] * len(tiles)
         ball_box, shadow_boxes = self._footprint(poses)
+        # a sample drawn again gets the colour it got the first time: once is enough
+        pieces = disjoint_boxes(shadow_boxes) if self.disjoint else shadow_boxes
         pa.make_current(sr._offscreen)
         try:
             inner.viewport_width, inner.viewport_height = W * s, H * s
@@ -609,7 +616,7 @@ class LeanDraw:
                 for k, tile in enumerate(tiles):
                     self._restore(tile)
                     t0 = lap("static layer", t0)
-                    for box in shadow_boxes:
+                    for box in pieces:
                         part = _meet(tile, box)
                         if part is not None:  # the static surfaces the shadows fall on
                             self._forward(M, self._gl_box(part), part, self.static_draws,
@@ -846,3 +853,37 @@ def _meet(tile, box):
     x0, y0 = max(tile[0], box[0]), max(tile[1], box[1])
     x1, y1 = min(tile[0] + tile[2], box[2]), min(tile[1] + tile[3], box[3])
     return (x0, y0, x1 - x0, y1 - y0) if x1 > x0 and y1 > y0 else None
+
+
+def disjoint_boxes(boxes) -> list:
+    """Boxes covering the union of ``boxes`` with no two overlapping: each box less the
+    ones before it, cut into at most four boxes each time.
+
+    Parameters
+    ----------
+    boxes : list of tuple
+        Boxes (x0, y0, x1, y1), px (x1, y1 exclusive).
+
+    Returns
+    -------
+    list of tuple
+        Boxes (x0, y0, x1, y1) whose union is that of ``boxes``, pairwise without a common
+        pixel; ``boxes`` themselves when none overlap.
+    """
+    out: list = []
+    for box in boxes:
+        parts = [tuple(box)]
+        for other in out:
+            parts = [q for p in parts for q in _less(p, other)]
+        out += parts
+    return out
+
+
+def _less(a, b) -> list:
+    """Box ``a`` less box ``b`` (both (x0, y0, x1, y1)) as at most four boxes."""
+    x0, y0, x1, y1 = max(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), min(a[3], b[3])
+    if x0 >= x1 or y0 >= y1:
+        return [a]
+    parts = [(a[0], a[1], a[2], y0), (a[0], y1, a[2], a[3]),  # below and above b
+             (a[0], y0, x0, y1), (x1, y0, a[2], y1)]  # left and right of b, beside it
+    return [p for p in parts if p[2] > p[0] and p[3] > p[1]]

@@ -377,3 +377,57 @@ def test_lean_shadowed_surfaces_leave_out_what_the_ball_cannot_shadow():
         sr.close()
     assert counted["front"][0] > 100 and counted["front"][1] == 0, counted
     assert counted["other"][1] == counted["other"][0], counted
+
+
+def test_disjoint_boxes_cover_the_union_once():
+    """disjoint_boxes: the same pixels as the boxes' union, none in two boxes."""
+    from synth.leandraw import disjoint_boxes
+
+    rng = np.random.default_rng(3)
+    cases = [[(0, 0, 10, 10), (5, 5, 15, 15)], [(0, 0, 10, 10), (2, 2, 4, 4)],
+             [(2, 2, 4, 4), (0, 0, 10, 10)], [(0, 0, 4, 4), (4, 0, 8, 4)], []]
+    for _ in range(50):
+        a = rng.integers(0, 30, (3, 2))
+        b = a + rng.integers(1, 20, (3, 2))
+        cases.append([(int(p[0]), int(p[1]), int(q[0]), int(q[1]))
+                      for p, q in zip(a, b, strict=True)])
+    for boxes in cases:
+        want = np.zeros((60, 60), int)
+        for x0, y0, x1, y1 in boxes:
+            want[y0:y1, x0:x1] = 1
+        got = np.zeros((60, 60), int)
+        for x0, y0, x1, y1 in disjoint_boxes(boxes):
+            assert x1 > x0 and y1 > y0
+            got[y0:y1, x0:x1] += 1
+        np.testing.assert_array_equal(got, want)
+    assert disjoint_boxes([(0, 0, 4, 4), (4, 0, 8, 4)]) == [(0, 0, 4, 4), (4, 0, 8, 4)]
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic"])
+def test_lean_shadowed_surfaces_drawn_once_where_shadow_boxes_overlap(projection):
+    """The static surfaces drawn again in the union of the shadows' boxes (cut into boxes that
+    do not overlap) give the tiles of drawing them in each box, twice where two boxes overlap,
+    bit for bit over consecutive frames (in perspective the two lamps' boxes overlap)."""
+    cam = CameraModel(width=256, height=192, projection=projection, working_distance=0.6,
+                      center_px=(128.0, -470.0))
+    sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
+    try:
+        frames, overlaps = [], 0
+        for theta in np.linspace(-0.04, 0.04, 7):
+            c = _centre(theta)
+            frames.append(([sr.ball_pose(c)], sr.tiles_for(c[None])))
+            boxes = sr.shadow_boxes(c[None])
+            overlaps += any(max(a[0], b[0]) < min(a[2], b[2]) and max(a[1], b[1]) < min(a[3], b[3])
+                            for i, a in enumerate(boxes) for b in boxes[i + 1:])
+        sr.render_tiles(*frames[0])  # pyrender's path; the lean path is built
+        got = {}
+        for flag in (False, True, False):
+            sr._lean.disjoint = flag
+            got[flag] = [sr.render_tiles(*f) for f in frames]
+        for a, b in zip(got[False], got[True], strict=True):
+            for x, y in zip(a, b, strict=True):
+                np.testing.assert_array_equal(x, y)
+    finally:
+        sr.close()
+    if projection == "perspective":
+        assert overlaps >= 3, overlaps  # the test checks overlapping boxes
