@@ -748,7 +748,8 @@ class LeanDraw:
                 GL.glDrawBuffer(GL.GL_NONE)
                 GL.glReadBuffer(GL.GL_NONE)
                 GL.glScissor(*box)
-                GL.glClear(GL.GL_DEPTH_BUFFER_BIT)
+                # the box's depth is the cache's (copied over the whole box: no clear first,
+                # which cost llvmpipe a queued clear and a wait before the copy)
                 GL.glCopyImageSubData(pa.texture_id(cache), GL.GL_TEXTURE_2D, 0, box[0], box[1],
                                       0, tex, GL.GL_TEXTURE_2D, 0, box[0], box[1], 0, box[2],
                                       box[3], 1)
