@@ -138,6 +138,13 @@ def _raw(call):
     return raw, (*args[:-1], kept.ctypes.data_as(ctypes.POINTER(kind))), kept
 
 
+def _values_key(call) -> bytes:
+    """The GL function and arguments of a :func:`_uniform` call as bytes: equal keys set
+    equal values at the same location."""
+    fn, args = call
+    return repr((fn.__name__, [np.asarray(a).tolist() for a in args])).encode()
+
+
 def _matrix(M) -> tuple:
     """(pointer, kept array) of a 4 x 4 matrix as the float32 values glUniformMatrix4fv gets
     from PyOpenGL's conversion of ``M`` (row-major: set with transpose GL_TRUE)."""
@@ -247,6 +254,10 @@ class LeanDraw:
         # boxes that do not overlap: disjoint_boxes) rather than once per box, twice where two
         # lamps' boxes overlap (the same pixels either way); set it to switch
         self.disjoint = True
+        # a program's model matrix and material set only when they differ from what this path
+        # set in it last (the same values: the same state); set it to switch
+        self.keep_uniforms = True
+        self._held: dict = {}
         self._build(self._order())
 
     def close(self) -> None:
@@ -457,6 +468,13 @@ class LeanDraw:
                                if d["node"] is self.ball]
         for d in self.static_draws:  # the static meshes' model matrices, as uploaded
             d["M_ptr"] = _matrix(scene.get_pose(d["node"]))
+            d["M_key"] = d["M_ptr"][1].tobytes()
+        for d in self.draws + self.ball_draws:
+            d["material_keys"] = [_values_key(u) for u in d["material"]]
+        # the model matrix and material values each program holds, set by this path since
+        # the uniforms were set (pyrender's draws set them their own way: then ready is
+        # False and this runs again)
+        self._held = {}
         self._light_ptrs = [(_matrix(V_l), _matrix(P_l)) for V_l, P_l in self._light_mats or ()]
         key = self._static_fingerprint(V, P, cam_pos)
         if key != self._static_key:  # the static scene changed: draw its layer again
@@ -824,13 +842,20 @@ class LeanDraw:
                 if d["pid"] != current:
                     GL.glUseProgram(d["pid"])
                     current = d["pid"]
+                held = self._held
                 if d.get("sphere"):
                     GL.glUniform3f(d["centre"], *(float(v) for v in M[:3, 3]))
-                else:
-                    ptr = ball_ptr if d["node"] is self.ball else d["M_ptr"]
-                    GL_2_0.glUniformMatrix4fv(d["M"], 1, GL.GL_TRUE, ptr[0])
-                for fn, args, _ in d["raw_material"]:
-                    fn(*args)
+                elif d["node"] is self.ball:
+                    GL_2_0.glUniformMatrix4fv(d["M"], 1, GL.GL_TRUE, ball_ptr[0])
+                    held.pop((d["pid"], "M"), None)
+                elif not self.keep_uniforms or held.get((d["pid"], "M")) != d["M_key"]:
+                    GL_2_0.glUniformMatrix4fv(d["M"], 1, GL.GL_TRUE, d["M_ptr"][0])
+                    held[(d["pid"], "M")] = d["M_key"]
+                for (fn, args, _), key in zip(d["raw_material"], d["material_keys"],
+                                              strict=True):
+                    if not self.keep_uniforms or held.get((d["pid"], args[0])) != key:
+                        fn(*args)  # args[0]: the uniform's location
+                        held[(d["pid"], args[0])] = key
                 if d["cull"]:
                     GL.glEnable(GL.GL_CULL_FACE)
                     GL.glCullFace(GL.GL_BACK)

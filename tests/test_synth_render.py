@@ -431,3 +431,35 @@ def test_lean_shadowed_surfaces_drawn_once_where_shadow_boxes_overlap(projection
         sr.close()
     if projection == "perspective":
         assert overlaps >= 3, overlaps  # the test checks overlapping boxes
+
+
+def test_lean_uniforms_set_only_when_they_change_give_the_same_tiles():
+    """The lean path sets a program's model matrix and material uniforms only when they
+    differ from what it set last (LeanDraw.keep_uniforms): the same tiles bit for bit as
+    setting them for every draw, over consecutive frames and after pyrender drew with the
+    same programs in between (a full frame, pyrender's tile path), which sets them its own
+    way."""
+    cam = CameraModel(width=256, height=192, center_px=(128.0, -470.0))
+    sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
+    try:
+        frames = []
+        for theta in np.linspace(-0.04, 0.04, 7):
+            c = _centre(theta)
+            frames.append(([sr.ball_pose(c)], sr.tiles_for(c[None])))
+        sr.render_tiles(*frames[0])  # pyrender's path; the lean path is built
+        got = {}
+        for flag in (False, True):
+            sr._lean.keep_uniforms, sr._lean.ready = flag, False
+            got[flag] = []
+            for k, f in enumerate(frames):
+                got[flag].append(sr.render_tiles(*f))
+                if k == 2:
+                    sr.render_full()
+                if k == 4:
+                    sr.render_tiles(*frames[1], draw="pyrender")
+            assert sr._lean._held or not flag  # the values it set were kept
+        for a, b in zip(got[False], got[True], strict=True):
+            for x, y in zip(a, b, strict=True):
+                np.testing.assert_array_equal(x, y)
+    finally:
+        sr.close()
