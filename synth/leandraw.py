@@ -45,6 +45,7 @@ import numpy as np
 from synth import pyrender_adapter as pa
 
 STATIC_BLOCK = 32  # px: the static layer is drawn where tiles first need it, in such blocks
+RUN_GAP = 64  # triangles: runs of a draw's triangles closer than this are drawn as one
 
 
 def unsupported(sr) -> str | None:
@@ -417,22 +418,42 @@ class LeanDraw:
         """(first triangle, count) runs of draw ``d``'s triangles that can touch ``tile``
         (x0, y0, w, h): the others have no pixel in the scissor box, so leaving them out
         changes no pixel (the drawn ones keep their order); with ``reach`` (:meth:`_reach`)
-        only those the ball can shadow. Runs closer than 64 triangles are drawn as one."""
+        only those the ball can shadow. Runs closer than RUN_GAP triangles are drawn as one."""
         boxes = d["boxes"]
         n = d["count"] // 3
         if boxes is None:
             return [(0, n)]
+        if n <= RUN_GAP:  # a few triangles (the backdrop's two): drawn whole, no pixel
+            return [(0, n)]  # changes (see above), and NumPy's per-call cost is saved
         x0, y0, w, h = tile
-        hit = np.flatnonzero((boxes[:, 0] <= x0 + w) & (boxes[:, 2] >= x0)
-                             & (boxes[:, 1] <= y0 + h) & (boxes[:, 3] >= y0))
+        if "box_columns" not in d:  # x0, y0, x1, y1 each contiguous
+            d["box_columns"] = [np.ascontiguousarray(boxes[:, k]) for k in range(4)]
+        bx0, by0, bx1, by1 = d["box_columns"]
+        m = bx0 <= x0 + w
+        m &= bx1 >= x0
+        m &= by0 <= y0 + h
+        m &= by1 >= y0
+        hit = np.flatnonzero(m)
         if reach is not None and d.get("far") is not None and hit.size:
             hit = hit[(d["far"][hit] >= reach[None, :]).any(axis=1)]
         if hit.size == 0:
             return []
-        cut = np.flatnonzero(np.diff(hit) > 64)
-        starts = np.concatenate([[hit[0]], hit[cut + 1]])
-        ends = np.concatenate([hit[cut], [hit[-1]]]) + 1
-        return list(zip(starts.tolist(), (ends - starts).tolist(), strict=True))
+        if hit.size > 16:
+            cut = np.flatnonzero(np.diff(hit) > RUN_GAP)
+            starts = np.concatenate([[hit[0]], hit[cut + 1]])
+            ends = np.concatenate([hit[cut], [hit[-1]]]) + 1
+            return list(zip(starts.tolist(), (ends - starts).tolist(), strict=True))
+        runs = []  # a few triangles: the same runs without NumPy's per-call cost
+        start = prev = None
+        for i in hit.tolist():
+            if start is None:
+                start = i
+            elif i - prev > RUN_GAP:
+                runs.append((start, prev + 1 - start))
+                start = i
+            prev = i
+        runs.append((start, prev + 1 - start))
+        return runs
 
     # -- uniforms that stay ----------------------------------------------------------------
 

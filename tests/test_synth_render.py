@@ -463,3 +463,60 @@ def test_lean_uniforms_set_only_when_they_change_give_the_same_tiles():
                 np.testing.assert_array_equal(x, y)
     finally:
         sr.close()
+
+
+def _runs_reference(d, tile, reach=None):
+    """LeanDraw._runs as first written (the triangles' boxes tested column by column, the runs
+    cut by NumPy): what the faster one must give."""
+    boxes, n = d["boxes"], d["count"] // 3
+    if boxes is None:
+        return [(0, n)]
+    x0, y0, w, h = tile
+    hit = np.flatnonzero((boxes[:, 0] <= x0 + w) & (boxes[:, 2] >= x0)
+                         & (boxes[:, 1] <= y0 + h) & (boxes[:, 3] >= y0))
+    if reach is not None and d.get("far") is not None and hit.size:
+        hit = hit[(d["far"][hit] >= reach[None, :]).any(axis=1)]
+    if hit.size == 0:
+        return []
+    cut = np.flatnonzero(np.diff(hit) > 64)
+    starts = np.concatenate([[hit[0]], hit[cut + 1]])
+    ends = np.concatenate([hit[cut], [hit[-1]]]) + 1
+    return list(zip(starts.tolist(), (ends - starts).tolist(), strict=True))
+
+
+@pytest.mark.parametrize("projection", ["orthographic", "perspective"])
+def test_lean_triangle_runs_equal_the_reference(projection):
+    """LeanDraw._runs gives the runs of the reference (column tests, NumPy's cuts) for the
+    shadows' boxes and random boxes, with and without the ball's reach; a draw of a few
+    triangles (the backdrop's two) is drawn whole."""
+    from synth.leandraw import RUN_GAP
+
+    cam = CameraModel(width=256, height=192, projection=projection, working_distance=0.6,
+                      center_px=(128.0, -470.0))
+    sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
+    rng = np.random.default_rng(11)
+    try:
+        c = _centre(0.0)
+        sr.render_tiles([sr.ball_pose(c)], sr.tiles_for(c[None]))
+        sr.render_tiles([sr.ball_pose(c)], sr.tiles_for(c[None]))
+        ld = sr._lean
+        checked = 0
+        for theta in np.linspace(-0.05, 0.05, 9):
+            c = _centre(theta)[None]
+            reach = ld._reach(c)
+            parts = [(b[0], b[1], b[2] - b[0], b[3] - b[1]) for b in sr.shadow_boxes(c)]
+            parts += [tuple(int(v) for v in (rng.integers(-20, 250), rng.integers(-20, 190),
+                                             rng.integers(1, 200), rng.integers(1, 200)))
+                      for _ in range(4)]
+            for part in parts:
+                for r in (reach, None):
+                    for d in ld.static_draws:
+                        got = ld._runs(d, part, r)
+                        if d["boxes"] is not None and d["count"] // 3 <= RUN_GAP:
+                            assert got == [(0, d["count"] // 3)]
+                        else:
+                            assert got == _runs_reference(d, part, r)
+                            checked += bool(got)
+    finally:
+        sr.close()
+    assert checked > 50, checked
