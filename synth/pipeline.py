@@ -19,7 +19,6 @@ import numpy as np
 from rollfric.atomic import replacing
 from synth.camera import CameraModel
 from synth.config import SceneConfig, SensorConfig, SynthError
-from synth.sensor import NOISE
 from synth.store import CHUNK, FORMAT, TRUTH_COLUMNS
 
 BATCH = 16  # frames per task (progress granularity)
@@ -302,6 +301,26 @@ def pool_context():
     return ctx
 
 
+def start_fork_server() -> bool:
+    """Start the fork server render processes are forked from (:func:`pool_context`), if that
+    is how they start here and it is not running yet: its imports (:mod:`synth.preload`,
+    ~1 s of CPU) then run while the caller goes on. :func:`render` calls it as soon as it knows
+    it will start render processes (before its own imports and preparations, ~0.2 s); a caller
+    may call it earlier (before a simulation).
+
+    Returns
+    -------
+    bool
+        Whether render processes start from a fork server here (Linux).
+    """
+    if pool_context().get_start_method() != "forkserver":
+        return False
+    from multiprocessing import forkserver
+
+    forkserver.ensure_running()
+    return True
+
+
 def _start_processes(pool, workers) -> None:
     """Submit a no-op task per process (the pool forks one per task while none is idle); a
     pool that broke meanwhile is reported by the batches' own submission."""
@@ -406,12 +425,6 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     start, end) per batch. Returns the path.
     """
     t_start = time.time()
-    import zarr
-    from tqdm import tqdm
-    from zarr.codecs import ZstdCodec
-
-    from rollfric.lens import Calibration
-    from rollfric.setup import Setup
     scene = scene or SceneConfig()
     sensor = sensor or SensorConfig()
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -432,6 +445,18 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         raise SynthError(f"frames must be 1..{len(traj)}, got {frames!r}")
     if n < len(traj):
         traj = _head(traj, n)
+    if workers is None:
+        # Mitsuba's Dr.Jit spreads one process's renders over every core itself
+        workers = 1 if scene.renderer == "mitsuba" else max(1, min(2, os.cpu_count() or 1))
+    workers = max(1, min(int(workers), max(1, n // BATCH)))
+    if workers > 1 and not scene.camera.thin_lens:
+        start_fork_server()  # its imports (~1 s) while this process prepares
+    import zarr
+    from tqdm import tqdm
+    from zarr.codecs import ZstdCodec
+
+    from rollfric.lens import Calibration
+    from rollfric.setup import Setup
     base = traj.setup()
     cam = scene.camera
     setup = Setup(cylinder_radius=base.cylinder_radius, ball_diameter=base.ball_diameter,
@@ -444,10 +469,6 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     oval = (traj.scenario.ovality, traj.scenario.ovality_angle)
     k_sub = scene.motion_blur
     centres = subframe_positions(traj, k_sub, sensor.exposure)
-    if workers is None:
-        # Mitsuba's Dr.Jit spreads one process's renders over every core itself
-        workers = 1 if scene.renderer == "mitsuba" else max(1, min(2, os.cpu_count() or 1))
-    workers = max(1, min(int(workers), max(1, n // BATCH)))
     if threads is None and workers > 1:
         threads = 1  # one llvmpipe thread per process: the processes fill the cores
 
@@ -527,7 +548,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             "setup": setup.to_toml_dict(),
             "scene": scene.to_dict(),
             "sensor": sensor.to_dict(),
-            "sensor_noise": NOISE,
+            "sensor_noise": sensor_noise(),
             "seed": int(seed),
             "scenario": _scenario_dict(traj),
             "engine_meta": _jsonable(getattr(traj, "meta", {})),
@@ -542,6 +563,20 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             **({"timing": timing_attrs} if timing_attrs is not None else {}),
         })
     return out
+
+
+def sensor_noise() -> str:
+    """The noise generator a recording's frames get when read (``synth.sensor.NOISE``),
+    imported here, not where this module is: a render process (:mod:`synth.preload`) needs
+    no sensor model nor its numba kernels (~0.25 s of the fork server's imports).
+
+    Returns
+    -------
+    str
+    """
+    from synth.sensor import NOISE
+
+    return NOISE
 
 
 def is_recording(path) -> bool:

@@ -49,7 +49,6 @@ import numpy as np
 
 from rollfric.source import check_roi
 from synth.config import SensorConfig, SynthError
-from synth.sensor import Sensor
 
 FORMAT = "rollfric-synth-recording/1"
 CHUNK = 128  # px: clean_diff chunk side (a chunk of int16 is 32 kB; 80 cover 1280 x 1024)
@@ -131,6 +130,8 @@ class SynthFrames:
         self.fps = float(a["fps"]) if a.get("fps") else None
         self._bg_scaled = (self._bg * self.subframes).astype(np.int32)
         self.noise = str(a.get("sensor_noise", "tiles/1"))
+        from synth.sensor import Sensor  # its numba kernels: not where a render process is
+
         self._sensor = Sensor(self.sensor_config, self.shape[1:], self.seed, self.noise)
         self._background = None
         self._chunk_file = _chunk_files(group, self._diff)
