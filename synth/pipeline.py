@@ -19,9 +19,11 @@ import numpy as np
 from rollfric.atomic import replacing
 from synth.camera import CameraModel
 from synth.config import SceneConfig, SensorConfig, SynthError
-from synth.store import CHUNK, FORMAT, TRUTH_COLUMNS
+from synth.store import CHUNK, FORMAT, TRUTH_COLUMNS, writer_layout
 
 BATCH = 16  # frames per task (progress granularity)
+# the background the render processes subtract, in the store's folder while they render
+BACKGROUND_FILE = ".render-background.npy"
 
 
 # -- trajectories ------------------------------------------------------------------------------
@@ -186,10 +188,11 @@ def _worker_ready() -> int:
     return os.getpid()
 
 
-def _worker_open(store_path, defocus=None):
-    """The recording's store in a render process: its chunk writer and background."""
-    import zarr
-
+def _worker_open(store_path, defocus=None, spec=None):
+    """The recording's store in a render process: its chunk writer and background, read
+    through zarr, or from ``spec`` = (:func:`synth.store.writer_layout`, the background's
+    ``.npy`` file) without it (the processes of :func:`_early_pool`, whose fork server imports
+    no zarr)."""
     cfg = _W["cfg"]
     lens = cfg.camera.lens
     _W["defocus"] = None
@@ -199,32 +202,37 @@ def _worker_open(store_path, defocus=None):
         face, bore, sharp = defocus
         _W["defocus"] = (Defocus(cfg.replace(camera=cfg.camera.ideal()), face, bore,
                                  _W["ball_radius"]), np.asarray(sharp, dtype=np.int64))
-    from synth.store import chunk_writer
+    from synth.store import chunk_writer_at, writer_layout
 
-    g = zarr.open_group(store_path, mode="r+")
-    _W["write"] = chunk_writer(g, g["clean_diff"])
+    if spec is None:
+        import zarr
+
+        g = zarr.open_group(store_path, mode="r+")
+        layout = writer_layout(g, g["clean_diff"])
+        bg = g["background_ideal_clean" if lens is not None else "background_clean"][...]
+    else:
+        layout, bg = spec[0], np.load(spec[1])
+    _W["write"] = chunk_writer_at(layout)
     _W["lens"] = None
     if lens is not None:
         from synth.lens import cached_window
 
         _W["lens"] = (lens, cached_window(lens, cfg.camera.width, cfg.camera.height),
                       (cfg.camera.height, cfg.camera.width))
-        _W["bg"] = np.asarray(g["background_ideal_clean"][...], dtype=np.int64)
-    else:
-        _W["bg"] = np.asarray(g["background_clean"][...], dtype=np.int64)
+    _W["bg"] = np.asarray(bg, dtype=np.int64)
     if hasattr(_W["renderer"], "set_background"):  # Mitsuba: unchanged pixels from it
         _W["renderer"].set_background(_W["bg"])
     _W["store"] = store_path
 
 
-def _worker_batch_in(store_path, indices, centres):
+def _worker_batch_in(store_path, spec, indices, centres):
     """:func:`_worker_batch` in a process started by :func:`_worker_start`: the store is opened
-    at its first batch (it is written after the processes start). Returns (frames, (first
-    index, process id, start, end)), the times by ``time.time()`` (the recording's schedule,
-    :func:`render`'s ``stats``)."""
+    at its first batch (it is written after the processes start; ``spec``: see
+    :func:`_worker_open`). Returns (frames, (first index, process id, start, end)), the times
+    by ``time.time()`` (the recording's schedule, :func:`render`'s ``stats``)."""
     t0 = time.time()
     if _W.get("store") != store_path:
-        _worker_open(store_path)
+        _worker_open(store_path, spec=spec)
     n = _worker_batch(indices, centres)
     return n, (int(indices[0]), os.getpid(), t0, time.time())
 
@@ -537,9 +545,18 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
                 _W.pop("renderer").close()
                 _W.clear()
         elif pool is not None:
-            _render_parallel(batches, centres, workers, start, bar, initializer=_worker_start,
-                             batch_fn=functools.partial(_worker_batch_in, str(tmp)), pool=pool,
-                             schedule=None if schedule is None else schedule["batches"])
+            # the background as the processes subtract it, for them to read without zarr
+            bg_file = tmp / BACKGROUND_FILE
+            np.save(bg_file, (bg if bg_ideal is None else bg_ideal).astype(bg_dtype))
+            spec = (writer_layout(g, g["clean_diff"]), str(bg_file))
+            try:
+                _render_parallel(batches, centres, workers, start, bar,
+                                 initializer=_worker_start,
+                                 batch_fn=functools.partial(_worker_batch_in, str(tmp), spec),
+                                 pool=pool,
+                                 schedule=None if schedule is None else schedule["batches"])
+            finally:
+                bg_file.unlink(missing_ok=True)
         else:
             _render_parallel(batches, centres, workers, init, bar)
         bar.close()

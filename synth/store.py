@@ -284,6 +284,40 @@ def _chunk_files(group, arr):
     return read
 
 
+def writer_layout(group, arr):
+    """Where and how :func:`chunk_writer` writes ``clean_diff``'s chunks, as plain values (a
+    render process writes with them without importing zarr: :func:`chunk_writer_at`).
+
+    Parameters
+    ----------
+    group : zarr.Group
+        The recording's group (a local directory store).
+    arr : zarr.Array
+        Its ``clean_diff`` array, as :func:`synth.pipeline.render` creates it.
+
+    Returns
+    -------
+    tuple or None
+        (folder, chunk key prefix, key separator, dtype string, chunk shape, frame shape, zstd
+        level); None when the array is not laid out as the pipeline writes it or its chunk
+        keys are not ``prefix + separator.join(indices)``.
+    """
+    layout = _layout(group, arr)
+    if layout is None:
+        return None
+    folder, encode, dtype, chunk, frame, level = layout
+    try:
+        enc = arr.metadata.chunk_key_encoding
+        sep = str(getattr(enc.separator, "value", enc.separator))
+        prefix = {"v2": "", "default": "c" + sep}[enc.name]
+    except (AttributeError, KeyError):
+        return None
+    probe = (12, 3, 4)
+    if encode(probe) != prefix + sep.join(map(str, probe)):
+        return None
+    return (str(folder), prefix, sep, dtype.str, chunk, frame, level)
+
+
 def chunk_writer(group, arr):
     """A function (i, patches) writing frame i of ``clean_diff`` (a pipeline-made array) from
     ``patches`` [((x0, y0, w, h), values), ...] (the frame is zero elsewhere): only the chunks
@@ -307,12 +341,34 @@ def chunk_writer(group, arr):
     SynthError
         When the array is not laid out as the pipeline writes it.
     """
-    layout = _layout(group, arr)
+    return chunk_writer_at(writer_layout(group, arr))
+
+
+def chunk_writer_at(layout):
+    """:func:`chunk_writer` from its :func:`writer_layout` (no zarr needed).
+
+    Parameters
+    ----------
+    layout : tuple or None
+        :func:`writer_layout`'s values.
+
+    Returns
+    -------
+    callable
+        ``write(i, patches)``.
+
+    Raises
+    ------
+    SynthError
+        When ``layout`` is None (the array is not laid out as the pipeline writes it).
+    """
     if layout is None:
         raise SynthError("clean_diff is not laid out as synth's pipeline writes it")
     from numcodecs import Zstd
 
-    folder, encode, dtype, (ch, cw), (H, W), level = layout
+    root, prefix, sep, dtype, (ch, cw), (H, W), level = layout
+    folder = Path(root)
+    dtype = np.dtype(dtype)
     zstd = Zstd(level=level)
 
     def write(i: int, patches) -> None:
@@ -330,7 +386,8 @@ def chunk_writer(group, arr):
                         values[ya - y0:yb - y0, xa - x0:xb - x0]
         for (cy, cx), chunk in chunks.items():
             if chunk.any():
-                (folder / encode((i, cy, cx))).write_bytes(zstd.encode(chunk.tobytes()))
+                (folder / f"{prefix}{i}{sep}{cy}{sep}{cx}").write_bytes(
+                    zstd.encode(chunk.tobytes()))
 
     return write
 

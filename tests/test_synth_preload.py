@@ -1,6 +1,6 @@
 """What the render processes' fork server imports (synth.preload) and when it starts
 (synth.pipeline.start_fork_server): the renderer's modules, not the sensor model's numba
-kernels; started once, early, where render processes start from a fork server."""
+kernels nor zarr; started once, early, where render processes start from a fork server."""
 
 import os
 import subprocess
@@ -29,6 +29,7 @@ def test_the_fork_server_loads_the_renderer_but_not_the_sensor_model():
     mods = _imports("import synth.preload")
     assert {"pyrender", "synth.scene", "synth.leandraw", "synth.store"} <= mods
     assert "numba" not in mods and "synth.sensor" not in mods
+    assert "zarr" not in mods
 
 
 def test_importing_synth_does_not_load_numba():
@@ -58,3 +59,31 @@ def test_the_fork_server_starts_once():
     assert pid is not None
     assert pipeline.start_fork_server()  # running: the same server
     assert forkserver._forkserver._forkserver_pid == pid
+
+
+def test_the_writer_layout_names_the_chunks_as_zarr_does(tmp_path):
+    import zarr
+    from zarr.codecs import ZstdCodec
+
+    from synth.store import writer_layout
+
+    g = zarr.open_group(str(tmp_path / "s.zarr"), mode="w")
+    arr = g.create_array("clean_diff", shape=(3, 256, 384), dtype="int16", chunks=(1, 128, 128),
+                         fill_value=0, chunk_key_encoding={"name": "v2", "separator": "."},
+                         compressors=[ZstdCodec(level=1)])
+    folder, prefix, sep, dtype, chunk, frame, level = writer_layout(g, arr)
+    assert (prefix, sep, dtype, chunk, frame, level) == ("", ".", "<i2", (128, 128),
+                                                         (256, 384), 1)
+    key = arr.metadata.chunk_key_encoding.encode_chunk_key
+    assert key((2, 1, 2)) == prefix + sep.join(["2", "1", "2"])
+    assert folder == str(tmp_path / "s.zarr" / "clean_diff")
+    # zarr's default chunk keys ("c/..."): named as zarr names them
+    dflt = g.create_array("dflt", shape=(3, 256, 384), dtype="int16", chunks=(1, 128, 128),
+                          fill_value=0, compressors=[ZstdCodec(level=1)])
+    _, prefix, sep, *_ = writer_layout(g, dflt)
+    assert prefix + sep.join(["2", "1", "2"]) == \
+        dflt.metadata.chunk_key_encoding.encode_chunk_key((2, 1, 2))
+    # another layout (chunks of two frames): not the pipeline's, no layout
+    other = g.create_array("other", shape=(3, 256, 384), dtype="int16", chunks=(2, 128, 128),
+                           fill_value=0, compressors=[ZstdCodec(level=1)])
+    assert writer_layout(g, other) is None

@@ -264,6 +264,9 @@ def test_render_processes_draw_the_same_bytes(tmp_path):
     assert all(sched["start"] <= sched["submitted"] <= b[2] <= b[3] for b in sched["batches"])
     np.testing.assert_array_equal(zarr.open_group(str(ref), mode="r")["clean_diff"][...],
                                   zarr.open_group(str(out), mode="r")["clean_diff"][...])
+    # the background the processes read (without zarr) is not left in the store
+    assert not (out / pipeline.BACKGROUND_FILE).exists()
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in ref.iterdir())
     a, b = synth.open_recording(ref), synth.open_recording(out)
     for i in range(len(tr)):
         assert a.frames[i].tobytes() == b.frames[i].tobytes()
