@@ -325,8 +325,10 @@ def _case_in_new_process(case: dict) -> tuple[dict, dict]:
             "res = run_case(json.load(sys.stdin))\n"
             "parts = dict(getattr(res.track_info, 'seconds', None) or {})\n"
             "print(json.dumps({'metrics': res.metrics, 'parts': parts}, default=float))\n")
+    # the child finds the packages where this process found them (an uninstalled checkout)
+    path = os.pathsep.join(p for p in sys.path if p)
     out = subprocess.run([sys.executable, "-c", code], input=json.dumps(case), text=True,
-                         capture_output=True)
+                         capture_output=True, env={**os.environ, "PYTHONPATH": path})
     if out.returncode != 0:
         raise RuntimeError(f"the default validate case failed in a new process:\n{out.stderr}")
     res = json.loads(out.stdout.strip().splitlines()[-1])
