@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 
-def polyfit_rows(u: np.ndarray, y: np.ndarray, use: np.ndarray, degree: int) -> np.ndarray:
+def polyfit_rows(u: np.ndarray, y: np.ndarray, use: np.ndarray, degree: int, *,
+                 gain: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """The least-squares polynomial of ``degree`` through the used points of each row.
 
     Parameters
@@ -28,12 +29,19 @@ def polyfit_rows(u: np.ndarray, y: np.ndarray, use: np.ndarray, degree: int) -> 
         ``degree + 1`` used points at distinct abscissae (NaN in an unused point is ignored).
     degree : int
         The polynomial's degree.
+    gain : bool
+        Also return each row's noise gain at u = 0.
 
     Returns
     -------
     numpy.ndarray
         (m, degree + 1) or (m, degree + 1, c): the coefficients of each row, lowest power
         first (as ``numpy.polynomial.polynomial.polyfit``).
+    numpy.ndarray
+        Only with ``gain``: (m,) the standard deviation of the fitted value at u = 0 (the
+        constant coefficient) for independent errors of unit standard deviation in the used
+        points, sqrt([(V^T V)^-1]_00): below 1 where the points surround u = 0, several
+        where the fit extrapolates to it from one side.
 
     Raises
     ------
@@ -49,7 +57,7 @@ def polyfit_rows(u: np.ndarray, y: np.ndarray, use: np.ndarray, degree: int) -> 
     m = u.shape[0]
     if m == 0:
         shape = (0, degree + 1) if flat else (0, degree + 1, y.shape[2])
-        return np.zeros(shape)
+        return (np.zeros(shape), np.zeros(0)) if gain else np.zeros(shape)
     v = np.where(use, u, 0.0)[..., None] ** np.arange(degree + 1)
     v = np.where(use[..., None], v, 0.0)
     rhs = np.where(use[..., None], y, 0.0)
@@ -57,4 +65,11 @@ def polyfit_rows(u: np.ndarray, y: np.ndarray, use: np.ndarray, degree: int) -> 
     scl[scl == 0] = 1.0
     q, r = np.linalg.qr(v / scl[:, None, :])
     coef = np.linalg.solve(r, np.swapaxes(q, 1, 2) @ rhs) / scl[..., None]
-    return coef[..., 0] if flat else coef
+    coef = coef[..., 0] if flat else coef
+    if not gain:
+        return coef
+    # Var(c0) = [(V^T V)^-1]_00 = |row 0 of R^-1|^2 / scl_0^2 (V = Q R scl)
+    e0 = np.zeros((m, degree + 1))
+    e0[:, 0] = 1.0
+    rinv0 = np.linalg.solve(np.swapaxes(r, 1, 2), e0[..., None])[..., 0]  # R^-T e0
+    return coef, np.sqrt(np.square(rinv0).sum(axis=1)) / scl[:, 0]
