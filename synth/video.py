@@ -34,6 +34,16 @@ QUALITY_RANGE = {"mjpeg": (1, 100), "h264": (0, 51)}
 DEFAULT_QUALITY = {"mjpeg": 75, "h264": 23}
 H264_PRESET = "medium"
 H264_GOP = 250
+# The same frames give the same bytes on any machine (found 2026-11-24, after an H.264 test
+# failed on another machine): x264 takes its thread count (PyAV: slices) from the CPUs unless
+# told, so it is fixed here (frame threads); and with x264's macroblock tree (its default
+# rate-control lookahead) the P frames differed from the second encoder of a process on
+# (half of the runs on an AMD EPYC with AVX-512, even with one thread; deterministic with
+# x264's assembly off or the tree off: memory left from an earlier encoder), so the tree is
+# off. Without it the rate control spreads the quality more evenly over static and moving
+# areas; the codec and its artefacts (block DCT, motion compensation) are the same.
+H264_THREADS = 4
+H264_PARAMS = "no-mbtree=1"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -159,7 +169,9 @@ def write_video(frames, path, spec: VideoSpec, fps: float, *, bit_depth: int = 8
                 st = out.add_stream("libx264", rate=rate)
                 st.width, st.height, st.pix_fmt = w, h, "yuv420p"
                 st.options = {"crf": str(spec.quality), "preset": H264_PRESET,
-                              "g": str(H264_GOP)}
+                              "g": str(H264_GOP), "x264-params": H264_PARAMS}
+                st.codec_context.thread_type = "FRAME"
+                st.codec_context.thread_count = H264_THREADS
                 for i in range(n):
                     img = first if i == 0 else to_8bit(np.asarray(frames[i]), bit_depth)
                     for pkt in st.encode(av.VideoFrame.from_ndarray(img, format="gray")):

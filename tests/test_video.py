@@ -66,6 +66,47 @@ def test_a_playback_rate_is_reported_and_the_setup_rate_used(tmp_path, drawn):
     assert found.sum() >= 115 and np.sqrt(np.mean(err ** 2)) < 0.15
 
 
+_WRITE_IN_CHILD = """
+import os, sys
+import numpy as np
+from synth.video import VideoSpec, write_video
+os.sched_setaffinity(0, {int(c) for c in sys.argv[2].split(",")})
+frames = np.load(sys.argv[1])
+write_video(frames, sys.argv[3], VideoSpec("h264", 18), 200.0)
+"""
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="Linux only")
+def test_h264_bytes_do_not_depend_on_the_machines_cpus(tmp_path, drawn):
+    # x264 takes its thread count from the CPUs it may use unless told; the file says which
+    import os
+    import subprocess
+    import sys
+
+    np.save(tmp_path / "f.npy", np.stack(drawn.frames[:60]))
+    cpus = sorted(os.sched_getaffinity(0))
+    out = {}
+    for name, use in (("one", cpus[:1]), ("all", cpus)):
+        subprocess.run([sys.executable, "-c", _WRITE_IN_CHILD, str(tmp_path / "f.npy"),
+                        ",".join(map(str, use)), str(tmp_path / f"{name}.mp4")], check=True,
+                       env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+        out[name] = (tmp_path / f"{name}.mp4").read_bytes()
+    from synth.video import H264_THREADS
+
+    assert f" threads={H264_THREADS} ".encode() in out["one"]
+    assert out["one"] == out["all"]
+
+
+def test_h264_bytes_are_the_same_every_time(tmp_path, drawn):
+    # x264's macroblock tree gave other P frames from a process's second encoder on (memory an
+    # earlier encoder left): the same frames, written three times after another video, are
+    # the same bytes
+    write_video(drawn.frames[60:], tmp_path / "other.mp4", VideoSpec("h264", 23), 200.0)
+    got = {(write_video(drawn.frames[:60], tmp_path / f"{k}.mp4", VideoSpec("h264", 18),
+                        200.0)).read_bytes() for k in range(3)}
+    assert len(got) == 1
+
+
 @pytest.mark.parametrize("bad", [dict(codec="vp9"), dict(codec="mjpeg", quality=0),
                                  dict(codec="h264", quality=60),
                                  dict(codec="mjpeg", quality=75, playback_fps=0.0)])
