@@ -364,12 +364,16 @@ def chunk_writer_at(layout):
     """
     if layout is None:
         raise SynthError("clean_diff is not laid out as synth's pipeline writes it")
-    from numcodecs import Zstd
+    # numcodecs' Zstd(level).encode(chunk) is compress(chunk, level, False) (no checksum):
+    # the same bytes, without the codec's buffer checks and a copy of the chunk; the files are
+    # created, written and closed as pathlib's write_bytes does (open(path, "wb"): O_WRONLY |
+    # O_CREAT | O_TRUNC | O_CLOEXEC, mode 0o666 less the umask), without its path objects
+    from numcodecs.zstd import compress
 
     root, prefix, sep, dtype, (ch, cw), (H, W), level = layout
-    folder = Path(root)
+    folder = str(root)
     dtype = np.dtype(dtype)
-    zstd = Zstd(level=level)
+    flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_CLOEXEC", 0)
 
     def write(i: int, patches) -> None:
         chunks: dict = {}
@@ -386,8 +390,14 @@ def chunk_writer_at(layout):
                         values[ya - y0:yb - y0, xa - x0:xb - x0]
         for (cy, cx), chunk in chunks.items():
             if chunk.any():
-                (folder / f"{prefix}{i}{sep}{cy}{sep}{cx}").write_bytes(
-                    zstd.encode(chunk.tobytes()))
+                data = memoryview(compress(chunk, level, False))
+                fd = os.open(os.path.join(folder, f"{prefix}{i}{sep}{cy}{sep}{cx}"), flags,
+                             0o666)
+                try:
+                    while data:
+                        data = data[os.write(fd, data):]
+                finally:
+                    os.close(fd)
 
     return write
 
