@@ -113,6 +113,7 @@ INTERNALS = {
     "ShaderProgram": ("_bind", "_unbind", "_program_id"),
     "Primitive": ("_vaid",),
     "ShaderProgramCache": ("_program_cache",),
+    "Scene": ("_bounds",),
 }
 
 
@@ -129,7 +130,8 @@ def check_internals(renderer) -> None:
             "Texture": pyrender.texture.Texture(width=1, height=1),  # no GL until added
             "ShaderProgram": pyrender.shader_program.ShaderProgram("v", "f"),  # no GL yet
             "Primitive": pyrender.Primitive(positions=np.zeros((3, 3))),  # no GL yet
-            "ShaderProgramCache": program_cache(renderer)}
+            "ShaderProgramCache": program_cache(renderer),
+            "Scene": pyrender.Scene()}
     missing = [f"{kind}.{name}" for kind, names in INTERNALS.items() for name in names
                if not hasattr(have[kind], name)]
     if missing:
@@ -301,6 +303,18 @@ def program_id(program) -> int:
 def vertex_array(primitive) -> int:
     """The GL id of a pyrender Primitive's vertex array (synth.leandraw)."""
     return primitive._vaid
+
+
+def kept_bounds(scene):
+    """A pyrender Scene's bounds as last computed, or None when a mesh node was added,
+    removed or moved since (pyrender computes them again when asked: synth.scene)."""
+    return scene._bounds
+
+
+def keep_bounds(scene, bounds) -> None:
+    """Give a pyrender Scene the bounds its ``bounds`` property would compute now
+    (synth.scene: the ball moved, the other nodes' corners kept)."""
+    scene._bounds = bounds
 
 
 def shadow_framebuffer(inner_renderer) -> int:

@@ -258,6 +258,7 @@ class SceneRenderer:
             roughnessFactor=config.ball_roughness)
         self._ball_mesh = pyrender.Mesh.from_trimesh(sphere, material=steel, smooth=True)
         self._ball_node = None
+        self._bounds_memo = None  # (bounds, [(mesh node, world corners or None: the ball)])
         # camera whose projection we set per tile
         self._cam = _camera_class()(znear=self.camera.znear, zfar=self.camera.zfar)
         scene.add(self._cam, pose=self.camera.pose(), name="camera")
@@ -336,7 +337,32 @@ class SceneRenderer:
         if self._ball_node is None:
             self._ball_node = self.scene.add(self._ball_mesh, pose=pose, name="ball")
         else:
+            kept = pyrender_adapter.kept_bounds(self.scene)
             self.scene.set_pose(self._ball_node, pose)
+            self._renew_bounds(kept)
+
+    def _renew_bounds(self, kept) -> None:
+        """The scene's bounds after the ball moved, as pyrender's ``Scene.bounds`` computes
+        them (each mesh node's box corners in the world frame, stacked in the scene's order of
+        its mesh nodes; their smallest and largest coordinates), with the corners of every
+        node but the ball kept from the last time: pyrender computes all of them again
+        whenever the ball moves (~0.1 ms a frame; its lamps' shadow cameras ask for the
+        bounds every frame). Only while nothing else changed since: ``kept`` (pyrender's
+        bounds before the ball moved) must be the bounds set here last, else (a node added,
+        removed or moved, the bounds computed by pyrender meanwhile) pyrender's own
+        property computes them and the corners are taken again."""
+        memo = self._bounds_memo
+        scene = self.scene
+        if memo is None or kept is None or kept is not memo[0]:
+            bounds = scene.bounds
+            self._bounds_memo = (bounds, [(n, None if n is self._ball_node else
+                                           _world_corners(scene, n)) for n in scene.mesh_nodes])
+            return
+        ball = _world_corners(scene, self._ball_node)
+        corners = np.vstack([ball if c is None else c for _, c in memo[1]])
+        bounds = np.array([np.min(corners, axis=0), np.max(corners, axis=0)])
+        pyrender_adapter.keep_bounds(scene, bounds)
+        self._bounds_memo = (bounds, memo[1])
 
     def _reduce(self, color: np.ndarray) -> np.ndarray:
         """(h ss, w ss, 3) uint8 -> (h, w) sum over channels and supersamples (uint64, as
@@ -574,17 +600,26 @@ class SceneRenderer:
             pyrender_adapter.light_cam_matrices(inner)(self.scene, light_node, flags)
         c = centre if centre is not None else self.scene.get_pose(self._ball_node)[:3, 3]
         cv = V @ np.append(c, 1.0)
-        r = 1.5 * self.ball_radius
-        pts = np.array([[cv[0] + dx, cv[1] + dy, cv[2] + dz, 1.0]
-                        for dx in (-r, r) for dy in (-r, r) for dz in (-r, r)])
+        # the corners of a cube of 1.5 ball radii about the centre in the lamp's view (the
+        # same sums cv + d as element by element), projected
+        pts = np.ones((8, 4))
+        np.add(cv[:3], self._cube_offsets(), out=pts[:, :3])
         clip = pts @ P.T
         ndc = clip[:, :2] / clip[:, 3:4]
-        t = (ndc + 1.0) / 2.0 * SHADOW_TEX_SZ
-        x0 = min(max(math.floor(t[:, 0].min()) - 4, 0), SHADOW_TEX_SZ)
-        y0 = min(max(math.floor(t[:, 1].min()) - 4, 0), SHADOW_TEX_SZ)
-        x1 = min(max(math.ceil(t[:, 0].max()) + 4, 0), SHADOW_TEX_SZ)
-        y1 = min(max(math.ceil(t[:, 1].max()) + 4, 0), SHADOW_TEX_SZ)
+        t = ((ndc + 1.0) / 2.0 * SHADOW_TEX_SZ).T.tolist()
+        x0 = min(max(math.floor(min(t[0])) - 4, 0), SHADOW_TEX_SZ)
+        y0 = min(max(math.floor(min(t[1])) - 4, 0), SHADOW_TEX_SZ)
+        x1 = min(max(math.ceil(max(t[0])) + 4, 0), SHADOW_TEX_SZ)
+        y1 = min(max(math.ceil(max(t[1])) + 4, 0), SHADOW_TEX_SZ)
         return (x0, y0, max(x1 - x0, 1), max(y1 - y0, 1))
+
+    def _cube_offsets(self) -> np.ndarray:
+        """(8, 3) offsets (+-r, +-r, +-r), r = 1.5 ball radii, x slowest, z fastest."""
+        r = 1.5 * self.ball_radius
+        if getattr(self, "_cube", (None,))[0] != r:
+            self._cube = (r, np.array([[dx, dy, dz] for dx in (-r, r) for dy in (-r, r)
+                                       for dz in (-r, r)]))
+        return self._cube[1]
 
     def _make_shadow_cache(self, inner, flags, static) -> dict:
         """Render each lamp's shadow map of the trough alone, once, and keep a copy."""
@@ -892,6 +927,16 @@ def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.column_stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
                             a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
                             a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]])
+
+
+def _world_corners(scene, node) -> np.ndarray:
+    """(8, 3) corners of a mesh node's box in the world frame, as pyrender's
+    ``Scene.bounds`` computes them."""
+    import trimesh
+
+    pose = scene.get_pose(node)
+    corners_local = trimesh.bounds.corners(node.mesh.bounds)
+    return pose[:3, :3].dot(corners_local.T).T + pose[:3, 3]
 
 
 def _box(pts: np.ndarray):

@@ -520,3 +520,68 @@ def test_lean_triangle_runs_equal_the_reference(projection):
     finally:
         sr.close()
     assert checked > 50, checked
+
+
+def _pyrender_bounds(scene):
+    """pyrender's Scene.bounds computed afresh (its own code, on a shallow copy of the scene:
+    the scene's own bounds are left as they are)."""
+    import copy
+
+    fresh = copy.copy(scene)
+    fresh._bounds = None
+    return fresh.bounds
+
+
+def test_scene_bounds_kept_while_the_ball_moves_equal_pyrenders():
+    cam = CameraModel(width=160, height=120, center_px=(80.0, -500.0))
+    sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
+    scene = sr.scene
+    rng = np.random.default_rng(5)
+    kept = 0
+    for k, theta in enumerate(np.linspace(-1.2, 1.2, 40)):
+        # far outside the trough too, so that the ball sets the bounds on some sides
+        c = _centre(theta) * (1.0 if k % 3 else 3.0) + rng.normal(0, 0.002, 3)
+        # the other nodes' corners are kept when nothing but the ball moved since
+        kept += sr._bounds_memo is not None and sr._bounds_memo[0] is scene._bounds
+        sr.set_ball(sr.ball_pose(c))
+        got = scene.bounds.copy()
+        assert got.tobytes() == _pyrender_bounds(scene).tobytes()
+        if k == 20:  # a static node moved: pyrender's own bounds, then kept again
+            node = next(n for n in scene.mesh_nodes if n is not sr._ball_node)
+            pose = scene.get_pose(node).copy()
+            pose[1, 3] += 0.01
+            scene.set_pose(node, pose)
+    assert kept >= 35, kept
+    sr.close()
+
+
+def test_shadow_box_equals_its_reference():
+    from synth.scene import SHADOW_TEX_SZ
+
+    cam = CameraModel(width=256, height=192, center_px=(128.0, -470.0))
+    sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
+    try:
+        c = _centre(0.0)
+        for _ in range(2):  # pyrender's path, then the lean one (its lamps' matrices)
+            sr.render_tiles([sr.ball_pose(c)], sr.tiles_for(c[None]))
+        ld = sr._lean
+        mats = ld._light_mats
+        assert len(mats) == 2
+        rng = np.random.default_rng(3)
+        for theta in np.linspace(-0.9, 0.9, 25):
+            c = _centre(theta) + rng.normal(0, 0.001, 3)
+            for ln, (V, P) in zip(ld.lamps, mats, strict=True):
+                cv = V @ np.append(c, 1.0)
+                r = 1.5 * R_BALL
+                pts = np.array([[cv[0] + dx, cv[1] + dy, cv[2] + dz, 1.0]
+                                for dx in (-r, r) for dy in (-r, r) for dz in (-r, r)])
+                clip = pts @ P.T
+                t = (clip[:, :2] / clip[:, 3:4] + 1.0) / 2.0 * SHADOW_TEX_SZ
+                x0 = min(max(math.floor(t[:, 0].min()) - 4, 0), SHADOW_TEX_SZ)
+                y0 = min(max(math.floor(t[:, 1].min()) - 4, 0), SHADOW_TEX_SZ)
+                x1 = min(max(math.ceil(t[:, 0].max()) + 4, 0), SHADOW_TEX_SZ)
+                y1 = min(max(math.ceil(t[:, 1].max()) + 4, 0), SHADOW_TEX_SZ)
+                want = (x0, y0, max(x1 - x0, 1), max(y1 - y0, 1))
+                assert sr._shadow_box(ld.inner, ln, ld.flags, (V, P), c) == want
+    finally:
+        sr.close()
