@@ -188,6 +188,27 @@ def _worker_ready() -> int:
     return os.getpid()
 
 
+def _worker_background():
+    """The background (the scene without the ball, a plain render of the full frame) drawn
+    by this render process's renderer, so that the main process need not import pyrender
+    and trimesh nor make a renderer of its own: (levels as the smallest unsigned dtype that
+    holds ``scale``, scale)."""
+    sr = _W["renderer"]
+    bg = sr.render_full()
+    return bg.astype(np.uint16 if sr.scale <= 65535 else np.uint32), int(sr.scale)
+
+
+def _worker_warm(centres) -> None:
+    """Draw the tiles of a frame with the ball at ``centres`` and drop them: a render
+    process's first frame sets up what every later one uses (the trough's cached shadow maps,
+    the lean draw path, the static layer's blocks; ~0.25 s), done while it waits for the
+    background. The frames it draws later are the same bytes."""
+    sr = _W["renderer"]
+    tiles = sr.tiles_for(centres)
+    if tiles:
+        sr.render_tiles([sr.ball_pose(c) for c in centres], tiles)
+
+
 def _worker_open(store_path, defocus=None, spec=None):
     """The recording's store in a render process: its chunk writer and background, read
     through zarr, or from ``spec`` = (:func:`synth.store.writer_layout`, the background's
@@ -309,6 +330,54 @@ def pool_context():
     return ctx
 
 
+def render_workers(scene: SceneConfig, frames: int, workers: int | None = None) -> int:
+    """The number of render processes :func:`render` uses for ``frames`` frames of ``scene``.
+
+    Parameters
+    ----------
+    scene : SceneConfig
+        The scene (Mitsuba's Dr.Jit spreads one process's renders over every core itself).
+    frames : int
+        Frames to render.
+    workers : int, optional
+        As asked of :func:`render` (default: the number of CPUs, at most 2).
+
+    Returns
+    -------
+    int
+        At least 1, at most one per batch of frames.
+    """
+    if workers is None:
+        workers = 1 if scene.renderer == "mitsuba" else max(1, min(2, os.cpu_count() or 1))
+    return max(1, min(int(workers), max(1, frames // BATCH)))
+
+
+def prepare_render(scene: SceneConfig, frames: int, workers: int | None = None) -> bool:
+    """Start, now, what :func:`render` of ``frames`` frames of ``scene`` (with ``workers``)
+    will start first: the fork server its render processes are forked from
+    (:func:`start_fork_server`, ~1 s of imports), if it uses one. For a caller with other
+    work before the render (``rollfric validate``'s fit of the true angles); the render is
+    the same with or without it.
+
+    Parameters
+    ----------
+    scene : SceneConfig
+        The scene to be rendered.
+    frames : int
+        Frames to be rendered.
+    workers : int, optional
+        As to be passed to :func:`render`.
+
+    Returns
+    -------
+    bool
+        Whether a fork server was started or is running for it.
+    """
+    if render_workers(scene, frames, workers) < 2 or scene.camera.thin_lens:
+        return False
+    return start_fork_server()
+
+
 def start_fork_server() -> bool:
     """Start the fork server render processes are forked from (:func:`pool_context`), if that
     is how they start here and it is not running yet: its imports (:mod:`synth.preload`,
@@ -329,10 +398,13 @@ def start_fork_server() -> bool:
     return True
 
 
-def _start_processes(pool, workers) -> None:
-    """Submit a no-op task per process (the pool forks one per task while none is idle); a
-    pool that broke meanwhile is reported by the batches' own submission."""
+def _start_processes(pool, workers, first=(), out=None) -> None:
+    """Submit the tasks ``first`` (their futures appended to the list ``out``), then a no-op
+    task per process (the pool forks one per task while none is idle); a pool that broke
+    meanwhile is reported by the batches' own submission (and ``out`` is then short)."""
     try:
+        for task in first:
+            out.append(pool.submit(task))
         for _ in range(workers):
             pool.submit(_worker_ready)
     except RuntimeError:  # BrokenProcessPool is one
@@ -340,22 +412,34 @@ def _start_processes(pool, workers) -> None:
 
 
 @contextlib.contextmanager
-def _early_pool(workers, init):
+def _early_pool(workers, init, first=()):
     """``workers`` render processes (:func:`pool_context`) started now, each running
-    ``_worker_start(*init)`` (imports, EGL, the renderer) while the caller goes on (the
-    background's render); None for 0 workers. Shut down on leaving (already done unless the
-    render failed before using it)."""
+    ``_worker_start(*init)`` (imports, EGL, the renderer) while the caller goes on, and the
+    tasks ``first`` (callables) submitted first, in order, for the processes as they are ready:
+    (pool, a function that returns the futures of ``first``, once submitted, raising
+    BrokenProcessPool if the pool broke before), (None, None) for 0 workers. Shut down on
+    leaving (already done unless the render failed before using it)."""
     if not workers:
-        yield None
+        yield None, None
         return
     pool = cf.ProcessPoolExecutor(workers, mp_context=pool_context(),
                                   initializer=_worker_start, initargs=init)
     # a process is spawned per task while none is idle; from a thread, as the first process
-    # of a fork server waits for the server's imports (~2 s), the background's render meanwhile
-    starter = threading.Thread(target=_start_processes, args=(pool, workers), daemon=True)
+    # of a fork server waits for the server's imports (~1 s), the caller's own work meanwhile
+    futures: list = []
+    first = list(first)
+    starter = threading.Thread(target=_start_processes, args=(pool, workers, first, futures),
+                               daemon=True)
     starter.start()
+
+    def submitted() -> list:
+        starter.join()
+        if len(futures) < len(first):
+            raise cf.process.BrokenProcessPool("a render process died while starting")
+        return futures
+
     try:
-        yield pool
+        yield pool, submitted
     finally:
         starter.join()
         pool.shutdown(cancel_futures=True)
@@ -382,8 +466,12 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
             pool = cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=initializer,
                                           initargs=init)
         with pool:
-            futs = {pool.submit(batch_fn, batches[k], centres[batches[k]]): k
-                    for k in pending}
+            futs = {}
+            try:
+                for k in pending:
+                    futs[pool.submit(batch_fn, batches[k], centres[batches[k]])] = k
+            except cf.process.BrokenProcessPool:  # it broke before (an early pool's process)
+                failed = pending[len(futs):]
             for f in cf.as_completed(futs):
                 try:
                     done = f.result()
@@ -453,10 +541,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         raise SynthError(f"frames must be 1..{len(traj)}, got {frames!r}")
     if n < len(traj):
         traj = _head(traj, n)
-    if workers is None:
-        # Mitsuba's Dr.Jit spreads one process's renders over every core itself
-        workers = 1 if scene.renderer == "mitsuba" else max(1, min(2, os.cpu_count() or 1))
-    workers = max(1, min(int(workers), max(1, n // BATCH)))
+    workers = render_workers(scene, n, workers)
     if workers > 1 and not scene.camera.thin_lens:
         start_fork_server()  # its imports (~1 s) while this process prepares
     import zarr
@@ -481,30 +566,44 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         threads = 1  # one llvmpipe thread per process: the processes fill the cores
 
     lens = cam.lens
-    # the render processes start (imports, EGL, programs, meshes: ~2 s) while this process
-    # renders the background; a thin lens's processes need the background's layers first
+    # the render processes start (imports, EGL, programs, meshes: ~1.5 s) while this process
+    # prepares; a thin lens's processes need the background's layers first
     start = (scene.to_dict(), r_ball, r_cyl, threads, oval, int(seed))
-    with _early_pool(workers if workers > 1 and not cam.thin_lens else 0, start) as pool, \
+    early = workers if workers > 1 and not cam.thin_lens else 0
+    # pyrender's background is drawn by the first render process that is ready (it has
+    # imported pyrender anyway): this process imports neither pyrender nor trimesh; the
+    # others draw the first frame meanwhile (their first frame's set-up)
+    remote = bool(early) and scene.renderer == "pyrender"
+    first = [_worker_background] + [functools.partial(_worker_warm, centres[0])] * (early - 1)
+    with _early_pool(early, start, first if remote else ()) as (pool, submitted), \
             replacing(out, folder_ok=True) as tmp:
-        sr = make_renderer(scene, r_ball, r_cyl, seed, oval=oval)
-        bg = sr.render_full()
         defocus = None
-        if cam.thin_lens:  # the layers' blur (synth.defocus), in the ideal frame
-            from synth.defocus import Defocus, layer_coverage
+        bg = None
+        if remote:
+            try:
+                levels, scale = submitted()[0].result()
+                bg = levels.astype(np.uint64)  # render_full's dtype
+            except cf.process.BrokenProcessPool:  # drawn here; the batches in a new pool
+                pool = None
+        if bg is None:
+            sr = make_renderer(scene, r_ball, r_cyl, seed, oval=oval)
+            bg = sr.render_full()
+            if cam.thin_lens:  # the layers' blur (synth.defocus), in the ideal frame
+                from synth.defocus import Defocus, layer_coverage
 
-            face, bore = layer_coverage(sr)
-            defocus = (face, bore, bg)
-            blurred = Defocus(scene.replace(camera=cam.ideal()), face, bore,
-                              r_ball).background(bg)
-            bg = np.clip(np.rint(blurred), 0, None).astype(bg.dtype)
-        sr.close()
+                face, bore = layer_coverage(sr)
+                defocus = (face, bore, bg)
+                blurred = Defocus(scene.replace(camera=cam.ideal()), face, bore,
+                                  r_ball).background(bg)
+                bg = np.clip(np.rint(blurred), 0, None).astype(bg.dtype)
+            sr.close()
+            scale = sr.scale
         bg_ideal = None
         if lens is not None:
             from synth.lens import cached_window, distort_image
 
             bg_ideal = bg
             bg = np.rint(distort_image(bg, cached_window(lens, cam.width, cam.height)))
-        scale = sr.scale
         frame_scale = scale * k_sub
         H, W = cam.height, cam.width
         g = zarr.open_group(str(tmp), mode="w")
@@ -544,7 +643,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             finally:
                 _W.pop("renderer").close()
                 _W.clear()
-        elif pool is not None:
+        elif early:
             # the background as the processes subtract it, for them to read without zarr
             bg_file = tmp / BACKGROUND_FILE
             np.save(bg_file, (bg if bg_ideal is None else bg_ideal).astype(bg_dtype))

@@ -58,3 +58,30 @@ def test_a_dead_process_batches_are_rendered_again(tmp_path):
 def test_a_batch_that_always_kills_its_process_is_an_error(tmp_path):
     with pytest.raises(RuntimeError, match=f"after {MAX_POOL_RESTARTS} restarts"):
         _run(tmp_path, "always")
+
+
+def _exit():
+    os._exit(3)
+
+
+def test_a_pool_that_broke_before_its_batches_is_replaced(tmp_path):
+    """An early-started pool (synth.pipeline._early_pool) whose process died in a task before
+    the batches (the background's render): every batch is rendered in a fresh pool."""
+    import concurrent.futures as cf
+
+    from synth.pipeline import pool_context
+
+    n = 64
+    batches = [np.arange(s, min(s + 16, n)) for s in range(0, n, 16)]
+    centres = np.arange(n, dtype=float)[:, None, None] * np.ones((1, 1, 3))
+    out = tmp_path / "frames"
+    out.mkdir()
+    init = (str(out), str(tmp_path / "died"), "never")
+    pool = cf.ProcessPoolExecutor(2, mp_context=pool_context(), initializer=_init,
+                                  initargs=init)
+    with pytest.raises(cf.process.BrokenProcessPool):
+        pool.submit(_exit).result()
+    with tqdm(total=n, disable=True) as bar:
+        _render_parallel(batches, centres, 2, init, bar, initializer=_init, batch_fn=_batch,
+                         pool=pool)
+    assert sorted(int(p.name) for p in out.iterdir()) == list(range(n))

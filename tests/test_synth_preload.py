@@ -87,3 +87,45 @@ def test_the_writer_layout_names_the_chunks_as_zarr_does(tmp_path):
     other = g.create_array("other", shape=(3, 256, 384), dtype="int16", chunks=(2, 128, 128),
                            fill_value=0, compressors=[ZstdCodec(level=1)])
     assert writer_layout(g, other) is None
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a fork server on Linux only")
+def test_a_render_on_processes_leaves_pyrender_to_them(tmp_path):
+    """With render processes, the first of them draws the background (the others draw a
+    frame meanwhile): the main process imports neither pyrender nor trimesh, and the
+    recording holds the bytes of one drawn in a single process."""
+    code = f"""
+import sim, synth, numpy as np
+from synth.camera import CameraModel
+tr = sim.simulate(sim.Scenario(theta0=0.03, duration=0.079))
+kw = dict(scene=synth.SceneConfig(camera=CameraModel(width=160, height=128,
+          center_px=(80.0, -500.0))), sensor=synth.noise_preset("realistic"), seed=7)
+sched = {{}}
+two = synth.render(tr, {str(tmp_path / "two.zarr")!r}, workers=2, schedule=sched, **kw)
+assert len({{b[1] for b in sched["batches"]}}) <= 2 and sched["workers"] == 2
+print("drawn-elsewhere", "pyrender" not in __import__("sys").modules,
+      "trimesh" not in __import__("sys").modules)
+one = synth.render(tr, {str(tmp_path / "one.zarr")!r}, workers=1, **kw)
+a, b = synth.open_recording(one), synth.open_recording(two)
+assert a.background.tobytes() == b.background.tobytes()
+assert all(a.frames[i].tobytes() == b.frames[i].tobytes() for i in range(len(tr)))
+"""
+    mods = _imports(code.strip())
+    assert "drawn-elsewhere" in mods and "False" not in mods
+    assert "pyrender" in mods  # the one-process render drew in this process
+
+
+def test_prepare_render_starts_the_fork_server_only_for_render_processes():
+    import synth
+    from synth.camera import CameraModel
+
+    scene = synth.SceneConfig()
+    assert pipeline.render_workers(scene, 4001) == min(2, max(1, os.cpu_count() or 1))
+    assert pipeline.render_workers(scene, 20) == 1  # one batch: one process
+    assert pipeline.render_workers(scene, 4001, workers=1) == 1
+    assert not pipeline.prepare_render(scene, 4001, workers=1)
+    assert not pipeline.prepare_render(scene, 20, workers=2)
+    thin = scene.replace(camera=CameraModel(f_number=4.0))
+    assert thin.camera.thin_lens and not pipeline.prepare_render(thin, 4001, workers=2)
+    if sys.platform.startswith("linux"):
+        assert pipeline.prepare_render(scene, 4001, workers=2)
