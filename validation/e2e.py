@@ -152,14 +152,16 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
     return result
 
 
-def _simulate(case: Case, timings: dict):
+def _simulate(case: Case, timings: dict, before_fit=None):
     """The case's trajectory and the fit of its exact angles (the engine's mu), timed as the
-    stages "simulate" and "fit_truth"."""
+    stages "simulate" and "fit_truth"; ``before_fit(traj)`` is called between them."""
     import sim
     from rollfric.fit import fit_mu
 
     with _timer(timings, "simulate"):
         traj = sim.simulate(case.scenario)
+    if before_fit is not None:
+        before_fit(traj)
     setup_truth = case.scenario.setup()
     with _timer(timings, "fit_truth"):
         fit_truth = fit_mu(traj.t, traj.theta, setup_truth, method=case.fit,
@@ -175,7 +177,11 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
         case = case_from_dict(case)
     timings: dict = {}
     t_start = time.perf_counter()
-    traj, fit_truth = _simulate(case, timings)
+
+    def prepare(traj):  # the render's fork server imports while the true angles are fitted
+        synth.pipeline.prepare_render(case.scene, len(traj), render_workers)
+
+    traj, fit_truth = _simulate(case, timings, prepare)
 
     tmpdir = None
     if recording is not None:
