@@ -489,10 +489,12 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
         if attempt == MAX_POOL_RESTARTS:
             raise RuntimeError(f"render processes kept dying: {len(failed)} batches of "
                                f"{BATCH} frames not rendered after {attempt} restarts")
+        # on stderr (tqdm writes to stdout unless told): stdout may be a result, e.g.
+        # `rollfric validate --json`'s
         bar.write(f"a render process died; rendering {len(failed)} batches again (its threads' "
                   "Python stacks, if it crashed, are above on stderr; to catch a write into "
                   "freed memory where it happens, run under synth's heap probe: "
-                  "LD_PRELOAD=$(python -m synth.heapprobe))")
+                  "LD_PRELOAD=$(python -m synth.heapprobe))", file=sys.stderr)
         pending = sorted(failed)
 
 

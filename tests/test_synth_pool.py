@@ -45,9 +45,12 @@ def _run(tmp_path, die):
     return out, marker, n
 
 
-def test_a_dead_process_batches_are_rendered_again(tmp_path):
+def test_a_dead_process_batches_are_rendered_again(tmp_path, capsys):
     out, marker, n = _run(tmp_path, "once")
     assert marker.exists()  # a process really died
+    # the notice goes to stderr: stdout may be a result (rollfric validate --json)
+    said = capsys.readouterr()
+    assert said.out == "" and "a render process died" in said.err
     # every frame was rendered, each with its own centre (a batch may have been written twice
     # when it finished in the pool that broke; its content is the same)
     for i in range(n):
