@@ -46,6 +46,7 @@ import logging
 import math
 import os
 import socket
+import sys
 import time
 import tomllib
 import traceback
@@ -661,7 +662,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
                     n_ok += 1
                 else:
                     n_failed += 1
-                    bar.write(f"case {sc.case_id} failed: {outcome['error']}")
+                    bar.write(f"case {sc.case_id} failed: {outcome['error']}", file=sys.stderr)
                 bar.update(1)
                 fut.release()
                 if time.perf_counter() - last > REBUILD_EVERY_S:
