@@ -105,13 +105,16 @@ def is_leftover(path: str | Path) -> bool:
     return start is not None and now != 0 and now != start
 
 
-def remove_leftovers(folder: str | Path) -> list[Path]:
+def remove_leftovers(folder: str | Path, prefix: str = ".") -> list[Path]:
     """Remove the temporary paths left by killed runs in a folder (not its subfolders).
 
     Parameters
     ----------
     folder : str or pathlib.Path
         The folder; a missing or unreadable one removes nothing.
+    prefix : str, optional
+        Only names that start with it (in a shared folder such as /tmp: only this
+        program's own kind of temporary path).
 
     Returns
     -------
@@ -124,7 +127,7 @@ def remove_leftovers(folder: str | Path) -> list[Path]:
     except OSError:
         return removed
     for e in entries:
-        if e.name.startswith(".") and is_leftover(e.path):
+        if e.name.startswith(".") and e.name.startswith(prefix) and is_leftover(e.path):
             _remove(Path(e.path))
             removed.append(Path(e.path))
     return removed

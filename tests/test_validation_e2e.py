@@ -73,3 +73,28 @@ def test_same_seed_same_result_other_seed_other_noise(tmp_path):
     assert mc["case_id"] != ma["case_id"]
     assert mc["center_rms_px"] != ma["center_rms_px"]
     assert math.isfinite(ma["mu_recovered"])
+
+
+def test_a_killed_cases_scratch_folder_is_removed_by_the_next(tmp_path):
+    # a case killed by SIGKILL or SIGTERM runs no `finally`: its temporary recording (in RAM in
+    # /dev/shm) stays; the next case in that folder removes it, and nothing else
+    import os
+    import subprocess
+    import sys
+
+    code = ("import os, sys; from validation.e2e import case_scratch; "
+            "p = case_scratch(10, sys.argv[1]); (p / 'recording.zarr').mkdir(); "
+            "print(p); sys.stdout.flush(); os._exit(9)")
+    r = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True,
+                       text=True, env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+    assert r.returncode == 9
+    dead = tmp_path / r.stdout.strip().rsplit("/", 1)[-1]
+    assert dead.is_dir() and dead.name.startswith(".rollfric-case-")
+    others = [tmp_path / ".other.part-999999999-1", tmp_path / "rollfric-case-mine"]
+    for p in others:
+        p.mkdir()
+    mine = e2e.case_scratch(10, tmp_path)
+    assert mine.is_dir() and not any(mine.iterdir()) and mine.parent == tmp_path
+    assert not dead.exists() and all(p.exists() for p in others)
+    # a live process's folder (this one's) is kept
+    assert e2e.case_scratch(10, tmp_path) != mine and mine.exists()

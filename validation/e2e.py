@@ -169,6 +169,48 @@ def _simulate(case: Case, timings: dict, before_fit=None):
     return traj, fit_truth
 
 
+CASE_SCRATCH = "rollfric-case"
+
+
+def case_scratch(n_frames: int, folder: str | Path | None = None) -> Path:
+    """A new folder for a case's temporary recording of ``n_frames`` frames, deleted after use.
+
+    In RAM where there is room (:func:`synth.store.scratch_dir`: a recording is ~2 files a
+    frame), else the system's temporary folder; named as rollfric's temporary paths are
+    (``.rollfric-case-XXXXXXXX.part-PID-START``, :func:`rollfric.atomic.temp_path`), so that the
+    folders of runs that were killed (SIGTERM, SIGKILL: no ``finally`` ran; in /dev/shm each
+    holds its recording in RAM until the machine restarts) are found and removed here, by the
+    next case in that folder.
+
+    Parameters
+    ----------
+    n_frames : int
+        Frames of the recording.
+    folder : str or pathlib.Path, optional
+        Where (default: as above).
+
+    Returns
+    -------
+    pathlib.Path
+        The new, empty folder (mode 0o700).
+    """
+    import secrets
+
+    from rollfric.atomic import remove_leftovers, temp_path
+    from synth.store import scratch_dir
+
+    if folder is None:
+        folder = scratch_dir(n_frames) or tempfile.gettempdir()
+    remove_leftovers(folder, prefix=f".{CASE_SCRATCH}-")
+    while True:
+        path = temp_path(Path(folder) / f"{CASE_SCRATCH}-{secrets.token_hex(4)}")
+        try:
+            path.mkdir(mode=0o700)
+            return path
+        except FileExistsError:
+            continue
+
+
 def _run_case(case, recording, report_tmp, render_workers, render_threads,
               progress) -> CaseResult:
     import synth
@@ -187,10 +229,7 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
     if recording is not None:
         rec_path = Path(recording)
     else:
-        from synth.store import scratch_dir
-
-        # a temporary recording: in RAM where there is room (its ~2 files a frame)
-        tmpdir = Path(tempfile.mkdtemp(prefix="rollfric-case-", dir=scratch_dir(len(traj))))
+        tmpdir = case_scratch(len(traj))
         rec_path = tmpdir / "recording.zarr"
     try:
         with _timer(timings, "render"):
