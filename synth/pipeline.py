@@ -172,6 +172,39 @@ def crash_report() -> bool:
     return True
 
 
+def exit_with_parent() -> bool:
+    """Have this render process exit when the process that started it has gone.
+
+    A pool's worker waits for its next task on a queue whose pipe it holds both ends of, so it
+    never sees its parent die; forked from the fork server, it also keeps the server alive. A
+    main process killed by SIGKILL (or by a SIGTERM it does not handle) left its render
+    processes (~370 MB each), the fork server and their semaphores behind for good (seen
+    2026-11-24). A daemon thread waits on the parent's sentinel
+    (:func:`multiprocessing.parent_process`) and ends the process when it fires.
+
+    Returns
+    -------
+    bool
+        Whether this process has a parent to watch (False in a main process).
+    """
+    parent = mp.parent_process()
+    if parent is None:
+        return False
+
+    def watch():
+        parent.join()
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+    return True
+
+
+def _pool_worker(initializer, *args) -> None:
+    """A render pool's initializer: :func:`exit_with_parent`, then ``initializer(*args)``."""
+    exit_with_parent()
+    initializer(*args)
+
+
 def _worker_start(scene_dict, ball_radius, cylinder_radius, threads, oval=(0.0, 0.0), seed=0):
     """A render process's renderer (its imports, EGL context, programs and meshes): what needs
     no store, so the processes can start while the main process renders the background."""
@@ -423,7 +456,7 @@ def _early_pool(workers, init, first=()):
         yield None, None
         return
     pool = cf.ProcessPoolExecutor(workers, mp_context=pool_context(),
-                                  initializer=_worker_start, initargs=init)
+                                  initializer=_pool_worker, initargs=(_worker_start, *init))
     # a process is spawned per task while none is idle; from a thread, as the first process
     # of a fork server waits for the server's imports (~1 s), the caller's own work meanwhile
     futures: list = []
@@ -463,8 +496,8 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
     for attempt in range(MAX_POOL_RESTARTS + 1):
         failed = []
         if pool is None:
-            pool = cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=initializer,
-                                          initargs=init)
+            pool = cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_pool_worker,
+                                          initargs=(initializer, *init))
         with pool:
             futs = {}
             try:

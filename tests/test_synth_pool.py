@@ -88,3 +88,66 @@ def test_a_pool_that_broke_before_its_batches_is_replaced(tmp_path):
         _render_parallel(batches, centres, 2, init, bar, initializer=_init, batch_fn=_batch,
                          pool=pool)
     assert sorted(int(p.name) for p in out.iterdir()) == list(range(n))
+
+
+_POOL_KILLED = """
+import sys
+import numpy as np
+from tqdm import tqdm
+sys.path.insert(0, sys.argv[1])
+from tests.test_synth_pool import _init, _pids
+
+if __name__ == "__main__":
+    from synth.pipeline import _render_parallel
+    out = sys.argv[2]
+    with tqdm(total=64, disable=True) as bar:  # killed while its processes render
+        _render_parallel([np.arange(s, s + 16) for s in range(0, 64, 16)],
+                         np.zeros((64, 1, 3)), 2, (out, out + "/none", "never"), bar,
+                         initializer=_init, batch_fn=_pids)
+"""
+
+
+def _pids(indices, centres):
+    # a batch that takes a while, its render process's pid left for the test to watch
+    import time
+
+    Path(os.environ["POOL_TEST_OUT"], f"pid-{os.getpid()}").touch()
+    time.sleep(1.0)
+    return len(indices)
+
+
+def test_render_processes_exit_when_their_main_process_is_killed(tmp_path):
+    # a pool's worker waits on a queue whose pipe it holds both ends of, and a fork server's
+    # children keep it alive: a main process killed by SIGKILL left them all running for good
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    root = str(Path(__file__).resolve().parents[1])
+    main = subprocess.Popen([sys.executable, "-c", _POOL_KILLED, root, str(tmp_path)])
+    try:
+        deadline = time.monotonic() + 60
+        while len(list(tmp_path.glob("pid-*"))) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        pids = {int(p.name[4:]) for p in tmp_path.glob("pid-*")}
+        assert len(pids) == 2 and main.poll() is None
+        main.send_signal(signal.SIGKILL)
+        main.wait()
+        deadline = time.monotonic() + 20
+        alive = set(pids)
+        while alive and time.monotonic() < deadline:
+            for pid in list(alive):
+                try:
+                    os.kill(pid, 0)
+                except ProcessLookupError:
+                    alive.discard(pid)
+                else:  # a zombie of an exited child counts as gone
+                    with open(f"/proc/{pid}/stat") as f:
+                        if f.read().rsplit(")", 1)[1].split()[0] == "Z":
+                            alive.discard(pid)
+            time.sleep(0.2)
+        assert not alive, f"render processes {sorted(alive)} outlived their main process"
+    finally:
+        if main.poll() is None:
+            main.kill()
