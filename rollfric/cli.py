@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import functools
 import importlib.metadata
+import signal
 import sys
 
 from rollfric import cli_calibrate, cli_fit, cli_measure
@@ -149,6 +150,15 @@ def _os_error_text(exc: OSError) -> str:
     return str(exc)
 
 
+class _Terminated(BaseException):
+    """SIGTERM, raised in the main thread so that every ``finally`` runs (temporary outputs
+    removed, render processes shut down) as after Ctrl-C; without it Python ends at once."""
+
+
+def _terminate(signum, frame):
+    raise _Terminated
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the ``rollfric`` command line.
 
@@ -161,8 +171,21 @@ def main(argv: list[str] | None = None) -> int:
     -------
     int
         The exit status: 0 good result, 2 bad input (or a command whose package is not
-        installed), 3 a measurement that cannot be trusted, 130 interrupted.
+        installed), 3 a measurement that cannot be trusted, 130 interrupted (Ctrl-C),
+        143 terminated (SIGTERM).
     """
+    try:
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread: signals are the main thread's
+        previous = None
+    try:
+        return _main(argv)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args, unknown = parser.parse_known_args(argv)
     if unknown and not getattr(args, "accepts_any", False):
@@ -182,6 +205,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"rollfric {args.command}: interrupted", file=sys.stderr)
         return 130
+    except _Terminated:
+        print(f"rollfric {args.command}: terminated", file=sys.stderr)
+        return 143
     return int(result or 0)
 
 

@@ -188,3 +188,38 @@ def test_missing_requirements_reads_the_extras_of_the_entry_points_distribution(
     assert eps["fakeplug"].extras == ["heavy"]
     assert cli.missing_requirements(eps["fakeplug"]) == missing
     assert cli.missing_requirements(eps["plain"]) == []   # names no extra: nothing needed
+
+
+def test_sigterm_runs_the_cleanup_and_exits_143(monkeypatch, capsys):
+    # SIGTERM (a job scheduler's stop, `kill`) ends a command as Ctrl-C does: every `finally`
+    # runs (temporary outputs removed, render processes shut down), exit 143; the previous
+    # handler is back afterwards
+    import argparse
+    import os
+    import signal
+
+    from rollfric import cli
+
+    cleaned = []
+
+    def work(args):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(1000):  # the handler runs at the next bytecode
+                pass
+            return 0
+        finally:
+            cleaned.append(True)
+
+    def parser():
+        p = argparse.ArgumentParser(prog="rollfric")
+        sub = p.add_subparsers(dest="command")
+        sub.add_parser("slow").set_defaults(func=work)
+        return p
+
+    monkeypatch.setattr(cli, "build_parser", parser)
+    before = signal.getsignal(signal.SIGTERM)
+    assert cli.main(["slow"]) == 143
+    assert cleaned == [True]
+    assert "rollfric slow: terminated" in capsys.readouterr().err
+    assert signal.getsignal(signal.SIGTERM) is before
