@@ -98,3 +98,35 @@ def test_a_killed_cases_scratch_folder_is_removed_by_the_next(tmp_path):
     assert not dead.exists() and all(p.exists() for p in others)
     # a live process's folder (this one's) is kept
     assert e2e.case_scratch(10, tmp_path) != mine and mine.exists()
+
+
+def test_report_overlays_read_their_crops_alone(tmp_path, monkeypatch):
+    # the overlays read each crop's region of the recording (rollfric's FrameSource.read), not
+    # the whole frame: the same picture as the whole frames cropped, byte for byte (the crops,
+    # 121 px square, cut by the cropped camera's 112 px rows)
+    from rollfric import io
+    from validation import report
+
+    res = e2e.run_case(_tiny(0), report_dir=tmp_path / "r", keep_recording=True,
+                       render_workers=1)
+    png = (tmp_path / "r" / "overlays.png").read_bytes()
+    opened = io.open_recording
+    regions = []
+
+    class WholeFrames:  # the reads before: every frame whole, then cropped
+        def __init__(self, path):
+            self.src = opened(path)
+            self.shape = self.src.shape
+
+        def __getitem__(self, i):
+            return self.src[i]
+
+        def read(self, i, roi):
+            regions.append(roi)
+            y0, y1, x0, x1 = roi
+            return np.asarray(self.src[i])[y0:y1, x0:x1]
+
+    monkeypatch.setattr(io, "open_recording", WholeFrames)
+    report._overlays(res, report.per_frame_errors(res), tmp_path / "o.png", 6)
+    assert (tmp_path / "o.png").read_bytes() == png
+    assert len(regions) >= 5 and all(y1 - y0 < x1 - x0 for y0, y1, x0, x1 in regions)

@@ -125,13 +125,17 @@ def _overlays(result, pf, path: Path, k: int) -> None:
     fig = Figure(figsize=(4 * ncol, 4 * nrow))
     axes = fig.subplots(nrow, ncol, squeeze=False)
     half = int(math.ceil(1.5 * r)) + 4
+    h, w = src.shape[1:]
     for ax, i in zip(axes.flat, picks, strict=False):
-        frame = np.asarray(src[int(i)])
         row = pf.iloc[int(i)]
         cx, cy = float(row["truth_x_px"]), float(row["truth_y_px"])
         x0, y0 = int(round(cx)) - half, int(round(cy)) - half
         x0c, y0c = max(0, x0), max(0, y0)
-        crop = frame[y0c:y0c + 2 * half + 1, x0c:x0c + 2 * half + 1]
+        y1c, x1c = min(h, y0c + 2 * half + 1), min(w, x0c + 2 * half + 1)
+        if y1c > y0c and x1c > x0c:  # the crop's region alone (the same pixels)
+            crop = np.asarray(src.read(int(i), (y0c, y1c, x0c, x1c)))
+        else:
+            crop = np.asarray(src[int(i)])[y0c:y1c, x0c:x1c]
         ext = (x0c - 0.5, x0c + crop.shape[1] - 0.5, y0c + crop.shape[0] - 0.5, y0c - 0.5)
         ax.imshow(crop, cmap="gray", extent=ext, interpolation="nearest")
         if row["found"] and np.isfinite(row["x_px"]):
