@@ -12,7 +12,9 @@ exit status 2 and the ``pip install`` line that brings them.
 from __future__ import annotations
 
 import argparse
+import atexit
 import functools
+import gc
 import importlib.metadata
 import signal
 import sys
@@ -159,6 +161,27 @@ def _terminate(signum, frame):
     raise _Terminated
 
 
+_freeze_registered: list[bool] = []  # gc.freeze registered with atexit (once a process)
+
+
+def _freeze_at_exit() -> None:
+    """Have the interpreter's exit skip the collector's passes over what the command left.
+
+    At exit Python collects reference cycles among every object still alive (after ``rollfric
+    validate``: numba's, SciPy's, pandas's and matplotlib's, millions of them), which took
+    0.6-0.8 s after a validate had printed its summary. :func:`gc.freeze`, run by atexit
+    before that clean-up, moves them all into the collector's permanent generation, which its
+    passes skip: the memory goes back to the system with the process as before (the atexit
+    handlers, ``finally`` blocks and the report's files are done by then). Registered once a
+    process; in a process that goes on (tests calling :func:`main`) it runs only when that
+    process ends. Measured: a 1 s validate's time outside its printed total 3.39 -> 2.85 s
+    (medians of 6 alternating pairs of new processes, load 3.8-4.7; lower in each pair).
+    """
+    if not _freeze_registered:
+        atexit.register(gc.freeze)
+        _freeze_registered.append(True)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the ``rollfric`` command line.
 
@@ -174,6 +197,7 @@ def main(argv: list[str] | None = None) -> int:
         installed), 3 a measurement that cannot be trusted, 130 interrupted (Ctrl-C),
         143 terminated (SIGTERM).
     """
+    _freeze_at_exit()
     try:
         previous = signal.signal(signal.SIGTERM, _terminate)
     except ValueError:  # not the main thread: signals are the main thread's

@@ -223,3 +223,24 @@ def test_sigterm_runs_the_cleanup_and_exits_143(monkeypatch, capsys):
     assert cleaned == [True]
     assert "rollfric slow: terminated" in capsys.readouterr().err
     assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_the_exit_freezes_what_the_command_left_for_the_collector(tmp_path):
+    # gc.freeze runs at the interpreter's exit (atexit, registered once by main), not when
+    # main returns: a process that goes on (these tests) keeps its collector as it was
+    code = textwrap.dedent("""
+        import atexit, gc, sys
+        atexit.register(lambda: print("frozen at exit", gc.get_freeze_count() > 0))
+        from rollfric import cli
+        for name in ("a.csv", "b.csv"):
+            assert cli.main(["simulate", "--seconds", "0.02", "--out", sys.argv[1] + name]) == 0
+        print("frozen after main", gc.get_freeze_count())
+        print("registered", cli._freeze_registered)
+    """)
+    r = subprocess.run([sys.executable, "-c", code, f"{tmp_path}/"],
+                       capture_output=True, text=True, timeout=120,
+                       env={**__import__("os").environ,
+                            "PYTHONPATH": __import__("os").pathsep.join(sys.path)})
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines()[-3:] == ["frozen after main 0", "registered [True]",
+                                          "frozen at exit True"]
