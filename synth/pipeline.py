@@ -579,9 +579,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     workers = render_workers(scene, n, workers)
     if workers > 1 and not scene.camera.thin_lens:
         start_fork_server()  # its imports (~1 s) while this process prepares
-    import zarr
     from tqdm import tqdm
-    from zarr.codecs import ZstdCodec
 
     from rollfric.lens import Calibration
     from rollfric.setup import Setup
@@ -612,6 +610,11 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     first = [_worker_background] + [functools.partial(_worker_warm, centres[0])] * (early - 1)
     with _early_pool(early, start, first if remote else ()) as (pool, submitted), \
             replacing(out, folder_ok=True) as tmp:
+        # Zarr (~0.16 s of imports in a process that has not loaded it, as `rollfric
+        # validate`'s) once the render processes are starting: they need not wait for it
+        import zarr
+        from zarr.codecs import ZstdCodec
+
         defocus = None
         bg = None
         if remote:

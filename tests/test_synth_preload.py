@@ -129,3 +129,30 @@ def test_prepare_render_starts_the_fork_server_only_for_render_processes():
     assert thin.camera.thin_lens and not pipeline.prepare_render(thin, 4001, workers=2)
     if sys.platform.startswith("linux"):
         assert pipeline.prepare_render(scene, 4001, workers=2)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a fork server on Linux only")
+def test_render_processes_start_before_zarr_is_imported(tmp_path):
+    """A process that has not loaded Zarr (``rollfric validate``'s, ~0.16 s of imports) starts
+    its render processes first and imports Zarr while they start and draw the background."""
+    code = f"""
+import contextlib, sys
+import sim, synth
+from synth import pipeline
+from synth.camera import CameraModel
+seen = []
+early = pipeline._early_pool
+@contextlib.contextmanager
+def watched(*a, **k):
+    seen.append("zarr" in sys.modules)
+    with early(*a, **k) as got:
+        yield got
+pipeline._early_pool = watched
+tr = sim.simulate(sim.Scenario(theta0=0.03, duration=0.079))
+assert "zarr" not in sys.modules
+synth.render(tr, {str(tmp_path / "r.zarr")!r}, workers=2, seed=1, scene=synth.SceneConfig(
+    camera=CameraModel(width=160, height=128, center_px=(80.0, -500.0))))
+print("zarr-at-pool-start", *seen)
+"""
+    mods = _imports(code.strip())
+    assert "zarr-at-pool-start" in mods and "False" in mods and "True" not in mods
