@@ -30,6 +30,21 @@ def test_the_fork_server_loads_the_renderer_but_not_the_sensor_model():
     assert {"pyrender", "synth.scene", "synth.leandraw", "synth.store"} <= mods
     assert "numba" not in mods and "synth.sensor" not in mods
     assert "zarr" not in mods
+    # nor pyrender's interactive viewer (pyglet, tkinter, imageio: ~0.1 s of the server's CPU)
+    assert not {"pyglet", "tkinter", "imageio"} & mods
+
+
+def test_the_fork_servers_pyrender_has_no_viewer():
+    code = """
+import synth.preload, pyrender
+try:
+    pyrender.Viewer(None)
+except RuntimeError as e:
+    print("no-viewer" if "render processes" in str(e) else "other")
+"""
+    assert "no-viewer" in _imports(code.strip())
+    # a process that imported pyrender before keeps its viewer
+    assert "pyglet" in _imports("import pyrender, synth.preload")
 
 
 def test_importing_synth_does_not_load_numba():
