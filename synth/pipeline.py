@@ -615,6 +615,15 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         import zarr
         from zarr.codecs import ZstdCodec
 
+        # what needs no background first (~30 ms: the truth), while a process draws it
+        g = zarr.open_group(str(tmp), mode="w")
+        tg = g.create_group("truth")
+        for name, values in truth_table(traj, cam, r_ball).items():
+            arr = tg.create_array(name, data=np.asarray(values, dtype=np.float64))
+            arr.attrs["description"] = TRUTH_COLUMNS[name]
+        if timing is not None and timing.timestamps:  # the camera's own time of each frame
+            ts = g.create_array("timestamps", data=np.asarray(traj.t, dtype=np.float64))
+            ts.attrs["description"] = "time of each frame's exposure (s), the camera's clock"
         defocus = None
         bg = None
         if remote:
@@ -644,7 +653,6 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             bg = np.rint(distort_image(bg, cached_window(lens, cam.width, cam.height)))
         frame_scale = scale * k_sub
         H, W = cam.height, cam.width
-        g = zarr.open_group(str(tmp), mode="w")
         bg_dtype = "uint16" if scale <= 65535 else "uint32"
         g.create_array("background_clean", data=bg.astype(bg_dtype), chunks=(H, W))
         if bg_ideal is not None:  # what the workers subtract from the ideal tiles
@@ -660,13 +668,6 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
                        chunks=(1, min(CHUNK, H), min(CHUNK, W)), fill_value=0,
                        chunk_key_encoding={"name": "v2", "separator": "."},
                        compressors=[ZstdCodec(level=1)])
-        tg = g.create_group("truth")
-        for name, values in truth_table(traj, cam, r_ball).items():
-            arr = tg.create_array(name, data=np.asarray(values, dtype=np.float64))
-            arr.attrs["description"] = TRUTH_COLUMNS[name]
-        if timing is not None and timing.timestamps:  # the camera's own time of each frame
-            ts = g.create_array("timestamps", data=np.asarray(traj.t, dtype=np.float64))
-            ts.attrs["description"] = "time of each frame's exposure (s), the camera's clock"
         batches = [np.arange(s, min(s + BATCH, n)) for s in range(0, n, BATCH)]
         bar = tqdm(total=n, unit="frame", desc="render", disable=not progress)
         if schedule is not None:

@@ -171,3 +171,38 @@ print("zarr-at-pool-start", *seen)
 """
     mods = _imports(code.strip())
     assert "zarr-at-pool-start" in mods and "False" in mods and "True" not in mods
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a fork server on Linux only")
+def test_the_truth_is_written_while_a_render_process_draws_the_background(tmp_path,
+                                                                          monkeypatch):
+    """The main process writes what needs no background (the truth, ~30 ms for 4001 frames)
+    before it waits for the background a render process draws, not after."""
+    import contextlib
+
+    import sim
+    import synth
+
+    order = []
+    table = pipeline.truth_table
+    monkeypatch.setattr(pipeline, "truth_table",
+                        lambda *a, **k: order.append("truth") or table(*a, **k))
+    early = pipeline._early_pool
+
+    @contextlib.contextmanager
+    def watched(*a, **k):
+        with early(*a, **k) as (pool, submitted):
+            def waited():
+                order.append("background awaited")
+                return submitted()
+            yield pool, waited
+
+    monkeypatch.setattr(pipeline, "_early_pool", watched)
+    from synth.camera import CameraModel
+
+    tr = sim.simulate(sim.Scenario(theta0=0.03, duration=0.079))
+    out = synth.render(tr, tmp_path / "r.zarr", workers=2, seed=1, scene=synth.SceneConfig(
+        camera=CameraModel(width=160, height=128, center_px=(80.0, -500.0))))
+    assert order == ["truth", "background awaited"]
+    rec = synth.open_recording(out)
+    assert len(rec.truth["t_s"]) == len(tr) and rec.background.shape == (128, 160)
