@@ -130,3 +130,24 @@ def test_report_overlays_read_their_crops_alone(tmp_path, monkeypatch):
     report._overlays(res, report.per_frame_errors(res), tmp_path / "o.png", 6)
     assert (tmp_path / "o.png").read_bytes() == png
     assert len(regions) >= 5 and all(y1 - y0 < x1 - x0 for y0, y1, x0, x1 in regions)
+
+
+def test_recording_truth_is_synths_without_opening_the_frames(tmp_path, monkeypatch):
+    import pandas as pd
+
+    import synth
+    import synth.store
+
+    res = e2e.run_case(_tiny(1), recording=tmp_path / "a.zarr", render_workers=1)
+    rec = synth.open_recording(tmp_path / "a.zarr")
+
+    def no_frames(group):
+        raise AssertionError("the frames were opened")
+
+    monkeypatch.setattr(synth.store, "open_frames", no_frames)
+    truth, attrs = e2e.recording_truth(tmp_path / "a.zarr")
+    pd.testing.assert_frame_equal(truth, rec.truth, check_exact=True)
+    assert truth.index.name == "frame" and attrs == rec.attrs
+    # the case's metrics were computed from it
+    assert res.metrics["n_frames"] == len(truth)
+    pd.testing.assert_frame_equal(res.truth, rec.truth, check_exact=True)
