@@ -24,6 +24,8 @@ from synth.store import CHUNK, FORMAT, TRUTH_COLUMNS, writer_layout
 BATCH = 16  # frames per task (progress granularity)
 # the background the render processes subtract, in the store's folder while they render
 BACKGROUND_FILE = ".render-background.npy"
+# the simulation's metadata a recording leaves out: it differs from run to run of one case
+RUN_DEPENDENT_META = ("wall_time_s",)
 
 
 # -- trajectories ------------------------------------------------------------------------------
@@ -706,7 +708,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             "sensor_noise": sensor_noise(),
             "seed": int(seed),
             "scenario": _scenario_dict(traj),
-            "engine_meta": _jsonable(getattr(traj, "meta", {})),
+            "engine_meta": _jsonable(_engine_meta(traj)),
             "versions": _versions(),
             "fps": float(setup.fps),
             "n_frames": int(n),
@@ -772,6 +774,25 @@ def _scenario_dict(traj) -> dict:
     if sc is None:
         return {}
     return _jsonable(sc.to_toml_dict() if hasattr(sc, "to_toml_dict") else dict(sc))
+
+
+def _engine_meta(traj) -> dict:
+    """The simulation's metadata as a recording stores it: everything the engine reported
+    but how long it ran (``wall_time_s``), which differs from run to run: the same case and
+    seed give a recording of the same bytes, every file of it.
+
+    Parameters
+    ----------
+    traj : sim.Trajectory
+        The simulated trajectory (its ``meta`` dict, if any).
+
+    Returns
+    -------
+    dict
+        ``traj.meta`` without its run-dependent keys.
+    """
+    meta = getattr(traj, "meta", None) or {}
+    return {k: v for k, v in meta.items() if k not in RUN_DEPENDENT_META}
 
 
 def _jsonable(obj):

@@ -404,3 +404,21 @@ def test_scratch_dir_only_with_room(tmp_path, monkeypatch):
     assert store.scratch_dir(4002) is None
     monkeypatch.setattr(store, "SCRATCH", str(tmp_path / "missing"))
     assert store.scratch_dir(10) is None
+
+
+def test_the_same_case_twice_gives_every_file_the_same_bytes(tmp_path):
+    """Two simulations of one scenario (their wall times differ) rendered with one seed: every
+    file of the two stores is the same, attributes included (the simulation's wall time was
+    stored and made the top zarr.json differ from run to run)."""
+    outs = []
+    for name in ("a", "b"):
+        tr = sim.simulate(sim.Scenario(theta0=0.03, duration=0.006))
+        tr.meta["wall_time_s"] = {"a": 0.25, "b": 0.5}[name]  # as two runs' clocks would differ
+        outs.append(synth.render(tr, tmp_path / f"{name}.zarr",
+                                 scene=synth.SceneConfig(camera=CAM),
+                                 sensor=synth.noise_preset("realistic"), seed=7, workers=1))
+    files = [sorted(p.relative_to(o) for p in o.rglob("*") if p.is_file()) for o in outs]
+    assert files[0] == files[1] and len(files[0]) > 3
+    for rel in files[0]:
+        assert (outs[0] / rel).read_bytes() == (outs[1] / rel).read_bytes(), rel
+    assert "wall_time_s" not in synth.open_recording(outs[0]).attrs["engine_meta"]
