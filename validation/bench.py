@@ -368,12 +368,20 @@ def validate_command(seconds: float, out: str | Path) -> tuple[float, dict]:
     cmd += ["validate", "--set", f"scenario.motion.seconds={seconds:g}", "--out", str(out),
             "--no-progress"]
     path = os.pathsep.join(p for p in sys.path if p)  # the packages this process uses
-    t0 = time.perf_counter()
-    res = subprocess.run(cmd, text=True, capture_output=True,
-                         env={**os.environ, "PYTHONPATH": path})
-    wall = time.perf_counter() - t0
-    if res.returncode != 0:
-        raise RuntimeError(f"rollfric validate failed (exit {res.returncode}):\n{res.stderr}")
+    import tempfile
+
+    # its output into files, not pipes: the wait ends with the command's process, as a
+    # terminal's prompt comes back (a pipe's end would also wait for the render's fork server,
+    # which holds the output too and ends ~0.2 s after it)
+    with tempfile.TemporaryFile() as log:
+        t0 = time.perf_counter()
+        res = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT,
+                             env={**os.environ, "PYTHONPATH": path})
+        wall = time.perf_counter() - t0
+        if res.returncode != 0:
+            log.seek(0)
+            raise RuntimeError(f"rollfric validate failed (exit {res.returncode}):\n"
+                               f"{log.read().decode(errors='replace')}")
     return wall, json.loads((Path(out) / "metrics.json").read_text(encoding="utf-8"))
 
 
