@@ -442,7 +442,6 @@ class Recording:
 
 def open_recording(path) -> Recording:
     """Open a synthetic recording: frames (lazy), background, truth (DataFrame), attrs."""
-    import pandas as pd
     import zarr
 
     path = Path(path)
@@ -455,8 +454,33 @@ def open_recording(path) -> Recording:
     frames = open_frames(group)
     if frames is None:
         raise SynthError(f"{path}: not a synth recording (attrs format != {FORMAT!r})")
+    truth, attrs = read_truth(group)
+    return Recording(frames=frames, background=frames.background, truth=truth,
+                     attrs=attrs, path=path)
+
+
+def read_truth(group):
+    """A synth recording's truth table and attributes, without opening its frames (no sensor
+    model set up, no background drawn through it: ~0.1 s for a 1280 x 1024 recording).
+
+    Parameters
+    ----------
+    group : str, pathlib.Path or zarr.Group
+        The recording (synth's Zarr store), or its group opened for reading.
+
+    Returns
+    -------
+    truth : pandas.DataFrame
+        One row a frame (index "frame"), the columns of :data:`TRUTH_COLUMNS`.
+    attrs : dict
+        The store's attributes.
+    """
+    import pandas as pd
+    import zarr
+
+    if isinstance(group, (str, Path)):
+        group = zarr.open_group(str(group), mode="r")
     tg = group["truth"]
     truth = pd.DataFrame({name: np.asarray(tg[name][...]) for name in TRUTH_COLUMNS})
     truth.index.name = "frame"
-    return Recording(frames=frames, background=frames.background, truth=truth,
-                     attrs=dict(group.attrs), path=path)
+    return truth, dict(group.attrs)

@@ -132,7 +132,7 @@ def test_report_overlays_read_their_crops_alone(tmp_path, monkeypatch):
     assert len(regions) >= 5 and all(y1 - y0 < x1 - x0 for y0, y1, x0, x1 in regions)
 
 
-def test_recording_truth_is_synths_without_opening_the_frames(tmp_path, monkeypatch):
+def test_the_truth_read_alone_is_synths_without_opening_the_frames(tmp_path, monkeypatch):
     import pandas as pd
 
     import synth
@@ -145,7 +145,7 @@ def test_recording_truth_is_synths_without_opening_the_frames(tmp_path, monkeypa
         raise AssertionError("the frames were opened")
 
     monkeypatch.setattr(synth.store, "open_frames", no_frames)
-    truth, attrs = e2e.recording_truth(tmp_path / "a.zarr")
+    truth, attrs = synth.store.read_truth(tmp_path / "a.zarr")
     pd.testing.assert_frame_equal(truth, rec.truth, check_exact=True)
     assert truth.index.name == "frame" and attrs == rec.attrs
     # the case's metrics were computed from it

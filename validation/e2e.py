@@ -254,7 +254,9 @@ def _measure_and_score(case: Case, rec_path: Path, traj, fit_truth, timings: dic
                        t_start: float, progress: bool) -> CaseResult:
     """What follows the render: rollfric measures the recording, the metrics against the
     truth (the recording's truth table and ``traj``), the budget, the stage times."""
-    truth, attrs = recording_truth(rec_path)
+    from synth.store import read_truth
+
+    truth, attrs = read_truth(rec_path)
     with _timer(timings, "measure"):
         track, info, fit, setup, setup_dict = measure_recording(rec_path, case,
                                                                 progress=progress)
@@ -274,35 +276,6 @@ def _measure_and_score(case: Case, rec_path: Path, traj, fit_truth, timings: dic
     return CaseResult(case=case, metrics=metrics, timings=dict(timings), trajectory=traj,
                       truth=truth, track=track, track_info=info, fit=fit, fit_truth=fit_truth,
                       setup=setup, setup_dict=setup_dict, recording=rec_path)
-
-
-def recording_truth(path: str | Path):
-    """A synth recording's truth table and attributes, as :func:`synth.open_recording` gives
-    them, without opening its frames: no sensor model set up, no background drawn through it
-    (~0.1 s for a 1280 x 1024 recording, which the measurement does once more itself).
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The recording (synth's Zarr store).
-
-    Returns
-    -------
-    truth : pandas.DataFrame
-        One row a frame (index "frame"), synth's truth columns.
-    attrs : dict
-        The store's attributes.
-    """
-    import pandas as pd
-    import zarr
-
-    from synth.store import TRUTH_COLUMNS
-
-    group = zarr.open_group(str(path), mode="r")
-    tg = group["truth"]
-    truth = pd.DataFrame({name: np.asarray(tg[name][...]) for name in TRUTH_COLUMNS})
-    truth.index.name = "frame"
-    return truth, dict(group.attrs)
 
 
 class RecordingMismatch(ValueError):
