@@ -55,29 +55,52 @@ def stock_frame_seconds(scene=None, repeats: int = 3) -> float:
     float
         Seconds per frame.
     """
+    import synth
+
+    scene = scene or synth.SceneConfig()
+    key = repr(scene)
+    if key not in _STOCK:
+        _STOCK[key] = float(np.median(stock_frame_times(scene, repeats)))
+    return _STOCK[key]
+
+
+def stock_frame_times(scene=None, repeats: int = 3) -> list[float]:
+    """Seconds of each of ``repeats`` stock pyrender full frames of ``scene``, measured now
+    (not kept: :func:`stock_frame_seconds` keeps its first median): for a baseline taken
+    beside a measurement, as the machine's speed is then.
+
+    Parameters
+    ----------
+    scene : synth.SceneConfig, optional
+        The scene (default: the default scene).
+    repeats : int
+        Renders timed (after one warm-up).
+
+    Returns
+    -------
+    list of float
+        Seconds of each frame.
+    """
     import sim
     import synth
     from synth.scene import SceneRenderer
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     scene = scene or synth.SceneConfig()
-    key = repr(scene)
-    if key not in _STOCK:
-        traj = sim.simulate(sim.Scenario(duration=0.01))
-        setup = traj.setup()
-        sr = SceneRenderer(scene, setup.ball_radius, setup.cylinder_radius)
-        try:
-            sr.set_ball(sr.ball_pose(traj.position[0]))
+    traj = sim.simulate(sim.Scenario(duration=0.01))
+    setup = traj.setup()
+    sr = SceneRenderer(scene, setup.ball_radius, setup.cylinder_radius)
+    try:
+        sr.set_ball(sr.ball_pose(traj.position[0]))
+        sr.render_full(stock_shaders=True)
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
             sr.render_full(stock_shaders=True)
-            times = []
-            for _ in range(repeats):
-                t0 = time.perf_counter()
-                sr.render_full(stock_shaders=True)
-                times.append(time.perf_counter() - t0)
-        finally:
-            sr.close()
-        _STOCK[key] = float(np.median(times))
-    return _STOCK[key]
+            times.append(time.perf_counter() - t0)
+    finally:
+        sr.close()
+    return times
 
 
 def _tile_frames(sr, traj, indices, bg, draw, fulls, timings=None):

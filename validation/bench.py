@@ -396,7 +396,13 @@ def bench_e2e(quick: bool) -> list[Row]:
     if quick:
         case["scenario"]["motion"]["seconds"] = 0.3
         note = "the default validate case cut to 0.3 s (--quick), in a new process"
+    from synth.bench import stock_frame_times
+
+    # the baseline beside the case: stock frames just before and just after it (the machine's
+    # speed drifts over the minutes between the rendering section and this one)
+    before = stock_frame_times(repeats=3)
     m, parts = _case_in_new_process(case)
+    after = stock_frame_times(repeats=3)
     rows = [Row("end-to-end", f"stage {k[2:-2]}", v, "s", note=note)
             for k, v in sorted(m.items()) if k.startswith("t_") and k.endswith("_s")
             and k != "t_total_s"]
@@ -426,14 +432,16 @@ def bench_e2e(quick: bool) -> list[Row]:
                         alone, fps / alone, "x the locator alone",
                         "the locator alone: in-memory frames, no reads, fit or checks, CPU time "
                         "of one core; end to end: wall time"))
-    from synth.bench import stock_frame_seconds
-
-    stock = m["n_frames"] * stock_frame_seconds()
+    stock_frame = float(np.median(before + after))
+    stock = m["n_frames"] * stock_frame
     rows.append(Row("end-to-end", "total", m["t_total_s"], "s",
                     f"{m['n_frames']} stock pyrender full frames alone", stock,
                     stock / m["t_total_s"], "speed-up",
                     f"{m['n_frames']} frames; mu bias {100 * m['mu_bias_rel']:+.3f} %, "
-                    f"centre rms {m['center_rms_px']:.3f} px; target >= 100x"))
+                    f"centre rms {m['center_rms_px']:.3f} px; the stock frame "
+                    f"{1e3 * stock_frame:.0f} ms, the median of 3 just before the case "
+                    f"({1e3 * np.median(before):.0f} ms) and 3 just after it "
+                    f"({1e3 * np.median(after):.0f} ms); target >= 100x"))
     # the whole command as a user waits for it, beside the total it prints
     import tempfile
 
