@@ -45,10 +45,8 @@ def stock_frame_seconds(scene=None, repeats: int = 3) -> float:
 
     Parameters
     ----------
-    scene : synth.SceneConfig, optional
-        The scene (default: the default scene).
-    repeats : int
-        Renders timed (after one warm-up).
+    scene, repeats
+        As for :func:`stock_frame_times`.
 
     Returns
     -------
