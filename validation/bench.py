@@ -21,6 +21,7 @@ import platform
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
@@ -315,6 +316,12 @@ def bench_recognition(quick: bool) -> list[Row]:
 
 
 # ------------------------------------------------------------------------------ end to end
+def _child_env() -> dict:
+    """The environment of a new Python process that finds the packages where this process
+    found them (an uninstalled checkout included)."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+
+
 def _case_in_new_process(case: dict) -> tuple[dict, dict]:
     """:func:`validation.e2e.run_case`'s metrics and the measure stage's parts (wall seconds)
     from a new Python process, as ``rollfric validate`` runs a case: its render processes' fork
@@ -325,10 +332,8 @@ def _case_in_new_process(case: dict) -> tuple[dict, dict]:
             "res = run_case(json.load(sys.stdin))\n"
             "parts = dict(getattr(res.track_info, 'seconds', None) or {})\n"
             "print(json.dumps({'metrics': res.metrics, 'parts': parts}, default=float))\n")
-    # the child finds the packages where this process found them (an uninstalled checkout)
-    path = os.pathsep.join(p for p in sys.path if p)
     out = subprocess.run([sys.executable, "-c", code], input=json.dumps(case), text=True,
-                         capture_output=True, env={**os.environ, "PYTHONPATH": path})
+                         capture_output=True, env=_child_env())
     if out.returncode != 0:
         raise RuntimeError(f"the default validate case failed in a new process:\n{out.stderr}")
     res = json.loads(out.stdout.strip().splitlines()[-1])
@@ -367,16 +372,13 @@ def validate_command(seconds: float, out: str | Path) -> tuple[float, dict]:
         sys.executable, "-c", "import sys; from rollfric.cli import main; sys.exit(main())"]
     cmd += ["validate", "--set", f"scenario.motion.seconds={seconds:g}", "--out", str(out),
             "--no-progress"]
-    path = os.pathsep.join(p for p in sys.path if p)  # the packages this process uses
-    import tempfile
-
     # its output into files, not pipes: the wait ends with the command's process, as a
     # terminal's prompt comes back (a pipe's end would also wait for the render's fork server,
     # which holds the output too and ends ~0.2 s after it)
     with tempfile.TemporaryFile() as log:
         t0 = time.perf_counter()
         res = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT,
-                             env={**os.environ, "PYTHONPATH": path})
+                             env=_child_env())
         wall = time.perf_counter() - t0
         if res.returncode != 0:
             log.seek(0)
@@ -443,8 +445,6 @@ def bench_e2e(quick: bool) -> list[Row]:
                     f"({1e3 * np.median(before):.0f} ms) and 3 just after it "
                     f"({1e3 * np.median(after):.0f} ms); target >= 100x"))
     # the whole command as a user waits for it, beside the total it prints
-    import tempfile
-
     seconds = case["scenario"]["motion"]["seconds"]
     with tempfile.TemporaryDirectory(prefix="rollfric-bench-") as tmp:
         wall, mc = validate_command(seconds, Path(tmp) / "report")
