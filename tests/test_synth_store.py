@@ -133,6 +133,34 @@ def test_the_fixed_pattern_is_drawn_on_the_full_pixel_grid(shape):
     assert np.array_equal(offset, 3.0 * np.abs(dsnu))
 
 
+@pytest.mark.parametrize("bit_depth", [8, 12])
+def test_hash_sensor_kernel_is_the_per_pixel_formula(bit_depth):
+    # the kernel draws a block of rows' normals phase by phase (2026-11-24): its bytes are the
+    # model's formula in float32 on each pixel's own draw (Sensor.normals: one polar draw a
+    # pair of pixels), for regions of odd and even starts and widths, taller than a block
+    from synth.sensor import GAMMA, ROWS
+
+    cfg = synth.SensorConfig(bit_depth=bit_depth, read_noise=8.0, black_level=3.0,
+                             vignetting=0.2, prnu=0.01, dsnu=5.0)
+    h, w = ROWS * 3 + 7, 203
+    scale = 1000
+    counts = np.random.default_rng(5).integers(-3, scale + 4, (h, w)).astype(np.int32)
+    s = Sensor(cfg, (h, w), seed=13)
+    lut = ((np.arange(scale + 1) / scale) ** GAMMA * (cfg.full_well * cfg.exposure
+                                                    / cfg.reference_exposure)).astype(np.float32)
+    k = np.float32(cfg.gain * cfg.max_dn / cfg.full_well)
+    for index in (None, 4):
+        for y0, y1, x0, x1 in [(0, h, 0, w), (1, h, 1, w), (3, 70, 0, 1), (5, 6, 7, 9),
+                               (0, h, 2, 5), (40, h - 1, 11, 200)]:
+            e = lut[np.clip(counts[y0:y1, x0:x1], 0, scale)]
+            e = e * s.gain_map[y0:y1, x0:x1] + s.offset_map[y0:y1, x0:x1]
+            var = np.maximum(e, np.float32(0)) + np.float32(cfg.read_noise ** 2)
+            e = e + np.sqrt(var) * s.normals(index, (y0, y1, x0, x1))
+            want = np.clip(np.rint(e * k + np.float32(cfg.black_level)), 0, cfg.max_dn)
+            got = s.apply(counts[y0:y1, x0:x1], scale, index, (y0, y1, x0, x1))
+            np.testing.assert_array_equal(got, want.astype(cfg.dtype))
+
+
 def test_hash_noise_is_a_function_of_seed_frame_and_pixel():
     # "hash/1": a pixel's draw depends on (seed, frame, pixel) only - not on the frame's size or
     # the region asked for - and the draws are independent standard normals
