@@ -51,3 +51,34 @@ def test_rim_median_with_nan_values_window_by_window():
     assert np.array_equal(got, _rim_median_plain(v, ok, 1, 4), equal_nan=True)
     assert np.isfinite(got[40])
     assert np.array_equal(got[20:50], _rim_median_numpy(v, ok, 1)[20:50])
+
+
+def test_ray_index_is_arctan2s_ray():
+    # the pixel fit's ray of a pixel from the polynomial angle (off a ray's boundary) or
+    # arctan2 (near it): arctan2's index everywhere - random points, the pixel grid about a
+    # centre off the grid, points on and next to the rays' boundaries, the axes and -0.0
+    from rollfric.jit import njit
+    from rollfric.locate.kernels import _ray_index
+
+    @njit
+    def both(xs, ys, n):
+        out = np.empty((2, xs.size), np.int64)
+        for i in range(xs.size):
+            phi = np.arctan2(ys[i], xs[i])
+            if phi < 0:
+                phi += 2 * np.pi
+            out[0, i] = int(phi / (2 * np.pi / n)) % n
+            out[1, i] = _ray_index(xs[i], ys[i], n)
+        return out
+
+    rng = np.random.default_rng(0)
+    gx, gy = np.meshgrid(np.arange(-45, 46) - 0.37, np.arange(-45, 46) + 0.11)
+    for n in (7, 8, 94, 234, 360):
+        ang = np.arange(4 * n) * (np.pi / (2 * n))
+        ang = np.concatenate([ang, np.nextafter(ang, 10.0), np.nextafter(ang, -10.0)])
+        xs = np.concatenate([rng.uniform(-60, 60, 200_000), gx.ravel(), 38.0 * np.cos(ang),
+                             [1.0, -1.0, 0.0, 0.0, -1.0, 1.0, -0.0, -3.0, 1e-300]])
+        ys = np.concatenate([rng.uniform(-60, 60, 200_000), gy.ravel(), 38.0 * np.sin(ang),
+                             [0.0, 0.0, 1.0, -1.0, -0.0, -0.0, 5.0, -0.0, -1e-300]])
+        want, got = both(xs, ys, n)
+        np.testing.assert_array_equal(got, want)
