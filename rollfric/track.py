@@ -28,7 +28,7 @@ from rollfric import cpus, io, locate, plausibility, quality, timing
 from rollfric.background import median_background
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
-from rollfric.locate.kernels import _ring_sums
+from rollfric.locate.kernels import _ring_sums, _same_values
 from rollfric.perspective import ball_plane_center, contour_depth_from_radius
 from rollfric.readahead import ReadAhead
 from rollfric.registry import LOCATORS
@@ -454,7 +454,8 @@ def same_pixels(frame, prev, x: float, y: float, r: float) -> bool:
     x0, y0 = int(math.floor(x)) - m, int(math.floor(y)) - m
     a, _, _ = locate.regions._crop(frame, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
     b, _, _ = locate.regions._crop(prev, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
-    return a is not None and b is not None and a.shape == b.shape and np.array_equal(a, b)
+    return (a is not None and b is not None and a.shape == b.shape
+            and _same_values(np.asarray(a), np.asarray(b)))
 
 
 def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=None,

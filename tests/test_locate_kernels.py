@@ -82,3 +82,58 @@ def test_ray_index_is_arctan2s_ray():
                              [0.0, 0.0, 1.0, -1.0, -0.0, -0.0, 5.0, -0.0, -1e-300]])
         want, got = both(xs, ys, n)
         np.testing.assert_array_equal(got, want)
+
+
+def test_ring_sums_are_the_whole_crops_scan():
+    # the ring's sums from each row's chord (and hypot only near the ring's edges) are those
+    # of a scan of every pixel with hypot, to the bit: centres on and off the pixel grid,
+    # integer radii whose edges pass through pixel centres (3-4-5), empty and inverted rings,
+    # crops at the frame's corner
+    import math
+
+    from rollfric.jit import njit
+    from rollfric.locate.kernels import _ring_sums
+
+    @njit
+    def scan(fr, bg, x0, y0, cx, cy, r_in, r_out):
+        sf = 0.0
+        sb = 0.0
+        cnt = 0
+        for iy in range(fr.shape[0]):
+            for ix in range(fr.shape[1]):
+                d = math.hypot((ix + x0) - cx, (iy + y0) - cy)
+                if d >= r_in and d <= r_out:
+                    sf += np.float64(fr[iy, ix])
+                    sb += np.float64(bg[iy, ix])
+                    cnt += 1
+        return sf, sb, cnt
+
+    rng = np.random.default_rng(2)
+    fr = rng.integers(0, 4096, (160, 170)).astype(np.uint16)
+    bg = rng.integers(0, 4096, (160, 170)).astype(np.uint16)
+    cases = [(80.0, 70.0, 5.0, 10.0), (80.0, 70.0, 0.0, 5.0), (80.5, 70.5, 2.5, 7.5),
+             (0.0, 0.0, 3.0, 40.0), (80.0, 70.0, 10.0, 5.0), (80.0, 70.0, -1.0, 0.0)]
+    for _ in range(3000):
+        r = rng.uniform(0.3, 60.0)
+        cases.append((rng.uniform(-10, 180), rng.uniform(-10, 170), r + 2, r + 6))
+        cases.append((float(rng.integers(0, 170)), float(rng.integers(0, 160)),
+                      float(rng.integers(0, 20)), float(rng.integers(0, 40))))
+    for cx, cy, r_in, r_out in cases:
+        x0, y0 = int(rng.integers(0, 60)), int(rng.integers(0, 60))
+        f = fr[y0:y0 + int(rng.integers(1, 100)), x0:x0 + int(rng.integers(1, 110))]
+        b = bg[y0:y0 + f.shape[0], x0:x0 + f.shape[1]]
+        assert _ring_sums(f, b, x0, y0, cx, cy, r_in, r_out) == \
+            scan(f, b, x0, y0, cx, cy, r_in, r_out), (cx, cy, r_in, r_out)
+
+
+def test_same_values_is_array_equal():
+    from rollfric.locate.kernels import _same_values
+
+    rng = np.random.default_rng(4)
+    a = rng.integers(0, 4096, (30, 41)).astype(np.uint16)
+    assert _same_values(a, a.copy()) and _same_values(a[3:9, 2:40], a.copy()[3:9, 2:40])
+    for iy, ix in [(0, 0), (29, 40), (12, 7)]:
+        b = a.copy()
+        b[iy, ix] ^= 1
+        assert not _same_values(a, b) and not np.array_equal(a, b)
+    assert _same_values(a[:0], a[:0])
