@@ -131,15 +131,16 @@ def _block_draws(key, y, p0, npair, a_out, b_out, f_out):
 
 
 @njit(nogil=True)  # nogil: a reader thread overlaps the locator
-def _apply_kernel(counts, lut, gain, offset, has_pattern, noisy, shot, read_var, k, black,
-                  max_dn, key, y0, x0, out):
+def _apply_kernel(counts, base, has_base, lut, gain, offset, has_pattern, noisy, shot,
+                  read_var, k, black, max_dn, key, y0, x0, out):
     """The sensor model of :meth:`Sensor.apply` over one region, "hash/1" noise. The normals
     of up to ROWS rows are drawn phase by phase - every pair's accepted (a, b, s) (the
     branchy hashing), then every pair's factor sqrt(-2 log s / s) in a straight loop, then
     each row's normals a f, b f - and then the rows' pixels: each value is computed as
     :func:`_pair_normals` computes it (the same bytes), the independent logs and square roots
     of a straight loop overlapping in the CPU (25-30 % less CPU than a pair's draw and factor
-    at a time, for a tracker's 102 x 102 px region: 162 -> 117 us)."""
+    at a time, for a tracker's 102 x 102 px region: 162 -> 117 us). ``has_base``: the clean
+    level is ``counts + base`` (a recording's clean difference and background), added here."""
     h, w = counts.shape
     top = lut.shape[0] - 1
     zero = np.float32(0.0)
@@ -170,7 +171,7 @@ def _apply_kernel(counts, lut, gain, offset, has_pattern, noisy, shot, read_var,
                     else:
                         zrow[c] = np.float32(da[rr, q] * df[rr, q])
             for c in range(w):
-                v = counts[r, c]
+                v = counts[r, c] + base[r, c] if has_base else counts[r, c] + 0
                 e = lut[0 if v < 0 else (top if v > top else v)]
                 if has_pattern:
                     e = e * gain[r, c] + offset[r, c]
@@ -233,6 +234,16 @@ class Sensor:
             self.gain_map = self.gain_map.astype(np.float32)
             self.offset_map = self.offset_map.astype(np.float32)
         self._luts: dict = {}
+        # what every "hash/1" region passes its kernel: set once
+        s = sensor
+        self._hash_args = (bool(s.shot_noise or s.read_noise > 0), bool(s.shot_noise),
+                           np.float32(s.read_noise ** 2) if s.read_noise > 0 else np.float32(0.0),
+                           np.float32(s.gain * s.max_dn / s.full_well),
+                           np.float32(s.black_level), int(s.max_dn))
+        self._none = np.zeros((1, 1), dtype=np.float32)
+        self._no_base = np.zeros((1, 1), dtype=np.int32)
+        self._key_frames = _mix64(_mix64(self.seed + _GOLDEN) + _STREAM_FRAME * _GOLDEN)
+        self._key_background = noise_key(self.seed, None)
 
     def _lut(self, scale: int) -> np.ndarray:
         """Electrons (before the fixed pattern) for each clean integer level 0..scale."""
@@ -294,7 +305,8 @@ class Sensor:
         return out
 
     def apply(self, counts: np.ndarray, scale: int, index: int | None,
-              roi: tuple[int, int, int, int] | None = None) -> np.ndarray:
+              roi: tuple[int, int, int, int] | None = None, *,
+              base: np.ndarray | None = None) -> np.ndarray:
         """Sensor frame from a clean render.
 
         The result is the same crop of the full frame's sensor output, to the byte. Shot noise is
@@ -312,6 +324,10 @@ class Sensor:
             Frame number; None for the background frame.
         roi : tuple of int, optional
             (y0, y1, x0, x1) of the frame that ``counts`` covers (default: the whole frame).
+        base : numpy.ndarray, optional
+            Integer levels of the same shape added to ``counts`` (a recording's clean
+            background under its clean difference): the result is ``apply(counts + base,
+            ...)``'s, without the sum's array.
 
         Returns
         -------
@@ -320,9 +336,14 @@ class Sensor:
         """
         s = self.config
         y0, y1, x0, x1 = roi = self._roi(counts, roi)
+        if base is not None and base.shape != counts.shape:
+            raise ValueError(f"base of shape {base.shape} does not match counts "
+                             f"{counts.shape}")
         lut = self._lut(int(scale))
         if self.noise == "hash/1":
-            return self._apply_hash(counts, lut, index, y0, y1, x0, x1)
+            return self._apply_hash(counts, base, lut, index, y0, y1, x0, x1)
+        if base is not None:
+            counts = counts + base
         electrons = lut[np.clip(counts, 0, scale)]
         if self.gain_map is not None:
             electrons = (electrons * self.gain_map[y0:y1, x0:x1]
@@ -339,17 +360,15 @@ class Sensor:
         dn = electrons * np.float32(s.gain * s.max_dn / s.full_well) + np.float32(s.black_level)
         return np.clip(np.rint(dn), 0, s.max_dn).astype(s.dtype)
 
-    def _apply_hash(self, counts, lut, index, y0, y1, x0, x1) -> np.ndarray:
-        s = self.config
-        out = np.empty((y1 - y0, x1 - x0), dtype=s.dtype)
+    def _apply_hash(self, counts, base, lut, index, y0, y1, x0, x1) -> np.ndarray:
+        out = np.empty((y1 - y0, x1 - x0), dtype=self.config.dtype)
         if self.gain_map is not None:
             gain, offset = self.gain_map[y0:y1, x0:x1], self.offset_map[y0:y1, x0:x1]
         else:
-            gain = offset = np.zeros((1, 1), dtype=np.float32)
-        read_var = np.float32(s.read_noise ** 2) if s.read_noise > 0 else np.float32(0.0)
-        noisy = bool(s.shot_noise or s.read_noise > 0)
-        return _apply_kernel(np.asarray(counts), lut, gain, offset, self.gain_map is not None,
-                             noisy, bool(s.shot_noise), read_var,
-                             np.float32(s.gain * s.max_dn / s.full_well),
-                             np.float32(s.black_level), int(s.max_dn),
-                             np.uint64(noise_key(self.seed, index)), y0, x0, out)
+            gain = offset = self._none
+        # a frame's key from its stream's (noise_key's first two mixes, made once)
+        key = self._key_background if index is None else \
+            _mix64(self._key_frames + (int(index) & _M64) * _GOLDEN)
+        return _apply_kernel(np.asarray(counts), self._no_base if base is None else base,
+                             base is not None, lut, gain, offset, self.gain_map is not None,
+                             *self._hash_args, np.uint64(key), y0, x0, out)

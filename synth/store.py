@@ -179,15 +179,18 @@ class SynthFrames:
 
     def __getitem__(self, i: int) -> np.ndarray:
         i = self._index(i)
-        return self._sensor.apply(self.clean_counts(i), int(self.frame_scale), i)
+        # clean_counts(i), the background's levels added in the sensor's kernel
+        return self._sensor.apply(self._diff_region(i, None), int(self.frame_scale), i,
+                                  base=self._bg_scaled)
 
     def read(self, i: int, roi: tuple[int, int, int, int]) -> np.ndarray:
         """Region ``roi`` = (y0, y1, x0, x1) of frame i, ``0 <= y0 < y1 <= H``,
         ``0 <= x0 < x1 <= W``: the same bytes as ``self[i][y0:y1, x0:x1]``, made from the
         clean chunks and sensor tiles the region touches only."""
         i = self._index(i)
-        roi = self._roi(roi)
-        return self._sensor.apply(self.clean_counts(i, roi), int(self.frame_scale), i, roi)
+        y0, y1, x0, x1 = roi = self._roi(roi)
+        return self._sensor.apply(self._diff_region(i, roi), int(self.frame_scale), i, roi,
+                                  base=self._bg_scaled[y0:y1, x0:x1])
 
     def _roi(self, roi) -> tuple[int, int, int, int]:
         return check_roi(roi, self.shape[1:])

@@ -106,6 +106,10 @@ def test_sensor_is_block_local(bit_depth, noise):
             crop = s.apply(counts[y0:y1, x0:x1], scale, index, (y0, y1, x0, x1))
             assert crop.dtype == full.dtype
             np.testing.assert_array_equal(crop, full[y0:y1, x0:x1])
+            half = counts[y0:y1, x0:x1] // 2
+            np.testing.assert_array_equal(
+                s.apply(counts[y0:y1, x0:x1] - half, scale, index, (y0, y1, x0, x1), base=half),
+                crop)
     # each tile has its own draws (no tile repeats another's noise)
     z = s.normals(5, (0, h, 0, w))
     assert not np.array_equal(z[:TILE, :TILE], z[:TILE, TILE:2 * TILE])
@@ -158,6 +162,13 @@ def test_hash_sensor_kernel_is_the_per_pixel_formula(bit_depth):
             e = e + np.sqrt(var) * s.normals(index, (y0, y1, x0, x1))
             want = np.clip(np.rint(e * k + np.float32(cfg.black_level)), 0, cfg.max_dn)
             got = s.apply(counts[y0:y1, x0:x1], scale, index, (y0, y1, x0, x1))
+            np.testing.assert_array_equal(got, want.astype(cfg.dtype))
+            # the levels as a difference over a base (a recording's background), summed in
+            # the kernel
+            base = np.random.default_rng(y0 + x1).integers(0, 600, (y1 - y0, x1 - x0),
+                                                           dtype=np.int32)
+            got = s.apply(counts[y0:y1, x0:x1] - base, scale, index, (y0, y1, x0, x1),
+                          base=base)
             np.testing.assert_array_equal(got, want.astype(cfg.dtype))
 
 
