@@ -254,6 +254,20 @@ def _chunk_files(group, arr):
 
     folder, encode, dtype, (ch, cw), _, _ = layout
     root = str(folder)
+    # the chunk files' names as writer_layout's prefix and separator make them (zarr's own
+    # encoder, a Python call, where they do not give its names)
+    named = writer_layout(group, arr)
+    if named is not None:
+        prefix, sep = os.path.join(root, named[1]), named[2]
+
+        def path(i, cy, cx):
+            return f"{prefix}{i}{sep}{cy}{sep}{cx}"
+    else:
+        def path(i, cy, cx):
+            return os.path.join(root, encode((i, cy, cx)))
+    # one read of this many bytes holds a whole chunk file (zstd's bound on a chunk is its
+    # size plus 0.4 %): no fstat for its size
+    cap = 2 * ch * cw * dtype.itemsize + 4096
 
     def read(i: int, roi) -> np.ndarray:
         y0, y1, x0, x1 = roi
@@ -263,13 +277,18 @@ def _chunk_files(group, arr):
                 # os-level reads and numcodecs' zstd decompress (what Zstd.decode calls): a
                 # third of pathlib's read_bytes + Zstd.decode's CPU for a 32 kB chunk
                 try:
-                    fd = os.open(os.path.join(root, encode((i, cy, cx))), os.O_RDONLY)
+                    fd = os.open(path(i, cy, cx), os.O_RDONLY)
                 except FileNotFoundError:  # a chunk never written: all fill value
                     continue
                 except OSError as exc:
                     raise SynthError(f"{folder}: cannot read frame {i}'s chunk ({exc})") from None
                 try:
-                    data = os.read(fd, os.fstat(fd).st_size)
+                    data = os.read(fd, cap)
+                    if len(data) == cap:  # larger than any chunk (corrupt): read it all
+                        parts = [data]
+                        while parts[-1]:
+                            parts.append(os.read(fd, cap))
+                        data = b"".join(parts)
                 except OSError as exc:
                     raise SynthError(f"{folder}: cannot read frame {i}'s chunk ({exc})") from None
                 finally:

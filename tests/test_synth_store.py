@@ -461,3 +461,28 @@ def test_the_same_case_twice_gives_every_file_the_same_bytes(tmp_path):
     for rel in files[0]:
         assert (outs[0] / rel).read_bytes() == (outs[1] / rel).read_bytes(), rel
     assert "wall_time_s" not in synth.open_recording(outs[0]).attrs["engine_meta"]
+
+
+def test_a_chunk_file_larger_than_any_chunk_is_read_whole(rec_path, tmp_path):
+    # one read of a chunk's bound holds any chunk file; a larger one (not a chunk) is read to
+    # its end and refused as corrupt, a valid one padded by a skippable zstd frame is read
+    import shutil
+    import struct
+
+    bad = tmp_path / "big.zarr"
+    shutil.copytree(rec_path, bad)
+    frames = synth.open_recording(bad).frames
+    files = sorted(p for p in (bad / "clean_diff").rglob("*") if p.is_file())
+    good = files[0]
+    data = good.read_bytes()
+    want = frames._chunk_file  # reads the files as they are now
+    key = good.relative_to(bad / "clean_diff").as_posix().replace("c/", "").replace("/", ".")
+    i, cy, cx = (int(v) for v in key.split("."))
+    box = (cy * 128, cy * 128 + 16, cx * 128, cx * 128 + 16)
+    before = want(i, box)
+    pad = 200_000
+    good.write_bytes(data + struct.pack("<II", 0x184D2A50, pad) + bytes(pad))
+    np.testing.assert_array_equal(want(i, box), before)
+    good.write_bytes(b"not zstd" * 30_000)
+    with pytest.raises(synth.SynthError, match=f"frame {i}'s chunk is corrupt"):
+        want(i, box)
