@@ -71,8 +71,9 @@ def _hash(z):
 
 
 @njit
-def _pair_normals(key, y, k):
-    """The two standard normals (float32) of pixels 2k, 2k + 1 of row y."""
+def _polar_draw(key, y, k):
+    """The accepted Marsaglia polar draw (a, b, s = a^2 + b^2) of pixels 2k, 2k + 1 of row y:
+    the hash of (key, y, k) and the try number, until 0 < s < 1."""
     gold = np.uint64(0x9E3779B97F4A7C15)
     gold2 = np.uint64(0xD1B54A32D192ED03)
     base = key + ((np.uint64(y) << np.uint64(32)) | np.uint64(k)) * gold
@@ -84,9 +85,16 @@ def _pair_normals(key, y, k):
         b = float(h & np.uint64(0xFFFFFFFF)) * inv - 1.0
         s = a * a + b * b
         if 0.0 < s < 1.0:
-            f = math.sqrt(-2.0 * math.log(s) / s)
-            return np.float32(a * f), np.float32(b * f)
+            return a, b, s
         t += np.uint64(1)
+
+
+@njit
+def _pair_normals(key, y, k):
+    """The two standard normals (float32) of pixels 2k, 2k + 1 of row y."""
+    a, b, s = _polar_draw(key, y, k)
+    f = math.sqrt(-2.0 * math.log(s) / s)
+    return np.float32(a * f), np.float32(b * f)
 
 
 @njit
@@ -111,20 +119,8 @@ ROWS = 32  # rows of a region whose normals the sensor kernel draws before their
 def _block_draws(key, y, p0, npair, a_out, b_out, f_out):
     """Pairs p0 .. p0 + npair - 1 of row y: each accepted polar draw's (a, b) into a_out,
     b_out and its s into f_out (the factor sqrt(-2 log s / s) is taken after, over the row)."""
-    gold = np.uint64(0x9E3779B97F4A7C15)
-    gold2 = np.uint64(0xD1B54A32D192ED03)
-    inv = 1.0 / 2147483648.0
     for q in range(npair):
-        base = key + ((np.uint64(y) << np.uint64(32)) | np.uint64(p0 + q)) * gold
-        t = np.uint64(0)
-        while True:
-            h = _hash(base + t * gold2)
-            a = float(h >> np.uint64(32)) * inv - 1.0
-            b = float(h & np.uint64(0xFFFFFFFF)) * inv - 1.0
-            s = a * a + b * b
-            if 0.0 < s < 1.0:
-                break
-            t += np.uint64(1)
+        a, b, s = _polar_draw(key, y, p0 + q)
         a_out[q] = a
         b_out[q] = b
         f_out[q] = s
