@@ -75,6 +75,40 @@ def test_same_seed_same_result_other_seed_other_noise(tmp_path):
     assert math.isfinite(ma["mu_recovered"])
 
 
+def test_the_true_angles_fitted_beside_the_render_as_before_it(tmp_path):
+    # with render processes the fit of the engine's angles runs on a thread during the render;
+    # in one process before it: the same fits and metrics either way
+    a = e2e.run_case(_tiny(3), recording=tmp_path / "a.zarr", render_workers=2)
+    b = e2e.run_case(_tiny(3), recording=tmp_path / "b.zarr", render_workers=1)
+    assert a.metrics["fit_truth_beside_render"] and not b.metrics["fit_truth_beside_render"]
+    assert a.fit_truth.mu == b.fit_truth.mu and a.fit_truth.mu_stderr == b.fit_truth.mu_stderr
+    ma, mb = (_no_timing(r.metrics) for r in (a, b))
+    ma.pop("fit_truth_beside_render"), mb.pop("fit_truth_beside_render")
+    assert ma == mb
+    assert a.metrics["t_fit_truth_s"] > 0
+    # the stages in the order they start, the total last
+    assert list(a.timings) == ["simulate", "fit_truth", "render", "measure", "metrics", "total"]
+
+
+def test_a_failed_fit_beside_the_render_is_raised_and_the_scratch_removed(tmp_path,
+                                                                          monkeypatch):
+    def fail(case, traj, timings):
+        raise ValueError("the true angles cannot be fitted")
+
+    monkeypatch.setattr(e2e, "_fit_truth", fail)
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    monkeypatch.setattr(e2e, "case_scratch", lambda n, folder=None: _made(scratch / "case"))
+    with pytest.raises(ValueError, match="cannot be fitted"):
+        e2e.run_case(_tiny(3), render_workers=2)
+    assert list(scratch.iterdir()) == []
+
+
+def _made(path):
+    path.mkdir()
+    return path
+
+
 def test_a_killed_cases_scratch_folder_is_removed_by_the_next(tmp_path):
     # a case killed by SIGKILL or SIGTERM runs no `finally`: its temporary recording (in RAM in
     # /dev/shm) stays; the next case in that folder removes it, and nothing else

@@ -19,6 +19,7 @@ metrics. Oracle mode hands it the renderer's own setup (exact geometry and cente
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import dataclasses
 import json
@@ -52,7 +53,7 @@ METRICS = frozenset((
     "center_radial_bias_px", "center_radial_rms_px", "center_tangential_bias_px",
     "center_tangential_rms_px", "renderer",
     "model_vs_truth_rms_rad", "ball_radius_px", "amplitude0_deg", "n_frames",
-    "frame_width_px", "frame_height_px", "render_fps",
+    "frame_width_px", "frame_height_px", "render_fps", "fit_truth_beside_render",
     # mode_metrics
     "mode", "lab_center_measured", "lab_draw", "trough_center_x_px", "trough_center_y_px",
     "trough_center_err_x_px", "trough_center_err_y_px", "undistorted", "offset_fitted",
@@ -129,18 +130,21 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
     which replaces the report's own files only (:mod:`rollfric.outputs`); the report is written
     to a hidden folder first and moved in when complete. ``render_workers``/
     ``render_threads``: rendering processes (synth's default: up to 2) and llvmpipe threads
-    each; a sweep worker uses 1/1.
+    each; a sweep worker uses 1/1. With render processes the fit of the engine's angles
+    (stage "fit_truth") runs on a thread beside the render, which leaves this process idle
+    (metric ``fit_truth_beside_render``); the fits are the same either way.
     """
+    if keep_recording and recording is None and report_dir is None:
+        raise ValueError("keep_recording needs report_dir (or recording=PATH)")
+    if isinstance(case, dict):
+        case = case_from_dict(case)
+    _start_render_early(case, render_workers)  # before the imports below
     from rollfric.outputs import check_folder, staged_folder
     from validation.report import OUTPUTS
 
-    if keep_recording and recording is None and report_dir is None:
-        raise ValueError("keep_recording needs report_dir (or recording=PATH)")
     if report_dir is None:
         return _run_case(case, recording, None, render_workers, render_threads, progress)
     check_folder(report_dir, OUTPUTS, overwrite=overwrite, command="validate")
-    if isinstance(case, dict):
-        case = case_from_dict(case)
     with staged_folder(report_dir, OUTPUTS, overwrite=overwrite, command="validate") as tmp:
         rec = recording
         if rec is None and keep_recording:
@@ -152,21 +156,33 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
     return result
 
 
-def _simulate(case: Case, timings: dict, before_fit=None):
-    """The case's trajectory and the fit of its exact angles (the engine's mu), timed as the
-    stages "simulate" and "fit_truth"; ``before_fit(traj)`` is called between them."""
+def _simulate(case: Case, timings: dict):
+    """The case's trajectory, timed as the stage "simulate"."""
     import sim
-    from rollfric.fit import fit_mu
 
     with _timer(timings, "simulate"):
-        traj = sim.simulate(case.scenario)
-    if before_fit is not None:
-        before_fit(traj)
+        return sim.simulate(case.scenario)
+
+
+def _fit_truth(case: Case, traj, timings: dict):
+    """The fit of the trajectory's exact angles (the engine's mu), timed as the stage
+    "fit_truth"."""
+    from rollfric.fit import fit_mu
+
     setup_truth = case.scenario.setup()
     with _timer(timings, "fit_truth"):
-        fit_truth = fit_mu(traj.t, traj.theta, setup_truth, method=case.fit,
-                           offset=_offset(case, traj.t, traj.theta, setup_truth))
-    return traj, fit_truth
+        return fit_mu(traj.t, traj.theta, setup_truth, method=case.fit,
+                      offset=_offset(case, traj.t, traj.theta, setup_truth))
+
+
+def _start_render_early(case: Case, render_workers: int | None = None) -> bool:
+    """Start the fork server the case's render processes will be forked from, now
+    (:func:`synth.pipeline.prepare_render`): its imports (~1 s of one core) then run on the
+    other core while this process imports the measurement and the report (:func:`run_case`
+    calls it first thing). Whether one runs for the case's render."""
+    import synth.pipeline
+
+    return synth.pipeline.prepare_render(case.scene, case.scenario.n_samples, render_workers)
 
 
 CASE_SCRATCH = "rollfric-case"
@@ -219,25 +235,31 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
         case = case_from_dict(case)
     timings: dict = {}
     t_start = time.perf_counter()
-
-    def prepare(traj):  # the render's fork server imports while the true angles are fitted
-        synth.pipeline.prepare_render(case.scene, len(traj), render_workers)
-
-    traj, fit_truth = _simulate(case, timings, prepare)
-
+    traj = _simulate(case, timings)
     tmpdir = None
     if recording is not None:
         rec_path = Path(recording)
     else:
         tmpdir = case_scratch(len(traj))
         rec_path = tmpdir / "recording.zarr"
+    # with render processes filling the cores, the true angles are fitted beside the render
+    # (on a thread of this process, which meanwhile only hands the processes their frames);
+    # else before it
+    beside = synth.pipeline.render_workers(case.scene, len(traj), render_workers) > 1
     try:
-        with _timer(timings, "render"):
-            synth.render(traj, rec_path, scene=case.scene, sensor=case.sensor,
-                         seed=case.render_seed, progress=progress, workers=render_workers,
-                         threads=render_threads, overwrite=True, timing=case.timing)
+        with concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="rollfric-fit") as pool:
+            if beside:
+                fitting = pool.submit(_fit_truth, case, traj, timings)
+            else:
+                fit_truth = _fit_truth(case, traj, timings)
+            with _timer(timings, "render"):
+                synth.render(traj, rec_path, scene=case.scene, sensor=case.sensor,
+                             seed=case.render_seed, progress=progress, workers=render_workers,
+                             threads=render_threads, overwrite=True, timing=case.timing)
+        if beside:
+            fit_truth = fitting.result()
         result = _measure_and_score(case, rec_path, traj, fit_truth, timings, t_start,
-                                    progress)
+                                    progress, beside)
         if report_tmp is not None:
             from validation.report import write_report
 
@@ -251,9 +273,10 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
 
 
 def _measure_and_score(case: Case, rec_path: Path, traj, fit_truth, timings: dict,
-                       t_start: float, progress: bool) -> CaseResult:
+                       t_start: float, progress: bool, beside: bool = False) -> CaseResult:
     """What follows the render: rollfric measures the recording, the metrics against the
-    truth (the recording's truth table and ``traj``), the budget, the stage times."""
+    truth (the recording's truth table and ``traj``), the budget, the stage times
+    (``beside``: the fit of the true angles ran during the render)."""
     from synth.store import read_truth
 
     truth, attrs = read_truth(rec_path)
@@ -267,7 +290,12 @@ def _measure_and_score(case: Case, rec_path: Path, traj, fit_truth, timings: dic
         if case.data.get("measure", {}).get("budget", True):
             metrics.update(budget_metrics(case, track, info, fit, _true_center(metrics)))
     timings["total"] = time.perf_counter() - t_start
+    # the stages in the order they start
+    order = ("simulate", "fit_truth", "render", "measure", "metrics", "total")
+    timings = {k: timings[k] for k in sorted(timings, key=lambda k: (
+        order.index(k) if k in order else len(order) - 1))}
     metrics.update({f"t_{k}_s": float(v) for k, v in timings.items()})
+    metrics["fit_truth_beside_render"] = bool(beside)
     metrics["n_frames"] = int(len(truth))
     metrics["frame_width_px"] = int(case.scene.camera.width)
     metrics["frame_height_px"] = int(case.scene.camera.height)
@@ -327,7 +355,8 @@ def remeasure_case(case: Case | dict, recording: str | Path, *,
                                 "render seed differ from the case's)")
     timings: dict = {}
     t_start = time.perf_counter()
-    traj, fit_truth = _simulate(case, timings)
+    traj = _simulate(case, timings)
+    fit_truth = _fit_truth(case, traj, timings)
     return _measure_and_score(case, rec_path, traj, fit_truth, timings, t_start, progress)
 
 
@@ -629,18 +658,12 @@ def sim_only_case(case: Case | dict) -> dict:
     ``mu_engine_bias_rel``, timings). Sweeps over engines/surfaces/scenarios can use it
     (``[sweep] stages = "sim"``) and the sweep-machinery tests do.
     """
-    import sim
-    from rollfric.fit import fit_mu
-
     if isinstance(case, dict):
         case = case_from_dict(case)
     timings: dict = {}
     t0 = time.perf_counter()
-    with _timer(timings, "simulate"):
-        traj = sim.simulate(case.scenario)
-    with _timer(timings, "fit_truth"):
-        ft = fit_mu(traj.t, traj.theta, case.scenario.setup(), method=case.fit,
-                    offset=_offset(case, traj.t, traj.theta, case.scenario.setup()))
+    traj = _simulate(case, timings)
+    ft = _fit_truth(case, traj, timings)
     timings["total"] = time.perf_counter() - t0
     mu_true = float(case.scenario.mu)
     m = {"case_id": case.case_id, "name": case.name, "mu_true": mu_true,

@@ -227,7 +227,10 @@ def summary_text(result, out: str | Path | None = None) -> str:
         f" max {math.degrees(m['theta_max_rad']):.5f} deg",
         f"  located        {m['n_found']} of {m['n_frames']} frames"
         f" ({100 * m['found_fraction']:.1f} %)",
-        "  time           " + ", ".join(f"{k} {v:.1f} s" for k, v in tm.items()),
+        "  time           " + ", ".join(
+            f"{k} {v:.1f} s" + (" (beside render)" if k == "fit_truth"
+                                and m.get("fit_truth_beside_render") else "")
+            for k, v in tm.items()),
     ]
     if out is not None:
         lines += ["", f"  report: {Path(out).resolve()}/"
