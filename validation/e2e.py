@@ -131,8 +131,8 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
     to a hidden folder first and moved in when complete. ``render_workers``/
     ``render_threads``: rendering processes (synth's default: up to 2) and llvmpipe threads
     each; a sweep worker uses 1/1. With render processes the fit of the engine's angles
-    (stage "fit_truth") runs on a thread beside the render, which leaves this process idle
-    (metric ``fit_truth_beside_render``); the fits are the same either way.
+    (stage "fit_truth") runs on a thread during the render, whose work is theirs (metric
+    ``fit_truth_beside_render``); the fits are the same either way.
     """
     if keep_recording and recording is None and report_dir is None:
         raise ValueError("keep_recording needs report_dir (or recording=PATH)")
