@@ -32,3 +32,33 @@ def test_stock_frames_beside_a_measurement_are_measured_each_time():
     finally:
         bench._STOCK.clear()
         bench._STOCK.update(kept)
+
+
+def test_the_validate_case_is_reported_by_its_median_run_each_beside_its_stock_frames(
+        monkeypatch):
+    # three runs between stock frames measured before and after each: the ratio of each run
+    # is its frames' stock time over its total; the run with the median ratio is reported
+    from synth import bench as sbench
+    from validation import bench, bench_locate
+
+    stock = iter([[0.4] * 3, [0.5] * 3, [0.4] * 3, [0.6] * 3])  # s a frame, before/after
+    totals = iter([18.0, 20.0, 16.0])
+
+    def case(_case):
+        t = next(totals)
+        return ({"n_frames": 4001, "t_total_s": t, "t_render_s": t - 4, "t_measure_s": 3.0,
+                 "mu_bias_rel": 0.0, "center_rms_px": 0.02}, {})
+
+    monkeypatch.setattr(sbench, "stock_frame_times", lambda repeats=3: next(stock))
+    monkeypatch.setattr(bench, "_case_in_new_process", case)
+    monkeypatch.setattr(bench_locate, "throughput", lambda *a: 2000.0)
+    monkeypatch.setattr(bench, "validate_command",
+                        lambda seconds, out: (21.0, {"t_total_s": 17.0, "n_frames": 4001}))
+    rows = {r.item: r for r in bench.bench_e2e(quick=False)}
+    # ratios: 4001 * 0.45 / 18 = 100.0, 4001 * 0.45 / 20 = 90.0, 4001 * 0.5 / 16 = 125.0
+    total = rows["total"]
+    assert total.value == 18.0 and total.baseline_value == pytest.approx(4001 * 0.45)
+    assert total.gain == pytest.approx(100.0, rel=1e-3)
+    assert "the median of 3 runs of the case, in order 100.0x / 90.0x / 125.0x" in total.note
+    assert "(totals 18.0 / 20.0 / 16.0 s)" in total.note
+    assert rows["stage render"].value == 14.0  # the stages are the reported run's
