@@ -42,13 +42,39 @@ def register(sub) -> None:
     p.add_argument("--plot", action="store_true",
                    help="also write the angle-vs-model figure beside FIT.json (.png) and the "
                         "uncertainty budget's bar chart (_budget.png)")
-    from rollfric.uncertainty import add_arguments
-
     p.add_argument("--overwrite", action="store_true",
                    help="replace an existing FIT.json (and its figures); without it an existing "
                         "output is refused (exit 2)")
-    add_arguments(p)
+    add_budget_arguments(p)
     p.set_defaults(func=run)
+
+
+def add_budget_arguments(parser) -> None:
+    """The uncertainty budget's options of ``rollfric fit`` and ``rollfric measure``.
+
+    Kept here, not in :mod:`rollfric.uncertainty`, so that building the parser (``--help``)
+    imports neither SciPy nor numba.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The command's parser; ``--fit-length``, ``--monte-carlo``, ``--seed``,
+        ``--second-order`` and ``--first-order`` (deprecated, no effect) are added.
+    """
+    parser.add_argument("--fit-length", action="store_true",
+                        help="self-calibration: also fit L = R - r (the radius of the ball "
+                             "centre's path); mu and its budget then use the fitted L")
+    parser.add_argument("--monte-carlo", type=int, default=0, metavar="N",
+                        help="check the budget by N Monte-Carlo draws of the uncertain inputs "
+                             "(JCGM 101), each a re-fit")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the Monte-Carlo draws")
+    parser.add_argument("--second-order", action="store_true",
+                        help="add the second-order row to the budget (GUM 5.1.2: the inputs' "
+                             "interactions and curvature; 4 re-fits per pair of uncertain "
+                             "inputs and 2 per input)")
+    parser.add_argument("--first-order", action="store_true",
+                        help="deprecated, no effect: the budget is first order unless "
+                             "--second-order is given")
 
 
 def read_track(path):

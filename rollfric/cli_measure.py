@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from rollfric.cli_fit import add_budget_arguments
 from rollfric.registry import FIT_METHODS, LOCATORS
 
 HELP = "locate the ball in a recording, write its track and fit mu"
@@ -62,9 +63,7 @@ def register(sub) -> None:
     p.add_argument("--overlay-frames", default=None, metavar="I,J,...",
                    help="frames drawn in overlays.png (default: 6 spread over the found ones)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    from rollfric.uncertainty import add_arguments
-
-    add_arguments(p)
+    add_budget_arguments(p)
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--overwrite", action="store_true",
                    help="write into an existing non-empty DIR: measure's own files (track.csv, "

@@ -760,31 +760,6 @@ def format_budget(b: Budget) -> str:
     return "\n".join(lines)
 
 
-def add_arguments(parser) -> None:
-    """The budget's options of ``rollfric fit`` and ``rollfric measure``.
-
-    Parameters
-    ----------
-    parser : argparse.ArgumentParser
-        The command's parser; ``--fit-length``, ``--monte-carlo``, ``--seed``,
-        ``--second-order`` and ``--first-order`` (deprecated, no effect) are added.
-    """
-    parser.add_argument("--fit-length", action="store_true",
-                        help="self-calibration: also fit L = R - r (the radius of the ball "
-                             "centre's path); mu and its budget then use the fitted L")
-    parser.add_argument("--monte-carlo", type=int, default=0, metavar="N",
-                        help="check the budget by N Monte-Carlo draws of the uncertain inputs "
-                             "(JCGM 101), each a re-fit")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the Monte-Carlo draws")
-    parser.add_argument("--second-order", action="store_true",
-                        help="add the second-order row to the budget (GUM 5.1.2: the inputs' "
-                             "interactions and curvature; 4 re-fits per pair of uncertain "
-                             "inputs and 2 per input)")
-    parser.add_argument("--first-order", action="store_true",
-                        help="deprecated, no effect: the budget is first order unless "
-                             "--second-order is given")
-
-
 def run_budget(meas: Measurement, result, args):
     """The budget of a command's result as (fit.json keys, Budget or None), its table printed
     on stdout (the command's output); a fit method without a Jacobian gets no budget (said so,
@@ -797,7 +772,7 @@ def run_budget(meas: Measurement, result, args):
     result : FitResult
         The command's fit.
     args : argparse.Namespace
-        The parsed options of :func:`add_arguments`.
+        The parsed options of :func:`rollfric.cli_fit.add_budget_arguments`.
 
     Returns
     -------
