@@ -19,6 +19,7 @@ from rollfric.errors import InputError
 from rollfric.lens import Calibration
 
 MIN_VIEWS = 3
+SQUARE_RANGE = (1e-6, 1.0)  # m: the side of a chessboard square, 1 um .. 1 m
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +69,8 @@ def calibrate_chessboard(images, board: tuple[int, int], square: float,
     Raises
     ------
     InputError
-        Images of different sizes, or fewer than MIN_VIEWS views with a board found.
+        Images of different sizes, fewer than MIN_VIEWS views with a board found, or a
+        square size outside SQUARE_RANGE.
     """
     import cv2
 
@@ -77,6 +79,9 @@ def calibrate_chessboard(images, board: tuple[int, int], square: float,
         raise InputError(f"the board needs at least 2 x 2 inner corners, got {cols} x {rows}")
     if not square > 0:
         raise InputError(f"the square size must be positive, got {square!r}")
+    if not SQUARE_RANGE[0] <= square <= SQUARE_RANGE[1]:  # inf, or beyond float32's corners
+        raise InputError(f"the square size {square * 1e3:g} mm is outside the plausible range "
+                         f"{SQUARE_RANGE[0] * 1e3:g}..{SQUARE_RANGE[1] * 1e3:g} mm")
     names = [str(i) for i in range(len(images))] if names is None else [str(n) for n in names]
     obj = np.zeros((rows * cols, 3), np.float32)
     obj[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * square

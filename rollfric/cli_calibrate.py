@@ -54,8 +54,9 @@ def run(args) -> int:
     Raises
     ------
     rollfric.errors.InputError
-        If ``--board`` is not COLSxROWS, ``--out`` exists without ``--overwrite``, an image
-        cannot be read, or the calibration refuses the input.
+        If ``--board`` is not COLSxROWS, ``--out`` is one of the images, a folder, or exists
+        without ``--overwrite``, an image cannot be read, or the calibration refuses the
+        input.
     """
     from pathlib import Path
 
@@ -63,14 +64,16 @@ def run(args) -> int:
     from rollfric.calibrate import calibrate_chessboard
     from rollfric.errors import InputError
     from rollfric.io import read_image
+    from rollfric.outputs import check_file, check_not_input
 
     try:
         cols, rows = (int(v) for v in args.board.lower().split("x"))
     except ValueError:
         raise InputError(f"--board must be COLSxROWS like 9x6, got {args.board!r}") from None
     out = Path(args.out)
-    if out.exists() and not args.overwrite:
-        raise InputError(f"{out} exists (use --overwrite to replace it)")
+    # an input image is never replaced by the table, even with --overwrite
+    check_not_input(out, args.images)
+    check_file(out, overwrite=args.overwrite)
     images = [read_image(p) for p in args.images]
     res = calibrate_chessboard(images, (cols, rows), args.square_mm * 1e-3, names=args.images,
                                free_k3=args.free_k3)

@@ -120,3 +120,40 @@ def test_too_few_boards_is_bad_input(tmp_path):
     assert not out.exists()
     assert main(["calibrate", *paths, "--board", "7by5", "--square-mm", "20",
                  "--out", str(out)]) == 2
+
+
+def test_an_input_image_is_never_the_output(views, tmp_path, capsys):
+    # audit 2026-11-24: --out naming one of the images with --overwrite replaced that image
+    # with the [camera] table
+    paths = []
+    for k, img in enumerate(views[:4]):
+        path = tmp_path / f"board{k}.png"
+        cv2.imwrite(str(path), img)
+        paths.append(path)
+    before = paths[0].read_bytes()
+    argv = ["calibrate", *map(str, paths), "--board", "7x5", "--square-mm", "20", "--out",
+            str(paths[0]), "--overwrite"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "is an input" in err and "Traceback" not in err
+    assert paths[0].read_bytes() == before
+    # a folder is not replaced by the table either
+    (tmp_path / "folder").mkdir()
+    assert main(argv[:-2] + [str(tmp_path / "folder"), "--overwrite"]) == 2
+    assert (tmp_path / "folder").is_dir() and not any((tmp_path / "folder").iterdir())
+
+
+@pytest.mark.parametrize("square_mm", ["inf", "1e300", "1e-300"])
+def test_a_square_size_no_board_has_is_bad_input(views, tmp_path, capsys, square_mm):
+    # audit 2026-11-24: --square-mm inf ended in OpenCV's assertion, a traceback
+    paths = []
+    for k, img in enumerate(views[:3]):
+        path = tmp_path / f"board{k}.png"
+        cv2.imwrite(str(path), img)
+        paths.append(str(path))
+    out = tmp_path / "camera.toml"
+    assert main(["calibrate", *paths, "--board", "7x5", "--square-mm", square_mm,
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "square size" in err and "Traceback" not in err
+    assert not out.exists()
