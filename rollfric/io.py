@@ -71,6 +71,7 @@ class TiffSource(_Source):
             shape = tuple(first.shape)
         except Exception as exc:  # tifffile raises several types for broken files
             raise RecordingError(f"{path}: not a readable TIFF file ({exc})") from None
+        _check_ifd_chain(self._tif, path, n)
         colour = len(shape) == 3 and shape[-1] in (3, 4)
         if not (len(shape) == 2 or colour or (n == 1 and len(shape) == 3)) \
                 or not all(isinstance(v, int) and v > 0 for v in shape):
@@ -131,6 +132,29 @@ class TiffSource(_Source):
                                  f"end of the file (truncated or corrupt file?)")
         img = self._mmap[off:off + h * w * dt.itemsize].view(dt).reshape(h, w)
         return np.ascontiguousarray(img[y0:y1, x0:x1], dtype=self.dtype)
+
+
+def _check_ifd_chain(tif, path: Path, n: int) -> None:
+    """Refuse a TIFF whose chain of page directories does not end: tifffile stops, with only a
+    log line, at a next-page offset beyond the end of the file or at a directory it cannot read,
+    so a file cut between two pages would read as a shorter recording."""
+    import struct
+
+    try:
+        t = tif.tiff
+        fh = tif.filehandle
+        offset = int(tif.pages[n - 1].offset)
+        fh.seek(offset)
+        tagno = struct.unpack(t.tagnoformat, fh.read(t.tagnosize))[0]
+        fh.seek(offset + t.tagnosize + tagno * t.tagsize)
+        nxt = int(struct.unpack(t.offsetformat, fh.read(t.offsetsize))[0])
+    except Exception as exc:  # struct, OSError, tifffile's own: the directory is cut short
+        raise RecordingError(f"{path}: cannot read the directory of page {n} (truncated or "
+                             f"corrupt file? {exc})") from None
+    if nxt != 0:
+        where = "lies beyond the end of the file" if nxt >= fh.size else "is unreadable"
+        raise RecordingError(f"{path}: the directory of page {n + 1} {where}: only {n} whole "
+                             f"page(s) (truncated or corrupt file?)")
 
 
 class FolderSource(_Source):

@@ -205,3 +205,53 @@ def test_bad_inputs(tmp_path):
     with pytest.raises(RecordingError, match="no such file"):
         read_image(tmp_path / "nope.png")
     assert math.isfinite(float(read_image(tmp_path / "rec.tif").mean()))
+
+
+@pytest.mark.parametrize("contiguous", [False, True])
+def test_tiff_cut_between_two_pages_is_refused(tmp_path, contiguous):
+    # audit 2026-11-24: a stack cut right after a page's data read as a shorter recording
+    # (tifffile stops at the next directory beyond the end of the file with a log line only),
+    # and rollfric measure reported mu from the pages before the cut with status 0
+    p = tmp_path / "rec.tif"
+    big = np.random.default_rng(2).integers(0, 255, (6, 64, 64), dtype=np.uint8)
+    if contiguous:  # tifffile's one shaped series: the later directories after all the data
+        tifffile.imwrite(p, big)
+    else:
+        with tifffile.TiffWriter(p) as tw:
+            for f in big:
+                tw.write(f, contiguous=False)
+    with tifffile.TiffFile(p) as tif:
+        page = tif.pages[3]
+        end = int(page.dataoffsets[0] + page.databytecounts[0])
+    assert len(open_recording(p)) == 6
+    cut = tmp_path / "cut.tif"
+    cut.write_bytes(p.read_bytes()[:end])
+    with pytest.raises(RecordingError, match=r"cut.tif: the directory of page \d+ lies beyond "
+                                             r"the end of the file"):
+        open_recording(cut)
+
+
+def test_measure_of_a_tiff_cut_between_pages_writes_nothing(tmp_path, capsys):
+    from measure_data import write_lab
+
+    from rollfric.cli import main
+
+    lab = write_lab(tmp_path, n=60)
+    with tifffile.TiffFile(lab / "rec.tif") as tif:
+        assert len(tif.pages) == 60
+    # the same frames, one directory a page, cut after page 40's data
+    frames = tifffile.imread(lab / "rec.tif")
+    with tifffile.TiffWriter(lab / "pages.tif") as tw:
+        for f in frames:
+            tw.write(f, contiguous=False)
+    with tifffile.TiffFile(lab / "pages.tif") as tif:
+        page = tif.pages[39]
+        end = int(page.dataoffsets[0] + page.databytecounts[0])
+    (lab / "cut.tif").write_bytes((lab / "pages.tif").read_bytes()[:end])
+    code = main(["measure", str(lab / "cut.tif"), "--setup", str(lab / "setup.toml"),
+                 "--background", str(lab / "bg.tif"), "--out", str(lab / "out"),
+                 "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "cut.tif" in err and "only 40 whole page(s)" in err and "Traceback" not in err
+    assert not (lab / "out").exists()
