@@ -146,7 +146,7 @@ def _run(args) -> int:
     from rollfric.fit import save_fit
     from rollfric.outputs import check_folder, check_not_input, staged_folder
     from rollfric.track import TRACK_COLUMNS, measure
-    from rollfric.uncertainty import measurement_from_track, run_budget
+    from rollfric.uncertainty import check_arguments, measurement_from_track, run_budget
 
     out = Path(args.out)
     check_not_input(out, (args.recording, args.setup, args.background))
@@ -161,6 +161,7 @@ def _run(args) -> int:
                              f"{args.overlay_frames!r}") from None
     if args.median_frames < 3:
         raise InputError(f"--median-frames must be at least 3, got {args.median_frames}")
+    check_arguments(args)
     track, info, result = measure(args.recording, args.setup, args.background, method=args.method,
                             angle=args.angle, fit_method=args.fit_method,
                                   offset={"on": True, "off": False}.get(args.offset, "auto"),

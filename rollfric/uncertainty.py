@@ -760,6 +760,25 @@ def format_budget(b: Budget) -> str:
     return "\n".join(lines)
 
 
+def check_arguments(args) -> None:
+    """Refuse budget options no run can use, before the command does any work.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options of :func:`rollfric.cli_fit.add_budget_arguments`.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If ``--monte-carlo`` or ``--seed`` is negative.
+    """
+    if args.monte_carlo < 0:
+        raise InputError(f"--monte-carlo must be >= 0, got {args.monte_carlo}")
+    if args.seed < 0:
+        raise InputError(f"--seed must be >= 0, got {args.seed}")
+
+
 def run_budget(meas: Measurement, result, args):
     """The budget of a command's result as (fit.json keys, Budget or None), its table printed
     on stdout (the command's output); a fit method without a Jacobian gets no budget (said so,
@@ -785,10 +804,9 @@ def run_budget(meas: Measurement, result, args):
     Raises
     ------
     rollfric.errors.InputError
-        If ``--monte-carlo`` is negative, or as :func:`budget`.
+        If ``--monte-carlo`` or ``--seed`` is negative, or as :func:`budget`.
     """
-    if args.monte_carlo < 0:
-        raise InputError(f"--monte-carlo must be >= 0, got {args.monte_carlo}")
+    check_arguments(args)
     if result.method != "lsq":
         logging.getLogger(__name__).warning(
             f"uncertainty budget: only for the lsq fit (this is {result.method}); mu_stderr is "

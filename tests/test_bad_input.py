@@ -196,3 +196,13 @@ def test_sweep_sizes_and_metrics_are_checked_before_the_cases_are_made(tmp_path,
         '[grid]\n"scenario.motion.mu" = [0.005]\n')
     _refused(["sweep", tmp_path / "metric.toml", "--dry-run"], capsys, "metric.toml",
              "unknown metric", "mu_bais_rel")
+
+
+@pytest.mark.parametrize("command", ["fit", "measure"])
+def test_a_negative_seed_is_bad_input(lab, capsys, command):
+    # audit 2026-11-24: --seed -1 with --monte-carlo ended in NumPy's ValueError, a traceback
+    src = lab / ("track.csv" if command == "fit" else "rec.tif")
+    out = lab / ("f.json" if command == "fit" else "m")
+    _refused([command, src, "--setup", lab / "setup.toml", "--out", out, "--monte-carlo", 3,
+              "--seed", -1], capsys, "--seed", "-1")
+    assert not out.exists()
