@@ -256,7 +256,14 @@ def setup_from_recording(source) -> Setup:
         try:
             data = json.loads(data)
         except ValueError:
-            data = tomllib.loads(data)
+            try:
+                data = tomllib.loads(data)
+            except tomllib.TOMLDecodeError as exc:
+                raise SetupError(f"{source.name} attrs['setup']: neither JSON nor valid TOML "
+                                 f"({exc})") from None
+    if not isinstance(data, dict):
+        raise SetupError(f"{source.name} attrs['setup']: a table of the setup file's sections "
+                         f"wanted, got {type(data).__name__}")
     return setup_from_dict(dict(data), source=f"{source.name} attrs['setup']")
 
 

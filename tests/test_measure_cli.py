@@ -122,6 +122,22 @@ def test_measure_zarr_with_setup_in_attrs(tmp_path):
     assert fit["background"] == "stored in the recording" and fit["n_found"] == 120
 
 
+@pytest.mark.parametrize("stored", ["radius_mm = [", "[1, 2]", "85.3"])
+def test_measure_zarr_with_a_bad_setup_in_attrs(tmp_path, capsys, stored):
+    # audit 2026-11-24: a setup attribute that is neither JSON nor TOML ended in tomllib's
+    # error, one that is JSON but no table in dict()'s: tracebacks
+    rec = make_recording(20)
+    p = tmp_path / "rec.zarr"
+    g = zarr.open_group(str(p), mode="w")
+    g.create_array("frames", data=np.stack(rec.frames), chunks=(1,) + rec.frames[0].shape)
+    g.attrs["setup"] = stored
+    out = tmp_path / "o"
+    assert main(["measure", str(p), "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "rec.zarr attrs['setup']" in err and "Traceback" not in err
+    assert not out.exists()
+
+
 def test_center_outside_frame_with_center_px(tmp_path):
     # the trough axis above the frame, its contour not visible (plain backdrop): center_px
     # gives the centre
