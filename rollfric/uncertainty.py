@@ -51,7 +51,7 @@ from scipy import optimize
 from rollfric import cpus, eom
 from rollfric.errors import InputError
 from rollfric.hac import autocorrelation, hac_covariance  # noqa: F401 (re-exported)
-from rollfric.setup import LAB_KEYS, Setup
+from rollfric.setup import LAB_KEYS, Setup, SetupError
 
 COVERAGE_FACTOR = 2.0
 # parameter -> (lower, upper, typical scale) of the local re-fits (as in rollfric.fit)
@@ -366,7 +366,15 @@ def _moved(setup: Setup, field: str, component, delta_lab: float, factor: float)
         c = list(setup.center_px)
         c[component] += delta_lab
         return dataclasses.replace(setup, center_px=tuple(c))
-    return dataclasses.replace(setup, **{field: getattr(setup, field) + delta_lab * factor})
+    try:
+        return dataclasses.replace(setup, **{field: getattr(setup, field) + delta_lab * factor})
+    except SetupError as exc:  # a _u as large as its value: name the key, not the field
+        section, key, scale = LAB_KEYS[field]
+        raise SetupError(
+            f"{section}.{key}_u = {setup.u(field) * scale:g}: the uncertainty budget re-fits "
+            f"with {section}.{key} = {getattr(setup, field) * scale:g} moved by "
+            f"{delta_lab:+g}, which is no setup ({exc}): is its standard uncertainty that "
+            "large?") from None
 
 
 def _acts(meas: Measurement, field: str) -> str:

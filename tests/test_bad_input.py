@@ -206,3 +206,17 @@ def test_a_negative_seed_is_bad_input(lab, capsys, command):
     _refused([command, src, "--setup", lab / "setup.toml", "--out", out, "--monte-carlo", 3,
               "--seed", -1], capsys, "--seed", "-1")
     assert not out.exists()
+
+
+def test_an_uncertainty_as_large_as_its_value_is_named(lab, capsys):
+    # audit 2026-11-24: fps_u = 1e5 on 200 Hz (or a radius_mm_u that leaves no room for the
+    # ball) failed in the budget's re-fit with "fps must be a positive number, got -99800.0",
+    # naming neither the setup's key nor its _u
+    text = (lab / "setup.toml").read_text()
+    for old, new, key in (("fps = ", "fps_u = 1e5\nfps = ", "camera.fps_u"),
+                          ("radius_mm = ", "radius_mm_u = 84\nradius_mm = ",
+                           "cylinder.radius_mm_u")):
+        (lab / "big_u.toml").write_text(text.replace(old, new, 1))
+        _refused(["fit", lab / "track.csv", "--setup", lab / "big_u.toml", "--out",
+                  lab / "f.json"], capsys, key, "uncertainty budget")
+        assert not (lab / "f.json").exists()
