@@ -149,7 +149,10 @@ def _run(args) -> int:
     from rollfric.uncertainty import check_arguments, measurement_from_track, run_budget
 
     out = Path(args.out)
-    check_not_input(out, (args.recording, args.setup, args.background))
+    inputs = (args.recording, args.setup, args.background)
+    check_not_input(out, inputs)
+    for name in OUTPUTS:  # --overwrite replaces or removes these: never an input of this run
+        check_not_input(out / name, inputs, what="the output")
     check_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure")
 
     frames = None

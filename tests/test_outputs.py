@@ -224,6 +224,25 @@ def test_measure_never_mixes_old_and_new_outputs(lab, capsys):
     assert _measure(lab, lab / "empty") == 0
 
 
+def test_measure_never_replaces_or_removes_an_input_named_like_its_output(lab, capsys):
+    # audit 2026-11-24: a background image named fit.png inside --out was removed by
+    # --overwrite (an own output not written this time), and replaced by the plot with --plot
+    out = lab / "m"
+    out.mkdir()
+    import cv2
+    import tifffile
+
+    bg = out / "fit.png"
+    cv2.imwrite(str(bg), tifffile.imread(lab / "bg.tif"))
+    before = _snapshot(out)
+    for extra in (("--overwrite",), ("--overwrite", "--plot")):
+        code = main(["measure", str(lab / "rec.tif"), "--setup", str(lab / "setup.toml"),
+                     "--background", str(bg), "--out", str(out), "--no-progress", *extra])
+        err = capsys.readouterr().err
+        assert code == 2 and "is an input" in err and "fit.png" in err, err
+        assert _snapshot(out) == before
+
+
 def test_measure_removes_what_a_killed_run_left(lab):
     out = lab / "m"
     left = _kill_inside_replacing(out, folder=True)
