@@ -175,12 +175,23 @@ def _round_rate(fps: float) -> bool:
                                                    7.5, 8, 10))
 
 
-def _period_reason(tp_t, tp_y, setup, unit_fps: float) -> Reason | None:
-    """Compare the half-periods between turning points with L = R - r's."""
+def _period_reason(tp_t, tp_y, setup, unit_fps: float, t_data=None) -> Reason | None:
+    """Compare the half-periods between turning points with L = R - r's; with ``t_data``
+    (the times of the samples) only the half-swings the samples cover without a gap of a
+    quarter of the small-angle half-period: turning points inside a gap are not seen."""
     if len(tp_t) < 3:
         return None
-    amps = 0.5 * np.abs(np.diff(tp_y))
-    measured = float(tp_t[-1] - tp_t[0])
+    keep = np.ones(len(tp_t) - 1, bool)
+    if t_data is not None:
+        t_data = np.sort(np.asarray(t_data, dtype=float))
+        half = math.pi / math.sqrt(eom.omega_squared(setup.track_radius, setup.gravity))
+        big = np.nonzero(np.diff(t_data) > 0.25 * half)[0]
+        for a, b in zip(t_data[big], t_data[big + 1], strict=True):
+            keep &= ~((tp_t[1:] >= a) & (tp_t[:-1] <= b))
+        if keep.sum() < 2:
+            return None
+    amps = (0.5 * np.abs(np.diff(tp_y)))[keep]
+    measured = float(np.diff(tp_t)[keep].sum())
     L, g = setup.track_radius, setup.gravity
     expected = sum(half_period_frictionless(a, L, g) for a in amps)
     rho = measured / expected
@@ -328,7 +339,7 @@ def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "co
                                   f" {need} are needed to tell {what} apart (without a turning "
                                   "point the friction shifts the swing's centre just as an "
                                   "offset does): record longer"))
-        period = _period_reason(tp_t, tp_y, setup, setup.fps)
+        period = _period_reason(tp_t, tp_y, setup, setup.fps, t_data=t[good])
         if period is not None:
             reasons.append(period)
     return reasons

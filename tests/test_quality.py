@@ -84,6 +84,24 @@ def test_period_names_the_frame_rate_or_the_radius():
     assert "80.3" in p.message  # the L the swings fit (mm)
 
 
+def test_a_gap_over_whole_swings_is_no_period_error():
+    # audit 2026-11-24: a track missing 1.5 s (the turning points in it unseen) was suspect
+    # with "period" (+100 %, "check camera.fps") though every sample fitted the truth
+    setup = thesis_setup("10mm")
+    y = truth(setup, 0.0079, 20) + np.random.default_rng(1).normal(0, 3e-5, T4.size)
+    keep = (T4 < 1.0) | (T4 >= 2.5)
+    r = fit_mu(T4[keep], y[keep], setup)
+    assert r.quality == "ok", [q.message for q in r.quality_reasons]
+    assert r.mu == pytest.approx(0.0079, rel=1e-3)
+    # the same gap as empty angles (a track's lost frames)
+    assert fit_mu(T4, np.where(keep, y, np.nan), setup).quality == "ok"
+    # a wrong radius is still found in the half-swings the samples cover
+    late = np.where((T4 < 3.0) | (T4 >= 3.5), y, np.nan)
+    r = fit_mu(T4, late, setup.replace(cylinder_radius=setup.cylinder_radius * 1.08))
+    (p,) = [q for q in r.quality_reasons if q.code == "period"]
+    assert "cylinder.radius_mm" in p.message
+
+
 def test_a_model_that_does_not_describe_the_data_is_suspect():
     setup = thesis_setup("12.69mm")
     y = truth(setup, 0.005, 25, mu1=0.004) + np.random.default_rng(2).normal(0, 3e-5, T4.size)
