@@ -302,7 +302,9 @@ def initial_guess(t, theta, setup: Setup) -> dict:
 
 
 def _relative_error(model, data):
-    return float(np.sum(np.abs(model - data)) / np.sum(np.abs(data)))
+    den = float(np.sum(np.abs(data)))
+    # angles all 0 (a ball that never moved): no relative error (NaN, null in fit.json)
+    return float(np.sum(np.abs(model - data))) / den if den > 0 else math.nan
 
 
 def _stderr(jac: np.ndarray, res: np.ndarray) -> np.ndarray:

@@ -242,3 +242,14 @@ def test_swing_coverage_counts_a_release_lost_before_the_first_located_frame():
     # the k frames before the first located one are lost frames of the right side's outer half
     assert cov["right"][1] - cov["right"][0] == k
     assert cov["left"] == full["left"]
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+@pytest.mark.parametrize("method", ["lsq", "paper2_grid"])
+def test_a_ball_that_never_moved_is_suspect_without_a_numpy_warning(method):
+    # audit 2026-11-24: angles all 0 printed NumPy's "invalid value encountered in scalar
+    # divide" (the thesis's relative error, sum |model - data| / sum |data|) on stderr
+    setup = thesis_setup("10mm")
+    r = fit_mu(T4[:1000], np.zeros(1000), setup, method=method)
+    assert r.quality == "suspect" and "mu_bound" in codes(r)
+    assert math.isnan(r.relative_error)
