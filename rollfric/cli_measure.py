@@ -79,8 +79,9 @@ OUTPUTS = {"track.csv": "file", "fit.json": "file", "fit.png": "file", "budget.p
 
 def remove_legacy_leftovers(out) -> list:
     """Remove the hidden ``.DIR.XXXXXXXX`` folders that earlier versions of measure left beside
-    DIR when killed (named by tempfile.mkdtemp, without a PID): only folders that hold nothing
-    but measure's own output names (or temporary files) are removed.
+    DIR when killed (named by tempfile.mkdtemp, without a PID): only folders made as mkdtemp
+    makes them (mode 0700) that hold nothing but measure's own output names (or temporary
+    files) are removed, so a user's ``.DIR.20261124`` of earlier results stays.
 
     Parameters
     ----------
@@ -94,6 +95,7 @@ def remove_legacy_leftovers(out) -> list:
     """
     import re
     import shutil
+    import stat
     from pathlib import Path
 
     out = Path(out)
@@ -105,6 +107,11 @@ def remove_legacy_leftovers(out) -> list:
         return removed
     for p in entries:
         if not (pat.match(p.name) and p.is_dir() and not p.is_symlink()):
+            continue
+        try:  # tempfile.mkdtemp makes its folders 0700: a user's ".DIR.20261124" is not one
+            if stat.S_IMODE(p.stat().st_mode) != 0o700:
+                continue
+        except OSError:
             continue
         names = [c.name for c in p.iterdir()]
         if all(n in OUTPUTS or n.startswith(".") and ".part-" in n for n in names):

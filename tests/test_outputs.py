@@ -246,12 +246,26 @@ def test_measure_never_replaces_or_removes_an_input_named_like_its_output(lab, c
 def test_measure_removes_what_a_killed_run_left(lab):
     out = lab / "m"
     left = _kill_inside_replacing(out, folder=True)
-    legacy = lab / ".m.abc123_x"  # older versions' tempfile.mkdtemp folder
-    legacy.mkdir()
+    legacy = lab / ".m.abc123_x"  # older versions' tempfile.mkdtemp folder (mode 0700)
+    legacy.mkdir(mode=0o700)
+    legacy.chmod(0o700)
     (legacy / "track.csv").write_text("half")
     assert _measure(lab, out) == 0
     assert not left.exists() and not legacy.exists()
     assert sorted(p.name for p in lab.iterdir() if p.name.startswith(".")) == []
+
+
+def test_measure_keeps_a_users_folder_named_like_a_legacy_leftover(lab):
+    # audit 2026-11-24: a user's ".m.20261124" holding the track.csv and fit.json of an earlier
+    # run (a mkdtemp-like name) was removed by the next measure into m, without --overwrite
+    mine = lab / ".m.20261124"
+    mine.mkdir()
+    mine.chmod(0o755)
+    (mine / "track.csv").write_text("mine")
+    (mine / "fit.json").write_text("mine")
+    assert _measure(lab, lab / "m") == 0
+    assert (mine / "track.csv").read_text() == "mine"
+    assert (mine / "fit.json").read_text() == "mine"
 
 
 def test_simulate_outputs(tmp_path, capsys):
