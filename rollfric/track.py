@@ -1528,7 +1528,7 @@ def resolve_offset(offset, t, theta, setup: Setup, fit_method: str = "lsq") -> t
     setup : Setup
         The setup.
     fit_method : str
-        The fitting method; "paper1_eps" has no offset.
+        The fitting method; "paper1_eps" and "paper2_grid" have no offset.
 
     Returns
     -------
@@ -1546,6 +1546,6 @@ def resolve_offset(offset, t, theta, setup: Setup, fit_method: str = "lsq") -> t
         return offset, "asked for" if offset else "not asked for"
     if offset != "auto":
         raise InputError(f"offset must be true, false or 'auto', got {offset!r}")
-    if fit_method == "paper1_eps":
-        return False, "the paper1_eps method has no offset"
+    if fit_method in ("paper1_eps", "paper2_grid"):  # the thesis's procedures have none
+        return False, f"the {fit_method} method has no offset"
     return offset_supported(t, theta, setup)

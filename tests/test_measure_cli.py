@@ -109,6 +109,27 @@ def test_measure_with_thesis_locators(tmp_path, method):
     assert np.median(err) < (1.5 if method == "thesis-large" else 0.5 * rec.scene.r_px + 1)
 
 
+@pytest.mark.parametrize("fit_method", ["paper2_grid", "paper1_eps"])
+def test_measure_with_the_thesis_fits_by_default(tmp_path, capsys, fit_method):
+    # audit 2026-11-24: with the default --offset auto a track of three turning points or more
+    # turned the offset on for paper2_grid, which has none: every such measure ended in exit 2
+    # ("paper2_grid fits no angle offset") after the tracking
+    rec = make_recording(300, theta0=0.3)
+    path = _write(rec, tmp_path)
+    out = tmp_path / "o"
+    code = main(["measure", str(path), "--setup", str(tmp_path / "setup.toml"), "--background",
+                 str(tmp_path / "bg.tif"), "--out", str(out), "--no-progress", "--fit-method",
+                 fit_method])
+    err = capsys.readouterr().err
+    assert code in (0, 3), err
+    fit = json.loads((out / "fit.json").read_text())
+    assert fit["method"] == fit_method and fit["offset_fitted"] is False
+    assert f"the {fit_method} method has no offset" == fit["offset_reason"]
+    # the thesis's procedures at 17 deg (paper 1's is a small-angle model): measured 0.0203
+    # (paper2_grid) and 0.0225 (paper1_eps) for 0.02
+    assert fit["mu"] == pytest.approx(0.02, rel=0.15)
+
+
 def test_measure_zarr_with_setup_in_attrs(tmp_path):
     rec = make_recording(120, theta0=0.4)
     p = tmp_path / "rec.zarr"
