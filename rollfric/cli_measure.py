@@ -172,6 +172,9 @@ def _run(args) -> int:
     if args.median_frames < 3:
         raise InputError(f"--median-frames must be at least 3, got {args.median_frames}")
     check_arguments(args)
+    if args.offset == "on" and args.fit_method == "paper2_grid":  # refused before the tracking
+        raise InputError("--offset: paper2_grid fits no angle offset (the thesis's procedure "
+                         "has none)")
     track, info, result = measure(args.recording, args.setup, args.background, method=args.method,
                             angle=args.angle, fit_method=args.fit_method,
                                   offset={"on": True, "off": False}.get(args.offset, "auto"),

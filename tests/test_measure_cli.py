@@ -239,3 +239,16 @@ def test_bad_inputs_exit_2_and_write_nothing(tmp_path, capsys):
     _bad(tmp_path, capsys, [path, "--setup", tmp_path / "nope.toml"], "nope.toml")
     _bad(tmp_path, capsys, [path, "--setup", setup, "--background", bg, "--plot",
                             "--overlay-frames", "5,999"], "999")
+
+
+def test_measure_refuses_offset_with_paper2_grid_before_reading(tmp_path, capsys):
+    # audit 2026-11-24: --offset with --fit-method paper2_grid was refused only after the
+    # whole recording was tracked; now before it is opened (a missing one is not even noticed)
+    rec = make_recording(20)
+    save_setup(rec.setup, tmp_path / "setup.toml")
+    code = main(["measure", str(tmp_path / "missing.tif"), "--setup", str(tmp_path / "setup.toml"),
+                 "--out", str(tmp_path / "o"), "--no-progress", "--fit-method", "paper2_grid",
+                 "--offset"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--offset: paper2_grid fits no angle offset" in err, err
+    assert not (tmp_path / "o").exists()
