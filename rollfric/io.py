@@ -438,10 +438,16 @@ def check_background(background: np.ndarray, source, what: str = "background") -
     Raises
     ------
     RecordingError
-        Its size differs from the frames'.
+        Its size or bit depth differs from the frames'.
     """
     bg = _to_gray(np.asarray(background), what)
     if bg.shape != tuple(source.shape[1:]):
         raise RecordingError(f"{what} is {bg.shape[1]}x{bg.shape[0]} px but the frames are "
                              f"{source.shape[2]}x{source.shape[1]} px")
+    dt = getattr(source, "dtype", None)
+    # 0..255 against 0..65535 finds no ball (the byte order does not matter here)
+    if dt is not None and np.dtype(dt).itemsize != bg.dtype.itemsize:
+        raise RecordingError(f"{what} is {8 * bg.dtype.itemsize}-bit but the frames are "
+                             f"{8 * np.dtype(dt).itemsize}-bit: give a background of the "
+                             "recording's bit depth")
     return bg

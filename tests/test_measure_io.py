@@ -255,3 +255,18 @@ def test_measure_of_a_tiff_cut_between_pages_writes_nothing(tmp_path, capsys):
     assert code == 2, err
     assert "cut.tif" in err and "only 40 whole page(s)" in err and "Traceback" not in err
     assert not (lab / "out").exists()
+
+
+def test_a_background_of_another_bit_depth_is_refused(tmp_path):
+    # audit 2026-11-24: a 16-bit background for 8-bit frames (or the reverse) ended in "the
+    # ball was found in none of the frames" after tracking them all
+    tifffile.imwrite(tmp_path / "rec8.tif", FR8)
+    tifffile.imwrite(tmp_path / "rec16.tif", FR16)
+    src8, src16 = open_recording(tmp_path / "rec8.tif"), open_recording(tmp_path / "rec16.tif")
+    with pytest.raises(RecordingError, match="is 16-bit but the frames are 8-bit"):
+        check_background(FR16[0], src8)
+    with pytest.raises(RecordingError, match="is 8-bit but the frames are 16-bit"):
+        check_background(FR8[0], src16)
+    # the byte order is no bit depth: a big-endian stack with a native background
+    tifffile.imwrite(tmp_path / "be.tif", FR16.astype(">u2"), byteorder=">")
+    check_background(FR16[0], open_recording(tmp_path / "be.tif"))
