@@ -206,11 +206,10 @@ def check_outputs(out, *, plot: bool, overwrite: bool, inputs=()):
         ``overwrite`` (the figures checked only with ``plot`` or ``overwrite``) or cannot be
         written.
     """
-    from pathlib import Path
 
-    from rollfric.outputs import check_distinct, check_file, check_not_input
+    from rollfric.outputs import check_distinct, check_file, check_not_input, named
 
-    out = Path(out)
+    out = named(out)  # "." and "..": a folder, refused as one by check_file
     png = out.with_suffix(".png")
     budget_png = out.with_name(out.stem + "_budget.png")
     check_distinct([out, png, budget_png], "--out and its figures (--plot)")

@@ -146,16 +146,15 @@ def run(args) -> int:
 
 
 def _run(args) -> int:
-    from pathlib import Path
 
     from rollfric.cli_fit import report_quality
     from rollfric.errors import InputError
     from rollfric.fit import save_fit
-    from rollfric.outputs import check_folder, check_not_input, staged_folder
+    from rollfric.outputs import check_folder, check_not_input, named, staged_folder
     from rollfric.track import TRACK_COLUMNS, measure
     from rollfric.uncertainty import check_arguments, measurement_from_track, run_budget
 
-    out = Path(args.out)
+    out = named(args.out)  # "." and "..": the folder by its name
     inputs = (args.recording, args.setup, args.background)
     check_not_input(out, inputs)
     for name in OUTPUTS:  # --overwrite replaces or removes these: never an input of this run

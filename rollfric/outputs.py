@@ -47,6 +47,35 @@ def _existing_ancestor(path: Path, what: str) -> Path:
     return anc
 
 
+def named(path: str | Path, what: str = "--out") -> Path:
+    """An output path that has a name to write beside: ``.``, ``..`` and ``""`` (the folder
+    the command runs in, its parent) made absolute.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The output as given.
+    what : str, optional
+        How the message names the output.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``, absolute when its last part is ``.`` or ``..``.
+
+    Raises
+    ------
+    OutputError
+        The path is the file system's root, beside which nothing can be staged.
+    """
+    p = Path(path)
+    if p.name in ("", ".", ".."):
+        p = Path(os.path.abspath(p))
+        if not p.name:
+            raise OutputError(f"{what} {path}: the root folder cannot be an output")
+    return p
+
+
 def check_file(path: str | Path, *, overwrite: bool, what: str = "--out") -> Path:
     """Check, before any work, that a command may write the file ``path``.
 

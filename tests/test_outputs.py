@@ -470,3 +470,20 @@ def test_read_only_folder_is_refused_with_a_message(lab, capsys):
         assert sorted(p.name for p in ro.iterdir()) == ["m"]
     finally:
         _writable(ro)
+
+
+def test_the_folder_the_command_runs_in_as_out(lab, monkeypatch, capsys):
+    # audit 2026-11-24: --out . (or "") ended in pathlib's "PosixPath('.') has an empty name",
+    # a traceback: for measure after the whole measurement, for fit before the fit
+    here = lab / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    for out in (".", ""):
+        assert _fit(lab, out) == 2
+        err = capsys.readouterr().err
+        assert "is a folder" in err and "Traceback" not in err
+    assert _measure(lab, ".") == 0
+    assert sorted(p.name for p in here.iterdir()) == ["fit.json", "track.csv"]
+    assert _measure(lab, "") == 2
+    assert "not empty" in capsys.readouterr().err
+    assert [p.name for p in lab.iterdir() if p.name.startswith(".")] == []
