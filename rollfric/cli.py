@@ -209,12 +209,26 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
+def _name_outputs(args) -> None:
+    """``--out .`` (or ``..``, ``--export .``) as the folder it names: a path without a name
+    ends in pathlib's ValueError where a command stages its output beside it."""
+    from pathlib import Path
+
+    from rollfric.outputs import named
+
+    for key in ("out", "export"):
+        value = getattr(args, key, None)
+        if isinstance(value, str) and value and Path(value).name in ("", ".", ".."):
+            setattr(args, key, str(named(value, f"--{key}")))
+
+
 def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args, unknown = parser.parse_known_args(argv)
     if unknown and not getattr(args, "accepts_any", False):
         parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
+        _name_outputs(args)
         result = args.func(args)
     except InputError as exc:
         print(f"rollfric {args.command}: error: {exc}", file=sys.stderr)

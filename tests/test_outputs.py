@@ -487,3 +487,13 @@ def test_the_folder_the_command_runs_in_as_out(lab, monkeypatch, capsys):
     assert _measure(lab, "") == 2
     assert "not empty" in capsys.readouterr().err
     assert [p.name for p in lab.iterdir() if p.name.startswith(".")] == []
+
+
+def test_every_command_names_the_folder_of_out_dot(tmp_path, monkeypatch, capsys):
+    # audit 2026-11-24: simulate --out . ended in pathlib's "has an empty name" too
+    monkeypatch.chdir(tmp_path)
+    for out in (".", ".."):
+        assert main(["simulate", "--seconds", "0.05", "--out", out]) == 2
+        err = capsys.readouterr().err
+        assert "is a folder" in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
