@@ -3,7 +3,8 @@
 A recording is one of
 
 - a multi-page TIFF (``.tif``/``.tiff``), one grayscale page per frame (tifffile);
-- a folder of image files (PNG, TIFF, BMP, JPEG, ...), frames sorted by file name (OpenCV);
+- a folder of image files (PNG, TIFF, BMP, JPEG, ...), frames in the natural order of the file
+  names (``img_9`` before ``img_10``; OpenCV);
 - a video file (``.avi``, ``.mp4``, ``.mkv``, ``.mov``), read in order (OpenCV VideoCapture);
 - a Phantom ``.cine`` file (:mod:`rollfric.formats.cine`) or a Photron ``.cih``/``.cihx`` header
   with its ``.mraw`` (:mod:`rollfric.formats.photron`), memory-mapped;
@@ -33,6 +34,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -61,17 +63,26 @@ class TiffSource(_Source):
     """A multi-page TIFF, one page a frame (or a single page holding a (T, H, W) stack)."""
 
     def __init__(self, path: Path) -> None:
+        import logging
+
         import tifffile
 
+        # tifffile logs what it finds wrong in a file's structure; the checks below refuse
+        # such a file with a message of their own, so its log line would only say it twice
+        tiff_log = logging.getLogger("tifffile")
+        tiff_log.addFilter(_drop_record)
         try:
-            self._tif = tifffile.TiffFile(path)
-            pages = self._tif.pages
-            n = len(pages)
-            first = pages.first
-            shape = tuple(first.shape)
-        except Exception as exc:  # tifffile raises several types for broken files
-            raise RecordingError(f"{path}: not a readable TIFF file ({exc})") from None
-        _check_ifd_chain(self._tif, path, n)
+            try:
+                self._tif = tifffile.TiffFile(path)
+                pages = self._tif.pages
+                n = len(pages)
+                first = pages.first
+                shape = tuple(first.shape)
+            except Exception as exc:  # tifffile raises several types for broken files
+                raise RecordingError(f"{path}: not a readable TIFF file ({exc})") from None
+            _check_ifd_chain(self._tif, path, n)
+        finally:
+            tiff_log.removeFilter(_drop_record)
         colour = len(shape) == 3 and shape[-1] in (3, 4)
         if not (len(shape) == 2 or colour or (n == 1 and len(shape) == 3)) \
                 or not all(isinstance(v, int) and v > 0 for v in shape):
@@ -134,6 +145,11 @@ class TiffSource(_Source):
         return np.ascontiguousarray(img[y0:y1, x0:x1], dtype=self.dtype)
 
 
+def _drop_record(record) -> bool:
+    """A logging filter that drops every record."""
+    return False
+
+
 def _check_ifd_chain(tif, path: Path, n: int) -> None:
     """Refuse a TIFF whose chain of page directories does not end: tifffile stops, with only a
     log line, at a next-page offset beyond the end of the file or at a directory it cannot read,
@@ -157,12 +173,37 @@ def _check_ifd_chain(tif, path: Path, n: int) -> None:
                              f"page(s) (truncated or corrupt file?)")
 
 
+def natural_key(name: str) -> tuple:
+    """Sort key of a file name in natural order: its runs of digits compared as numbers.
+
+    ``img_9.png`` comes before ``img_10.png`` (plain sorting puts it after, and a camera that
+    numbers its files without leading zeros would have its frames shuffled); names numbered with
+    leading zeros keep their plain order. Ties (``img_09`` and ``img_9``) fall back to the
+    plain name. As scikit-image's ``ImageCollection`` orders its files.
+
+    Parameters
+    ----------
+    name : str
+        A file name.
+
+    Returns
+    -------
+    tuple
+        ((text, number, text, ..., text), name): texts and numbers alternate, so two keys
+        never compare a text with a number.
+    """
+    parts = re.split(r"(\d+)", name)
+    return tuple(int(p) if i % 2 else p for i, p in enumerate(parts)), name
+
+
 class FolderSource(_Source):
-    """A folder of image files, frames in the order of the sorted file names."""
+    """A folder of image files, frames in the natural order of the file names
+    (:func:`natural_key`)."""
 
     def __init__(self, path: Path) -> None:
-        files = sorted(p for p in path.iterdir()
-                       if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+        files = sorted((p for p in path.iterdir()
+                        if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES),
+                       key=lambda p: natural_key(p.name))
         if not files:
             raise RecordingError(f"{path}: the folder holds no image files "
                                  f"({', '.join(IMAGE_SUFFIXES)})")

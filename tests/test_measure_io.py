@@ -1,5 +1,6 @@
 """Recording readers: every input format, 8 and 16 bit, and bad input."""
 
+import logging
 import math
 import os
 import sys
@@ -50,6 +51,56 @@ def test_png_folder_sorted_by_name(tmp_path, frames):
     assert src.shape == frames.shape and src.dtype == frames.dtype
     np.testing.assert_array_equal(src[4], frames[4])
     np.testing.assert_array_equal(np.stack(list(src)), frames)
+
+
+def test_folder_numbered_without_leading_zeros_in_natural_order(tmp_path):
+    # audit 2026-11-24: img_9.png sorted after img_10.png, so a camera numbering its files
+    # without leading zeros had its frames shuffled (exit 3, the period blamed on the setup)
+    frames = np.random.default_rng(3).integers(0, 255, (12, 24, 32), dtype=np.uint8)
+    for i, f in enumerate(frames):
+        cv2.imwrite(str(tmp_path / f"img_{i}.png"), f)
+    np.testing.assert_array_equal(np.stack(list(open_recording(tmp_path))), frames)
+
+
+def test_natural_key_orders_numbers_as_numbers():
+    from rollfric.io import natural_key
+
+    names = ["img_10.png", "img_", "img_9.png", "img_.png", "img_0009.png", "x2y10", "x2y9"]
+    assert sorted(names, key=natural_key) == ["img_", "img_0009.png", "img_9.png",
+                                             "img_10.png", "img_.png", "x2y9", "x2y10"]
+    # zero-padded names keep their plain order
+    padded = [f"f{i:05d}.tif" for i in (3, 100, 20, 7)]
+    assert sorted(padded, key=natural_key) == sorted(padded)
+
+
+def test_lzw_compressed_tiff_stack_as_opencv_writes_it(tmp_path):
+    # audit 2026-11-24: a multi-page TIFF from cv2.imwritemulti (LZW) was refused: tifffile
+    # needs imagecodecs to decode it, now a dependency
+    p = tmp_path / "cv.tif"
+    assert cv2.imwritemulti(str(p), list(FR8))
+    with tifffile.TiffFile(p) as tif:
+        assert tif.pages[0].compression == tifffile.COMPRESSION.LZW
+    src = open_recording(p)
+    assert len(src) == 5
+    np.testing.assert_array_equal(np.stack(list(src)), FR8)
+    np.testing.assert_array_equal(src.read(3, (2, 9, 5, 20)), FR8[3, 2:9, 5:20])
+
+
+def test_a_broken_tiff_is_refused_without_tifffiles_own_log_line(tmp_path, caplog):
+    p = tmp_path / "rec.tif"
+    with tifffile.TiffWriter(p) as tw:
+        for f in FR8:
+            tw.write(f, contiguous=False)
+    with tifffile.TiffFile(p) as tif:
+        page = tif.pages[2]
+        end = int(page.dataoffsets[0] + page.databytecounts[0])
+    cut = tmp_path / "cut.tif"
+    cut.write_bytes(p.read_bytes()[:end])
+    with caplog.at_level("DEBUG"), pytest.raises(RecordingError, match="cut.tif"):
+        open_recording(cut)
+    assert not [r for r in caplog.records if r.name.startswith("tifffile")]
+    # the filter is gone afterwards: tifffile's log is the user's again
+    assert not logging.getLogger("tifffile").filters
 
 
 @pytest.mark.parametrize("fourcc,lossless", [("FFV1", True), ("MJPG", False)])
