@@ -20,8 +20,9 @@ def register(sub) -> None:
     p = sub.add_parser(
         "fit", help=HELP, description=(
             "Fit the rolling friction coefficient mu (M = mu r N) to an angle series theta(t). "
-            "TRACK.csv needs columns t_s and theta_rad (others are ignored; rows with an empty "
-            "theta_rad, e.g. frames where no ball was found, are left out). Writes a JSON file "
+            "TRACK.csv needs columns t_s and theta_rad (others are ignored but found: rows with "
+            "an empty theta_rad or found = 0, e.g. frames where no ball was found, are left "
+            "out). Writes a JSON file "
             "with mu, mu_stderr, theta0_rad, omega0_rad_s, rms_residual_rad, method and more, "
             "and the quality checks' verdict (quality: ok or suspect, quality_reasons). Exit "
             "status 0: ok; 2: bad input (nothing written); 3: a suspect fit (written, the "
@@ -80,6 +81,10 @@ def add_budget_arguments(parser) -> None:
 def read_track(path):
     """t_s and theta_rad columns of a track CSV, as float arrays (empty cells -> NaN).
 
+    A ``found`` column (as ``rollfric measure`` writes it) is honoured: a row marked 0 is left
+    out like an empty angle (a warning says how many had an angle), so frames can be struck
+    out by hand.
+
     Parameters
     ----------
     path : str or os.PathLike
@@ -96,8 +101,12 @@ def read_track(path):
     ------
     rollfric.errors.InputError
         If the file is missing, a folder or not a readable CSV, lacks a column, holds a
-        non-numeric value, or fails :func:`check_track`.
+        non-numeric value or a ``found`` other than 1/0/true/false, or fails
+        :func:`check_track`.
     """
+    import logging
+
+    import numpy as np
     import pandas as pd
 
     from rollfric.errors import InputError
@@ -120,7 +129,21 @@ def read_track(path):
         theta = pd.to_numeric(df["theta_rad"], errors="raise").to_numpy(float)
     except (ValueError, TypeError) as exc:
         raise InputError(f"{path}: non-numeric value in t_s or theta_rad: {exc}") from None
+    if "found" in df.columns:  # rollfric measure's column: a row marked 0 is not a sample
+        found = df["found"].map(lambda v: _FOUND.get(str(v).strip().lower()))
+        if found.isna().any():
+            i = int(np.flatnonzero(found.isna().to_numpy())[0])
+            raise InputError(f"{path}: row {i + 1} has found = {df['found'].iloc[i]!r}; "
+                             "found must be 1 or 0 (true or false)")
+        dropped = ~found.to_numpy(bool) & np.isfinite(theta)
+        if dropped.any():
+            logging.getLogger(__name__).warning(
+                f"{path}: {int(dropped.sum())} row(s) with found = 0 and an angle left out")
+            theta = np.where(dropped, np.nan, theta)
     return check_track(t, theta, path)
+
+
+_FOUND = {"1": True, "true": True, "1.0": True, "0": False, "false": False, "0.0": False}
 
 
 def check_track(t, theta, path, fps: float | None = None):

@@ -115,6 +115,31 @@ def test_cli_fit_writes_json_and_plot(tmp_path):
     assert (tmp_path / "fit.png").stat().st_size > 10000
 
 
+def test_cli_fit_leaves_out_rows_marked_found_0(tmp_path, capsys):
+    # audit 2026-11-24: a frame struck out by hand (found = 0, its angle kept) was fitted
+    setup = thesis_setup("10mm")
+    save_setup(setup, tmp_path / "setup.toml")
+    y = truth(setup, 0.0079, 20)
+    bad = np.zeros(T4.size, bool)
+    bad[1000:1300] = True  # 0.3 s of angles 0.05 rad off, marked found = 0
+    y = np.where(bad, y + 0.05, y)
+    lines = ["frame,t_s,theta_rad,found"] + [
+        f"{i},{a:.17g},{b:.17g},{0 if k else 1}"
+        for i, (a, b, k) in enumerate(zip(T4, y, bad, strict=True))]
+    (tmp_path / "track.csv").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "fit.json"
+    args = ["fit", str(tmp_path / "track.csv"), "--setup", str(tmp_path / "setup.toml"),
+            "--out", str(out)]
+    assert main(args) == 0
+    assert json.loads(out.read_text())["mu"] == pytest.approx(0.0079, rel=1e-5)
+    assert "300 row(s) with found = 0 and an angle left out" in capsys.readouterr().err
+    # a found that is neither 1 nor 0 is bad input naming the row
+    lines[5] = lines[5].rsplit(",", 1)[0] + ",yes"
+    (tmp_path / "track.csv").write_text("\n".join(lines) + "\n")
+    assert main(args + ["--overwrite"]) == 2
+    assert "row 5 has found = 'yes'" in capsys.readouterr().err
+
+
 def test_cli_fit_bad_input_writes_nothing(tmp_path, capsys):
     save_setup(thesis_setup("10mm"), tmp_path / "setup.toml")
     (tmp_path / "track.csv").write_text("time,angle\n0,0\n")
