@@ -19,6 +19,11 @@ from rollfric.errors import InputError
 from rollfric.lens import Calibration
 
 MIN_VIEWS = 3
+# The rms reprojection error above which a calibration is written but called suspect (exit 3):
+# sub-pixel chessboard corners fit OpenCV's model to ~0.1-0.5 px, and more than 1 px means the
+# corners or the model do not fit (motion blur, a board that is not flat, a lens the model
+# cannot take) - OpenCV's tutorials take an error "as close to zero as possible", under 1 px.
+MAX_RMS_PX = 1.0
 SQUARE_RANGE = (1e-6, 1.0)  # m: the side of a chessboard square, 1 um .. 1 m
 
 
@@ -114,5 +119,6 @@ def calibrate_chessboard(images, board: tuple[int, int], square: float,
     matrix_u = [[std[0], 0.0, std[2]], [0.0, std[1], std[3]], [0.0, 0.0, 0.0]]
     return ChessboardCalibration(
         calibration=Calibration(matrix=K.tolist(), distortion=D.ravel()[:5].tolist(),
-                                matrix_u=matrix_u, distortion_u=std[4:9].tolist()),
+                                matrix_u=matrix_u, distortion_u=std[4:9].tolist(),
+                                image_size=tuple(int(v) for v in size)),
         rms_px=float(rms), used=tuple(used), skipped=tuple(skipped), image_size=size)

@@ -21,8 +21,11 @@ def register(sub) -> None:
             " + cv2.calibrateCamera) and write the [camera] keys matrix and distortion that a "
             "setup file takes; rollfric measure then undistorts located centres and the trough's"
             " contour with them. Take 10-20 views of the board filling different parts of the "
-            "frame, tilted, with the recording's lens, focus and resolution. Nothing is written "
-            "when the input is bad (exit status 2)."),
+            "frame, tilted, with the recording's lens, focus and resolution (the table states the "
+            "images' size, image_size_px, and measure refuses frames of another size). Exit "
+            "status 0: written; 2: bad input, nothing written; 3: written, but the rms "
+            "reprojection error is over 1 px (the corners or the model do not fit: blur, a "
+            "board that is not flat, a lens the model cannot take)."),
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("images", nargs="+", metavar="IMAGE", help="chessboard images (any format "
                    "rollfric reads: PNG, TIFF, ...)")
@@ -49,7 +52,8 @@ def run(args) -> int:
     Returns
     -------
     int
-        Exit status 0.
+        Exit status 0, or 3 when the rms reprojection error is over
+        :data:`rollfric.calibrate.MAX_RMS_PX` (the table is written all the same).
 
     Raises
     ------
@@ -58,10 +62,11 @@ def run(args) -> int:
         without ``--overwrite``, an image cannot be read, or the calibration refuses the
         input.
     """
+    import sys
     from pathlib import Path
 
     from rollfric.atomic import write_text
-    from rollfric.calibrate import calibrate_chessboard
+    from rollfric.calibrate import MAX_RMS_PX, calibrate_chessboard
     from rollfric.errors import InputError
     from rollfric.io import read_image
     from rollfric.outputs import check_file, check_not_input
@@ -78,9 +83,14 @@ def run(args) -> int:
     res = calibrate_chessboard(images, (cols, rows), args.square_mm * 1e-3, names=args.images,
                                free_k3=args.free_k3)
     cal = res.calibration
+    suspect = res.rms_px > MAX_RMS_PX
+    reason = (f"rms reprojection error {res.rms_px:.3f} px is over {MAX_RMS_PX:g} px: the "
+              "corners or the model do not fit (motion blur, a board that is not flat, a lens "
+              "the model cannot take; --free-k3 for a wide-angle lens)")
     lines = [f"# rollfric calibrate: {cols} x {rows} inner corners, {args.square_mm:g} mm squares;"
              f" board found in {len(res.used)} of {len(args.images)} images; rms reprojection "
              f"error {res.rms_px:.3f} px; {res.image_size[0]} x {res.image_size[1]} px",
+             *([f"# suspect: {reason}"] if suspect else []),
              "[camera]",
              "matrix = [" + ", ".join("[" + ", ".join(repr(float(v)) for v in r) + "]"
                                      for r in cal.matrix) + "]",
@@ -90,6 +100,8 @@ def run(args) -> int:
              "matrix_u = [" + ", ".join("[" + ", ".join(repr(float(v)) for v in r) + "]"
                                        for r in cal.matrix_u) + "]",
              "distortion_u = [" + ", ".join(repr(float(v)) for v in cal.distortion_u) + "]",
+             "# the images' size (width, height): rollfric measure refuses frames of another",
+             f"image_size_px = [{res.image_size[0]}, {res.image_size[1]}]",
              ""]
     write_text(out, "\n".join(lines))
     for name in res.skipped:
@@ -98,4 +110,7 @@ def run(args) -> int:
           f"({cal.matrix[0][2]:.1f}, {cal.matrix[1][2]:.1f}) px, k1 {cal.distortion[0]:+.4f}; "
           f"rms {res.rms_px:.3f} px over {len(res.used)} views -> {out} (copy its [camera] keys"
           " into the setup file)")
+    if suspect:
+        print(f"rollfric calibrate: suspect: {reason}", file=sys.stderr)
+        return 3
     return 0

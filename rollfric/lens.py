@@ -19,6 +19,7 @@ computed; ``pixel_size_mm`` is the scale of the undistorted image at the ball.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -42,12 +43,15 @@ class Calibration:
     (4, 5, 8, 12 or 14 coefficients, as OpenCV accepts), optionally with their standard
     uncertainties: ``matrix_u`` (3 x 3, px; only fx, fy, cx, cy may be > 0) and
     ``distortion_u`` (one per coefficient), as ``cv2.calibrateCameraExtended``'s
-    stdDeviationsIntrinsics give them (None: exact)."""
+    stdDeviationsIntrinsics give them (None: exact). ``image_size`` is (width, height) px of
+    the images it was made from (None: not stated): a calibration holds only for that size and
+    crop, and a recording of another size is refused (:func:`check_image_size`)."""
 
     matrix: tuple
     distortion: tuple
     matrix_u: tuple | None = None
     distortion_u: tuple | None = None
+    image_size: tuple | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -91,6 +95,14 @@ class Calibration:
                     f"camera.distortion_u must be {d.size} standard uncertainties (finite, >= "
                     f"0), one per distortion coefficient, got {self.distortion_u!r}")
             object.__setattr__(self, "distortion_u", tuple(float(v) for v in du))
+        if self.image_size is not None:
+            size = self.image_size
+            if (not isinstance(size, (list, tuple)) or len(size) != 2
+                    or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                               and math.isfinite(v) and v == int(v) and v > 0 for v in size)):
+                raise CalibrationError("camera.image_size_px must be [width, height], two "
+                                       f"positive whole numbers of pixels, got {size!r}")
+            object.__setattr__(self, "image_size", (int(size[0]), int(size[1])))
 
     def parameters(self) -> list:
         """The calibration's fitted parameters with their standard uncertainties: [(name,
@@ -133,7 +145,7 @@ class Calibration:
             m[r][c] += delta
         else:
             d[DISTORTION_NAMES.index(entry)] += delta
-        return Calibration(matrix=m, distortion=d)
+        return Calibration(matrix=m, distortion=d, image_size=self.image_size)
 
     @property
     def K(self) -> np.ndarray:
@@ -255,13 +267,46 @@ class Calibration:
         return np.hypot(*(self.distort(xy) - xy).reshape(-1, 2).T).reshape(xy.shape[:-1])
 
     def to_toml_dict(self) -> dict:
-        """The setup file's [camera] keys (``matrix_u``, ``distortion_u`` when known)."""
+        """The setup file's [camera] keys (``matrix_u``, ``distortion_u``, ``image_size_px``
+        when known)."""
         out = {"matrix": [list(r) for r in self.matrix], "distortion": list(self.distortion)}
+        if self.image_size is not None:
+            out["image_size_px"] = list(self.image_size)
         if self.matrix_u is not None:
             out["matrix_u"] = [list(r) for r in self.matrix_u]
         if self.distortion_u is not None:
             out["distortion_u"] = list(self.distortion_u)
         return out
+
+
+def check_image_size(calibration: Calibration | None, width: int, height: int) -> None:
+    """Refuse frames of another size than the lens calibration's images.
+
+    A camera matrix and distortion hold for the sensor window they were fitted on: on a
+    cropped or binned recording the optical centre and the distortion fall on other pixels,
+    and the undistorted centres (so mu) would be wrong without any other sign.
+
+    Parameters
+    ----------
+    calibration : Calibration or None
+        The setup's calibration; None, or one without ``image_size``, is not checked.
+    width, height : int
+        The frames' size, px.
+
+    Raises
+    ------
+    CalibrationError
+        If the sizes differ.
+    """
+    if calibration is None or calibration.image_size is None:
+        return
+    cw, ch = calibration.image_size
+    if (cw, ch) != (width, height):
+        raise CalibrationError(
+            f"the lens calibration (camera.matrix, camera.distortion) was made on {cw}x{ch} px "
+            f"images (camera.image_size_px) but the frames are {width}x{height} px: a "
+            "calibration holds only for the sensor window it was made at; calibrate again at "
+            "this size (rollfric calibrate), or fix camera.image_size_px if it is wrong")
 
 
 def _circle_centres(pts: np.ndarray) -> np.ndarray:
@@ -285,7 +330,8 @@ def calibration_from_dict(camera: dict, source: str = "setup") -> Calibration | 
     ----------
     camera : dict
         The setup file's [camera] table (keys ``matrix``, px, and ``distortion``, optionally
-        their standard uncertainties ``matrix_u`` and ``distortion_u``).
+        their standard uncertainties ``matrix_u`` and ``distortion_u`` and the calibration
+        images' size ``image_size_px``).
     source : str
         Name of the file or table, for messages.
 
@@ -302,6 +348,10 @@ def calibration_from_dict(camera: dict, source: str = "setup") -> Calibration | 
     """
     has_m, has_d = "matrix" in camera, "distortion" in camera
     if not has_m and not has_d:
+        if "image_size_px" in camera:
+            raise CalibrationError(f"{source}: camera.image_size_px is the size of the lens "
+                                   "calibration's images: it goes with camera.matrix and "
+                                   "camera.distortion")
         return None
     if has_m != has_d:
         raise CalibrationError(f"{source}: camera.matrix and camera.distortion go together "
@@ -322,6 +372,7 @@ def calibration_from_dict(camera: dict, source: str = "setup") -> Calibration | 
                                    f"like camera.{base}")
     try:
         return Calibration(matrix=m, distortion=d, matrix_u=camera.get("matrix_u"),
-                           distortion_u=camera.get("distortion_u"))
+                           distortion_u=camera.get("distortion_u"),
+                           image_size=camera.get("image_size_px"))
     except CalibrationError as exc:
         raise CalibrationError(f"{source}: {exc}") from None

@@ -289,7 +289,7 @@ _SCHEMA = {
     "cylinder": {"radius_mm": True, "center_px": False, "contour_depth_mm": False},
     "ball": {"diameter_mm": True, "mass_g": True},
     "camera": {"fps": True, "pixel_size_mm": True, "matrix": False, "distortion": False,
-               "working_distance_mm": False},
+               "image_size_px": False, "working_distance_mm": False},
     "environment": {"gravity_m_s2": False},
 }
 _REQUIRED_SECTIONS = ("cylinder", "ball", "camera")

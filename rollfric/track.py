@@ -279,10 +279,17 @@ def check_setup_fits(setup: Setup, shape: tuple[int, int, int]) -> None:
     Raises
     ------
     SetupError
-        The ball is under 1.5 px in radius or larger than the frame, or (with ``center_px``)
-        its track circle does not cross the frame.
+        The ball is under 1.5 px in radius or larger than the frame, (with ``center_px``)
+        its track circle does not cross the frame, or the lens calibration was made on images
+        of another size (:func:`rollfric.lens.check_image_size`).
     """
+    from rollfric.lens import CalibrationError, check_image_size
+
     _, h, w = shape
+    try:
+        check_image_size(setup.calibration, w, h)
+    except CalibrationError as exc:
+        raise SetupError(str(exc)) from None
     r = ball_radius_px(setup)
     if r < 1.5:
         raise SetupError(f"the setup's ball is {2 * r:.2f} px across (diameter "

@@ -17,16 +17,17 @@ D = [-0.2, 0.05, 0.0, 0.0, 0.0]
 BOARD, SQUARE = (7, 5), 0.02  # inner corners, m
 
 
-def _view(rvec, tvec, lens: Lens, w=640, h=480, ss=3) -> np.ndarray:
+def _view(rvec, tvec, lens: Lens, w=640, h=480, ss=3, k=None) -> np.ndarray:
     """The chessboard (8 x 6 squares of 20 mm, a white margin) at pose (rvec, tvec) through
-    ``lens``: ss x ss samples a pixel, each the board's colour where its ray meets the board."""
+    ``lens``: ss x ss samples a pixel, each the board's colour where its ray meets the board
+    (``k``: the camera matrix of the rays, ``K`` by default)."""
     R, _ = cv2.Rodrigues(np.asarray(rvec, float))
     M = np.column_stack([R[:, 0], R[:, 1], np.asarray(tvec, float)])
     Minv = np.linalg.inv(M)
     o = (np.arange(ss) + 0.5) / ss - 0.5
     v, u = np.mgrid[0:h, 0:w].astype(float)
     acc = np.zeros((h, w))
-    K_ = np.asarray(K)
+    K_ = np.asarray(K if k is None else k)
     for dy in o:
         for dx in o:
             pts = np.stack([u + dx, v + dy], axis=-1).reshape(-1, 2)
@@ -103,8 +104,32 @@ def test_chessboards_through_a_known_lens_give_it_back(views, tmp_path):
     np.testing.assert_allclose(back.matrix, cal.matrix, rtol=1e-6)
     np.testing.assert_allclose(back.matrix_u, cal.matrix_u, rtol=1e-4)
     np.testing.assert_allclose(back.distortion_u, cal.distortion_u, rtol=1e-4)
+    assert back.image_size == (640, 480)  # measure refuses frames of another size
     before = out.read_text()
     assert main(args) == 2 and out.read_text() == before
+
+
+def test_a_calibration_over_the_rms_limit_is_written_as_suspect(views, tmp_path, capsys,
+                                                               monkeypatch):
+    # the clean views fit to ~0.1 px; with the limit under that the command must say suspect
+    import rollfric.calibrate
+
+    paths = []
+    for k, img in enumerate(views):
+        path = tmp_path / f"board{k:02d}.png"
+        cv2.imwrite(str(path), img)
+        paths.append(str(path))
+    out = tmp_path / "camera.toml"
+    args = ["calibrate", *paths, "--board", "7x5", "--square-mm", "20", "--out", str(out)]
+    monkeypatch.setattr(rollfric.calibrate, "MAX_RMS_PX", 0.05)
+    assert main(args) == 3
+    err = capsys.readouterr().err
+    assert "suspect: rms reprojection error 0.1" in err and "over 0.05 px" in err
+    text = out.read_text()
+    assert "# suspect: rms reprojection error" in text and "image_size_px = [640, 480]" in text
+    monkeypatch.setattr(rollfric.calibrate, "MAX_RMS_PX", 1.0)
+    assert main([*args, "--overwrite"]) == 0
+    assert "suspect" not in out.read_text()
 
 
 def test_too_few_boards_is_bad_input(tmp_path):

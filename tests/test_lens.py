@@ -121,6 +121,38 @@ def test_setup_camera_calibration_keys():
             setup_from_dict(bad)
 
 
+def test_calibration_image_size_is_kept_and_checked_against_the_frames():
+    # audit 2026-11-24: a calibration made at another resolution or crop was applied to the
+    # frames without a check (its centre and distortion then fall on other pixels)
+    import tomllib
+
+    from rollfric.track import check_setup_fits
+
+    d = thesis_setup().to_toml_dict()
+    d["camera"].update(matrix=K, distortion=D, image_size_px=[1280, 1024])
+    s = setup_from_dict(d)
+    assert s.calibration.image_size == (1280, 1024)
+    assert setup_from_dict(tomllib.loads(dumps_setup(s))) == s
+    assert s.calibration.moved("distortion[k1]", 0.01).image_size == (1280, 1024)
+    check_setup_fits(s, (10, 1024, 1280))
+    with pytest.raises(SetupError, match=r"made on 1280x1024 px images \(camera.image_size_px\)"
+                                         r" but the frames are 640x512 px"):
+        check_setup_fits(s, (10, 512, 640))
+    # without the key nothing is checked (setups written before it)
+    d["camera"].pop("image_size_px")
+    check_setup_fits(setup_from_dict(d), (10, 512, 640))
+    for size in ([1280], [1280.5, 1024], [0, 1024], "1280x1024", [True, 1024]):
+        with pytest.raises(SetupError, match="image_size_px must be"):
+            setup_from_dict({**d, "camera": {**d["camera"], "image_size_px": size}})
+    no_lens = thesis_setup().to_toml_dict()
+    no_lens["camera"]["image_size_px"] = [1280, 1024]
+    with pytest.raises(SetupError, match="goes with camera.matrix"):
+        setup_from_dict(no_lens)
+    with pytest.raises(SetupError, match="image_size_px_u"):
+        setup_from_dict({**d, "camera": {**d["camera"], "image_size_px": [1280, 1024],
+                                         "image_size_px_u": [1, 1]}})
+
+
 def test_a_recording_through_a_lens_measured_with_and_without_its_calibration(tmp_path):
     """The whole-trough camera (0.4 mm/px) through the target's lens scaled to its frame
     (k1 = -0.18 at fx = 600 px for 320 px, as 2400 px for 1280: 0.4 px at the ball's path,
