@@ -413,6 +413,10 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
                            or not math.isfinite(zc)):
         raise SetupError(f"{source}: cylinder.contour_depth_mm must be a number (mm), "
                          f"got {zc!r}")
+    if wd is None and zc is not None:  # an orthographic camera sees every depth alike
+        raise SetupError(f"{source}: cylinder.contour_depth_mm is used only with "
+                         "camera.working_distance_mm (the perspective of a camera at that "
+                         "distance); give both, or neither")
     if wd is not None and zc is not None and not abs(zc) * 1e-3 < 0.5 * wd:
         raise SetupError(f"{source}: cylinder.contour_depth_mm ({zc:g}) must be nearer the "
                          f"ball's plane than half of camera.working_distance_mm")

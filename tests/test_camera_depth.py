@@ -101,6 +101,11 @@ def test_setup_depth_keys():
         bad = dict(d, **{sec: dict(d[sec], **{key: val})})
         with pytest.raises(SetupError, match=match):
             setup_from_dict(bad)
+    # audit 2026-11-24: a depth without the working distance did nothing, silently
+    no_wd = dict(d, camera={k: v for k, v in d["camera"].items() if k != "working_distance_mm"})
+    with pytest.raises(SetupError, match="contour_depth_mm is used only with "
+                                         "camera.working_distance_mm"):
+        setup_from_dict(no_wd)
 
 
 def test_tilted_camera_moves_the_trough_faces_by_the_half_length_times_sin():
