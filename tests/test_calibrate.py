@@ -54,6 +54,16 @@ POSES = [((0.0, 0.0, 0.0), (-0.07, -0.05, 0.45)),
          ((0.0, 0.0, 0.5), (0.01, -0.08, 0.38))]
 
 
+def _write_boards(views, folder) -> list[str]:
+    """The views as board00.png, board01.png, ... in ``folder``; their paths."""
+    paths = []
+    for k, img in enumerate(views):
+        path = folder / f"board{k:02d}.png"
+        cv2.imwrite(str(path), img)
+        paths.append(str(path))
+    return paths
+
+
 @pytest.fixture(scope="module")
 def views():
     lens = Lens(K, D)  # synth's numpy inverse: fast over whole images
@@ -87,11 +97,7 @@ def test_chessboards_through_a_known_lens_give_it_back(views, tmp_path):
         else:
             assert 0 < u and abs(value - true_values[name]) < 3 * u
     # the command: writes the [camera] keys a setup file takes, refuses to overwrite
-    paths = []
-    for k, img in enumerate(views):
-        path = tmp_path / f"board{k:02d}.png"
-        cv2.imwrite(str(path), img)
-        paths.append(str(path))
+    paths = _write_boards(views, tmp_path)
     out = tmp_path / "camera.toml"
     args = ["calibrate", *paths, "--board", "7x5", "--square-mm", "20", "--out", str(out)]
     assert main(args) == 0
@@ -114,11 +120,7 @@ def test_a_calibration_over_the_rms_limit_is_written_as_suspect(views, tmp_path,
     # the clean views fit to ~0.1 px; with the limit under that the command must say suspect
     import rollfric.calibrate
 
-    paths = []
-    for k, img in enumerate(views):
-        path = tmp_path / f"board{k:02d}.png"
-        cv2.imwrite(str(path), img)
-        paths.append(str(path))
+    paths = _write_boards(views, tmp_path)
     out = tmp_path / "camera.toml"
     args = ["calibrate", *paths, "--board", "7x5", "--square-mm", "20", "--out", str(out)]
     monkeypatch.setattr(rollfric.calibrate, "MAX_RMS_PX", 0.05)

@@ -53,6 +53,13 @@ def test_png_folder_sorted_by_name(tmp_path, frames):
     np.testing.assert_array_equal(np.stack(list(src)), frames)
 
 
+def _end_of_page(path, k: int) -> int:
+    """The byte offset just after page ``k``'s data in a TIFF file."""
+    with tifffile.TiffFile(path) as tif:
+        page = tif.pages[k]
+        return int(page.dataoffsets[0] + page.databytecounts[0])
+
+
 def test_folder_numbered_without_leading_zeros_in_natural_order(tmp_path):
     # audit 2026-11-24: img_9.png sorted after img_10.png, so a camera numbering its files
     # without leading zeros had its frames shuffled (exit 3, the period blamed on the setup)
@@ -91,9 +98,7 @@ def test_a_broken_tiff_is_refused_without_tifffiles_own_log_line(tmp_path, caplo
     with tifffile.TiffWriter(p) as tw:
         for f in FR8:
             tw.write(f, contiguous=False)
-    with tifffile.TiffFile(p) as tif:
-        page = tif.pages[2]
-        end = int(page.dataoffsets[0] + page.databytecounts[0])
+    end = _end_of_page(p, 2)
     cut = tmp_path / "cut.tif"
     cut.write_bytes(p.read_bytes()[:end])
     with caplog.at_level("DEBUG"), pytest.raises(RecordingError, match="cut.tif"):
@@ -271,9 +276,7 @@ def test_tiff_cut_between_two_pages_is_refused(tmp_path, contiguous):
         with tifffile.TiffWriter(p) as tw:
             for f in big:
                 tw.write(f, contiguous=False)
-    with tifffile.TiffFile(p) as tif:
-        page = tif.pages[3]
-        end = int(page.dataoffsets[0] + page.databytecounts[0])
+    end = _end_of_page(p, 3)
     assert len(open_recording(p)) == 6
     cut = tmp_path / "cut.tif"
     cut.write_bytes(p.read_bytes()[:end])
