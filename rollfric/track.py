@@ -1229,7 +1229,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     ------
     rollfric.errors.InputError
         Bad input: an unreadable recording, an unknown method, angle or offset, too few frames
-        or found frames to fit.
+        (refused on opening, before the tracking) or found frames to fit.
     rollfric.setup.SetupError
         A setup that does not fit the images (recording size, trough contour, ball radius).
     """
@@ -1254,6 +1254,10 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         raise InputError(f"unknown angle method {angle!r} (known: {', '.join(ANGLES)})")
     LOCATORS.check(method)
     check_setup_fits(setup, source.shape)
+    if fit and len(source) < fitmod.MIN_SAMPLES:  # refused before any frame is tracked
+        raise InputError(f"{getattr(source, 'name', recording)}: the recording has only "
+                         f"{len(source)} frames: at least {fitmod.MIN_SAMPLES} are needed to fit "
+                         "mu; rollfric track writes the track of a recording of any length")
     t, times_desc, time_notes = frame_times(source, setup.fps, times)
     # a recording with its own per-frame times is checked against them (frame_times), one
     # without against the rate in its header
