@@ -60,10 +60,8 @@ def _colour(src, path: Path) -> str | None:
     raw = None
     try:
         if name == "TiffSource":
-            page = src._tif.pages.first
-            raw = (page.samplesperpage if hasattr(page, "samplesperpage") else
-                   getattr(page, "samplesperpixel", 1))
-            return "colour, read as grey" if raw in (3, 4) else "mono"
+            samples = getattr(src._tif.pages.first, "samplesperpixel", 1)
+            return "colour, read as grey" if samples in (3, 4) else "mono"
         if name == "FolderSource":
             import cv2
 

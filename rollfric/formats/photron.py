@@ -1,5 +1,5 @@
-"""Photron ``.cih``/``.cihx`` + ``.mraw`` recordings: the header parsed by pyMRAW, the frames
-memory-mapped here.
+"""Photron ``.cih``/``.cihx`` + ``.mraw`` recordings: the header parsed by
+:mod:`rollfric.formats.cih`, the frames memory-mapped here.
 
 The header (``.cih`` "key : value" text or ``.cihx`` XML, any case of the extension) is read
 by :func:`rollfric.formats.cih.read_cih`: frame count, size, frame rate ("Record Rate(fps)"),
