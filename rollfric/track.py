@@ -1328,8 +1328,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                warnings=info.warnings + tuple(bg_notes) + tuple(contour_notes)
                                + tuple(time_notes))
     if n_found < len(df):
-        logger.info(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of "
-                    "the fit)")
+        logger.info(f"ball not found in {len(df) - n_found} of {len(df)} frames"
+                    + (" (left out of the fit)" if fit else ""))
     lap("tracking")
     result = None
     if fit:

@@ -96,3 +96,13 @@ def test_track_bad_recording_exit_2_nothing_written(tmp_path, capsys, bad):
     err = capsys.readouterr().err
     assert code == 2 and bad in err and "Traceback" not in err
     assert not (tmp_path / "o").exists()
+
+
+def test_track_reports_frames_without_the_ball_without_a_fit(tmp_path, capsys):
+    rec = make_recording(12, noise=1.0, missing=(4,))
+    _write(rec, tmp_path)
+    assert main(_args(tmp_path, "track", tmp_path / "out")) == 0
+    err = capsys.readouterr().err
+    assert "ball not found in 1 of 12 frames" in err and "left out of the fit" not in err
+    df = pd.read_csv(tmp_path / "out" / "track.csv")
+    assert df["found"].tolist() == [1] * 4 + [0] + [1] * 7
