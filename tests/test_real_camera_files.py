@@ -235,3 +235,18 @@ def test_a_colour_camera_file_is_refused(tmp_path):
         open_recording(bayer)
     mono = _header_with(tmp_path, "mono", b"<type>Raw</type>", b"<type>Mono</type>")
     assert open_recording(mono).attrs["colour"] == "mono"
+
+
+def test_a_colour_cine_is_refused(tmp_path):
+    # cine_781 with its SETUP's CFA field set to a Bayer pattern (a colour camera's raw frames)
+    from pims.cine import SETUP_FIELDS
+
+    data = bytearray((REAL / "cine_781.cine").read_bytes())
+    off_setup = struct.unpack_from("<I", data, 28)[0]
+    names = [n for n, _ in SETUP_FIELDS]
+    at = off_setup + sum(struct.calcsize("<" + f) for _, f in SETUP_FIELDS[:names.index("cfa")])
+    assert struct.unpack_from("<I", data, at)[0] == 0
+    struct.pack_into("<I", data, at, 3)  # CFA_BAYER
+    (tmp_path / "colour.cine").write_bytes(bytes(data))
+    with pytest.raises(RecordingError, match="colour or compressed cine file .*CFA 3.*monochrome"):
+        open_recording(tmp_path / "colour.cine")
