@@ -19,7 +19,7 @@ import importlib.metadata
 import signal
 import sys
 
-from rollfric import cli_calibrate, cli_fit, cli_measure
+from rollfric import cli_calibrate, cli_fit, cli_info, cli_measure, cli_track
 from rollfric.errors import InputError
 
 COMMAND_GROUP = "rollfric.commands"
@@ -57,7 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     cli_fit.register(sub)
     cli_measure.register(sub)
+    cli_track.register(sub)
     cli_calibrate.register(sub)
+    cli_info.register(sub)
     reasons = []
     for ep in command_entry_points():
         missing = missing_requirements(ep)

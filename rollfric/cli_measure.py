@@ -33,6 +33,36 @@ def register(sub) -> None:
             "measurement that fails a quality check is written with quality = suspect and its "
             "reasons in fit.json, the reasons on stderr, and exit status 3."),
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    add_tracking_arguments(p)
+    p.add_argument("--fit-method", default="lsq", choices=list(FIT_METHODS),
+                   help="how mu is fitted (see rollfric fit)")
+    p.add_argument("--offset", nargs="?", const="on", default="auto",
+                   choices=["auto", "on", "off"],
+                   help="fit the angle of the trough's bottom (a camera rolled about its axis): "
+                        "auto = when the track has three turning points or more; --offset = on")
+    p.add_argument("--plot", action="store_true",
+                   help="also write fit.png (angle vs model) and overlays.png")
+    p.add_argument("--overlay-frames", default=None, metavar="I,J,...",
+                   help="frames drawn in overlays.png (default: 6 spread over the found ones)")
+    add_budget_arguments(p)
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--overwrite", action="store_true",
+                   help="write into an existing non-empty DIR: measure's own files (track.csv, "
+                        "fit.json, fit.png, budget.png, overlays.png) are replaced, or removed "
+                        "when not written this time; other files are left alone")
+    p.set_defaults(func=run)
+
+
+def add_tracking_arguments(p) -> None:
+    """The options of ``measure`` and ``track`` that say how the track is measured: RECORDING,
+    --setup, the background (--background, --median-frames), --method, --angle, --times and
+    --no-progress.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser.
+    """
     p.add_argument("recording", metavar="RECORDING", help="TIFF stack, image folder, video, "
                    ".cine, .cih/.cihx (+ .mraw), or Zarr store")
     p.add_argument("--setup", metavar="SETUP.toml", default=None,
@@ -48,33 +78,116 @@ def register(sub) -> None:
                         "thesis-large (paper 2 steps 1-7), thesis-small (paper 1, 15x15 window)")
     p.add_argument("--angle", default="atan2", choices=["atan2", "arcsin"],
                    help="theta = atan2(x - xc, y - yc), or the thesis's arcsin((x - xc) / L)")
-    p.add_argument("--fit-method", default="lsq", choices=list(FIT_METHODS),
-                   help="how mu is fitted (see rollfric fit)")
-    p.add_argument("--offset", nargs="?", const="on", default="auto",
-                   choices=["auto", "on", "off"],
-                   help="fit the angle of the trough's bottom (a camera rolled about its axis): "
-                        "auto = when the track has three turning points or more; --offset = on")
     p.add_argument("--times", default="auto", choices=["auto", "fps"],
                    help="t_s of each frame: auto = the recording's own per-frame timestamps when "
                         "it has them (a .cine's), else frame / camera.fps; fps = always "
                         "frame / camera.fps")
-    p.add_argument("--plot", action="store_true",
-                   help="also write fit.png (angle vs model) and overlays.png")
-    p.add_argument("--overlay-frames", default=None, metavar="I,J,...",
-                   help="frames drawn in overlays.png (default: 6 spread over the found ones)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    add_budget_arguments(p)
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    p.add_argument("--overwrite", action="store_true",
-                   help="write into an existing non-empty DIR: measure's own files (track.csv, "
-                        "fit.json, fit.png, budget.png, overlays.png) are replaced, or removed "
-                        "when not written this time; other files are left alone")
-    p.set_defaults(func=run)
 
 
 # the files measure writes into DIR (rollfric.outputs: --overwrite replaces only these)
 OUTPUTS = {"track.csv": "file", "fit.json": "file", "fit.png": "file", "budget.png": "file",
            "overlays.png": "file"}
+
+
+def check_tracking_outputs(args, outputs: dict, command: str):
+    """Check, before any work, the output folder and the tracking options of ``measure`` or
+    ``track``: DIR is none of the inputs, its own files may be written (``--overwrite``), and
+    ``--median-frames`` is at least 3.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options (:func:`add_tracking_arguments`, ``--out``, ``--overwrite``).
+    outputs : dict
+        The command's own files in DIR (name -> "file").
+    command : str
+        The command's name for the messages.
+
+    Returns
+    -------
+    pathlib.Path
+        DIR.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        A refused output or option (nothing written).
+    """
+    from rollfric.errors import InputError
+    from rollfric.outputs import check_folder, check_not_input, named
+
+    out = named(args.out)  # "." and "..": the folder by its name
+    inputs = (args.recording, args.setup, args.background)
+    check_not_input(out, inputs)
+    for name in outputs:  # --overwrite replaces or removes these: never an input of this run
+        check_not_input(out / name, inputs, what="the output")
+    check_folder(out, outputs, overwrite=args.overwrite, command=command)
+    if args.median_frames < 3:
+        raise InputError(f"--median-frames must be at least 3, got {args.median_frames}")
+    return out
+
+
+def write_track_csv(track, path) -> None:
+    """The track's TRACK_COLUMNS as track.csv (empty where no ball was found).
+
+    Parameters
+    ----------
+    track : pandas.DataFrame
+        From :func:`rollfric.track.measure`.
+    path : pathlib.Path
+        The file to write.
+    """
+    from rollfric.track import TRACK_COLUMNS
+
+    csv = track[TRACK_COLUMNS].copy()
+    csv.to_csv(path, index=False, float_format="%.6f", na_rep="")
+
+
+def track_summary(track, info) -> dict:
+    """What a track was measured with and what was found (fit.json's and track.json's keys).
+
+    Parameters
+    ----------
+    track : pandas.DataFrame
+        From :func:`rollfric.track.measure`.
+    info : rollfric.track.TrackInfo
+        Beside it.
+
+    Returns
+    -------
+    dict
+        n_frames, n_found, locator, angle, the centre and where it came from, background,
+        times, the ball's radius, flagged and dropped frames, irregular steps, warnings,
+        median_sigma_px, recording.
+    """
+    return {"n_frames": int(info.n_frames), "n_found": int(info.n_found),
+            "locator": info.locator, "angle": info.angle,
+            "center_px": list(info.center_px),
+            "center_source": info.center_source,
+            # standard uncertainty of a contour-found centre (null: from the setup)
+            "center_u_px": None if info.center_u_px is None else list(info.center_u_px),
+            # angles from lens-undistorted centres ([camera] matrix, distortion)
+            "undistorted": bool(info.undistorted),
+            "background": info.background,
+            "times": info.times,
+            "ball_radius_px": info.ball_radius_px,
+            # the apparent radius calibrated from full-rim frames (None: too few)
+            "ball_radius_px_seen": info.ball_radius_px_seen,
+            "ball_radius_px_seen_n": info.ball_radius_px_seen_n,
+            "n_refitted": info.n_refitted,
+            # frames left out of the fit, by track.csv flag
+            "frames_flagged": dict(info.flags),
+            "frames_dropped": [{"after_frame": int(k), "frames": int(m)}
+                               for k, m in info.frames_dropped],
+            "timing_irregular": [{"frame": int(k), "step_ratio": float(r)}
+                                 for k, r in info.timing_irregular],
+            "located_irregular": [{"frame": int(k), "step_ratio": float(r)}
+                                  for k, r in info.located_irregular],
+            "warnings": list(info.warnings),
+            "median_sigma_px": float(track["sigma_px"].median())
+            if track["sigma_px"].notna().any() else None,
+            "recording": info.recording}
 
 
 def remove_legacy_leftovers(out) -> list:
@@ -150,17 +263,11 @@ def _run(args) -> int:
     from rollfric.cli_fit import report_quality
     from rollfric.errors import InputError
     from rollfric.fit import save_fit
-    from rollfric.outputs import check_folder, check_not_input, named, staged_folder
-    from rollfric.track import TRACK_COLUMNS, measure
+    from rollfric.outputs import staged_folder
+    from rollfric.track import measure
     from rollfric.uncertainty import check_arguments, measurement_from_track, run_budget
 
-    out = named(args.out)  # "." and "..": the folder by its name
-    inputs = (args.recording, args.setup, args.background)
-    check_not_input(out, inputs)
-    for name in OUTPUTS:  # --overwrite replaces or removes these: never an input of this run
-        check_not_input(out / name, inputs, what="the output")
-    check_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure")
-
+    out = check_tracking_outputs(args, OUTPUTS, "measure")
     frames = None
     if args.overlay_frames:
         try:
@@ -168,8 +275,6 @@ def _run(args) -> int:
         except ValueError:
             raise InputError(f"--overlay-frames must be frame numbers like 0,100,200, got "
                              f"{args.overlay_frames!r}") from None
-    if args.median_frames < 3:
-        raise InputError(f"--median-frames must be at least 3, got {args.median_frames}")
     check_arguments(args)
     if args.offset == "on" and args.fit_method == "paper2_grid":  # refused before the tracking
         raise InputError("--offset: paper2_grid fits no angle offset (the thesis's procedure "
@@ -182,39 +287,12 @@ def _run(args) -> int:
     keys, budget = run_budget(measurement_from_track(track, info), result, args)
     remove_legacy_leftovers(out)
     with staged_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure") as tmp:
-        csv = track[TRACK_COLUMNS].copy()
-        csv.to_csv(tmp / "track.csv", index=False, float_format="%.6f", na_rep="")
-        extra = {"n_frames": int(info.n_frames), "n_found": int(info.n_found),
-                 "locator": info.locator, "angle": info.angle,
-                 "center_px": list(info.center_px),
-                 "center_source": info.center_source,
-                 # standard uncertainty of a contour-found centre (null: from the setup)
-                 "center_u_px": None if info.center_u_px is None else list(info.center_u_px),
-                 # angles from lens-undistorted centres ([camera] matrix, distortion)
-                 "undistorted": bool(info.undistorted),
+        write_track_csv(track, tmp / "track.csv")
+        extra = {**track_summary(track, info),
                  "offset_fitted": bool(info.offset_fitted),
                  "offset_reason": info.offset_reason,
                  # the contour as an ellipse and the mu bias it implies (rollfric.ellipse)
-                 "contour_ellipse": info.contour_ellipse,
-                 "background": info.background,
-                 "times": info.times,
-                 "ball_radius_px": info.ball_radius_px,
-                 # the apparent radius calibrated from full-rim frames (None: too few)
-                 "ball_radius_px_seen": info.ball_radius_px_seen,
-                 "ball_radius_px_seen_n": info.ball_radius_px_seen_n,
-                 "n_refitted": info.n_refitted,
-                 # frames left out of the fit, by track.csv flag
-                 "frames_flagged": dict(info.flags),
-                 "frames_dropped": [{"after_frame": int(k), "frames": int(m)}
-                                    for k, m in info.frames_dropped],
-                 "timing_irregular": [{"frame": int(k), "step_ratio": float(r)}
-                                      for k, r in info.timing_irregular],
-                 "located_irregular": [{"frame": int(k), "step_ratio": float(r)}
-                                       for k, r in info.located_irregular],
-                 "warnings": list(info.warnings),
-                 "median_sigma_px": float(track["sigma_px"].median())
-                 if track["sigma_px"].notna().any() else None,
-                 "recording": info.recording, **keys}
+                 "contour_ellipse": info.contour_ellipse, **keys}
         save_fit(result, tmp / "fit.json", **extra)
         if args.plot:
             from rollfric.io import open_recording

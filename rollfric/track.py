@@ -1098,8 +1098,10 @@ def frame_times(source, setup_fps: float, times: str = "auto"):
     a Phantom cine's TIME64 block: the camera's clock, so a dropped frame or a rate other than
     the nominal one shows), else frame / ``setup_fps``; ``"fps"``: always frame / ``setup_fps``.
     ``notes`` say where the timestamps disagree with the setup's rate (by more than
-    TIMES_RATE_TOL) or are unevenly spaced (an interval more than TIMES_JITTER_TOL from the
-    median one).
+    TIMES_RATE_TOL and the clock's step) or are unevenly spaced (an interval more than
+    TIMES_JITTER_TOL from the median one, beyond the step of the camera's clock,
+    ``attrs["timestamp_resolution_s"]``: times rounded to whole microseconds are 28 or 29 us
+    apart at 35087 Hz, no dropped frame).
 
     Parameters
     ----------
@@ -1140,11 +1142,14 @@ def frame_times(source, setup_fps: float, times: str = "auto"):
     if n > 1:
         d = np.diff(t)
         dt = float(np.median(d))
-        if abs(dt * setup_fps - 1.0) > TIMES_RATE_TOL:
+        # a clock that counts in steps (a cine's microseconds) makes intervals a step apart
+        res = (getattr(source, "attrs", None) or {}).get("timestamp_resolution_s")
+        res = float(res) if isinstance(res, (int, float)) and res > 0 else 0.0
+        if abs(dt * setup_fps - 1.0) > TIMES_RATE_TOL + res * setup_fps:
             notes.append(f"the recording's timestamps are {dt * 1e3:.6g} ms apart (median: "
                          f"{1 / dt:.6g} frames/s), the setup says {setup_fps:g} Hz: times are "
                          "the recording's timestamps; check camera.fps")
-        off = np.abs(d - dt) > TIMES_JITTER_TOL * dt
+        off = np.abs(d - dt) > TIMES_JITTER_TOL * dt + res
         if off.any():
             notes.append(f"{int(off.sum())} of the recording's {n - 1} frame intervals differ "
                          f"from the median {dt * 1e3:.6g} ms by more than "
@@ -1224,7 +1229,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     ------
     rollfric.errors.InputError
         Bad input: an unreadable recording, an unknown method, angle or offset, too few frames
-        or found frames to fit.
+        (refused on opening, before the tracking) or found frames to fit.
     rollfric.setup.SetupError
         A setup that does not fit the images (recording size, trough contour, ball radius).
     """
@@ -1249,6 +1254,10 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         raise InputError(f"unknown angle method {angle!r} (known: {', '.join(ANGLES)})")
     LOCATORS.check(method)
     check_setup_fits(setup, source.shape)
+    if fit and len(source) < fitmod.MIN_SAMPLES:  # refused before any frame is tracked
+        raise InputError(f"{getattr(source, 'name', recording)}: the recording has only "
+                         f"{len(source)} frames: at least {fitmod.MIN_SAMPLES} are needed to fit "
+                         "mu; rollfric track writes the track of a recording of any length")
     t, times_desc, time_notes = frame_times(source, setup.fps, times)
     # a recording with its own per-frame times is checked against them (frame_times), one
     # without against the rate in its header
@@ -1319,8 +1328,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                warnings=info.warnings + tuple(bg_notes) + tuple(contour_notes)
                                + tuple(time_notes))
     if n_found < len(df):
-        logger.info(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of "
-                    "the fit)")
+        logger.info(f"ball not found in {len(df) - n_found} of {len(df)} frames"
+                    + (" (left out of the fit)" if fit else ""))
     lap("tracking")
     result = None
     if fit:

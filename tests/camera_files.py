@@ -141,7 +141,7 @@ def write_cihx(path, n: int, h: int, w: int, *, fps: float, bits: int) -> Path:
 <fileInfo><date>2024/01/01</date></fileInfo>
 <basicInfo><comment>rollfric test</comment></basicInfo>
 <deviceInfo><deviceName>test</deviceName></deviceInfo>
-<recordInfo><recordRate>{fps:g}</recordRate><shutterSpeed>0.0002</shutterSpeed></recordInfo>
+<recordInfo><recordRate>{fps:g}</recordRate><shutterSpeed>5000</shutterSpeed></recordInfo>
 <frameInfo><totalFrame>{n}</totalFrame><recordedFrame>{n}</recordedFrame></frameInfo>
 <imageDataInfo>
 <resolution><width>{w}</width><height>{h}</height></resolution>

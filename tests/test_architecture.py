@@ -40,6 +40,7 @@ def test_cli_choices_come_from_the_registries():
     parser = build_parser()
     assert list(_choices(parser, "measure", "--method")) == list(LOCATORS)
     assert list(_choices(parser, "measure", "--fit-method")) == list(FIT_METHODS)
+    assert list(_choices(parser, "track", "--method")) == list(LOCATORS)
     assert list(_choices(parser, "fit", "--method")) == list(FIT_METHODS)
     assert list(_choices(parser, "simulate", "--engine")) == list(ENGINES)
     assert list(_choices(parser, "validate", "--engine")) == list(ENGINES)

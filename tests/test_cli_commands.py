@@ -93,7 +93,8 @@ def test_without_the_suite_measurement_commands_still_parse(tmp_path):
         parser = build_parser()
         args = parser.parse_args(["fit", "track.csv", "--setup", "s.toml", "--out", "f.json"])
         print(args.command, args.func.__module__)
-        for argv in (["fit", "--help"], ["measure", "--help"]):
+        for argv in (["fit", "--help"], ["measure", "--help"], ["info", "--help"],
+                     ["track", "--help"]):
             try:
                 parser.parse_args(argv)
             except SystemExit as exc:
@@ -101,7 +102,7 @@ def test_without_the_suite_measurement_commands_still_parse(tmp_path):
     """, tmp_path, block_suite=True)
     assert proc.returncode == 0, proc.stderr
     assert "fit rollfric.cli_fit" in proc.stdout
-    assert proc.stdout.count("EXIT 0") == 2
+    assert proc.stdout.count("EXIT 0") == 4
 
 
 def test_building_the_parser_loads_nothing_of_the_suites_stack(tmp_path):

@@ -13,11 +13,14 @@ refused (InputError): rollfric measures monochrome frames.
 Times: the per-frame ``image_time_only`` block (TIME64: seconds since 1970 in 32.32 fixed point,
 2**-32 s resolution) gives ``timestamps`` as seconds from the first frame; the SETUP's frame rate
 is ``fps``. ``attrs`` hold the time of frame 0 from the trigger, the first image number, the
-median exposure and the camera's bit depth.
+median exposure and the camera's bit depth, the trigger's date and time, and the step of the
+frame times (``timestamp_resolution_s``: 1 us for a camera whose clock counts microseconds,
+so that its intervals, 28 or 29 us at 35087 Hz, are not taken for dropped frames).
 """
 
 from __future__ import annotations
 
+import datetime
 import math
 from pathlib import Path
 
@@ -76,16 +79,24 @@ class CineSource(BaseSource):
         self.fps = float(fps) if fps and math.isfinite(fps) and fps > 0 else None
         self.timestamps, notes = _timestamps(cine, n)
         exposures = cine.all_exposures
+        shutter_us = cine.setup_fields_dict.get("shutter")  # the SETUP's, whole microseconds
+        exposure = float(np.median(exposures)) if exposures else \
+            (float(shutter_us) * 1e-6 if shutter_us else None)
         self.attrs = {
             "format": "phantom-cine",
             "camera_bit_depth": int(cine.setup_fields_dict.get("real_bpp") or self._bits),
+            "colour": "mono",
             "first_image_no": int(cine.header_dict["first_image_no"]),
+            "start_frame": int(cine.header_dict["first_image_no"]),
             "total_image_count": int(cine.header_dict["total_image_count"]),
-            "exposure_s": float(np.median(exposures)) if exposures else None,
+            "exposure_s": exposure,
+            "shutter_s": exposure,
+            "trigger_time": _trigger_time(cine),
             "time_notes": notes,
         }
         if self.timestamps is not None:
             self.attrs["frame0_from_trigger_s"] = _frame0_from_trigger(cine)
+            self.attrs["timestamp_resolution_s"] = _resolution(cine)
 
     def _frame_span(self, i: int) -> tuple[int, int]:
         """(byte offset, byte count) of frame i's pixels; RecordingError when it is not whole."""
@@ -156,3 +167,32 @@ def _frame0_from_trigger(cine) -> float:
     d0, f0 = cine.frame_time_stamps[0]
     tt = cine.trigger_time
     return (d0 - tt["datetime"]).total_seconds() + (f0 - tt["second_fraction"])
+
+
+def _trigger_time(cine) -> str | None:
+    """The trigger's date and time (the header's TIME64: seconds since 1970 UTC, 32.32 fixed
+    point) as ISO 8601 text in UTC to the microsecond, or None. pims gives it in the local
+    time zone of the computer reading the file."""
+    try:
+        t64 = int(cine.header_dict["trigger_time"])
+        when = datetime.datetime.fromtimestamp(t64 >> 32, datetime.UTC)
+        return (when + datetime.timedelta(seconds=(t64 & 0xFFFFFFFF) / 2 ** 32)).isoformat()
+    except (KeyError, TypeError, ValueError, OverflowError, OSError):
+        return None
+
+
+# a TIME64 is 32.32 fixed point; older cameras fill its fraction from a microsecond clock
+TIME64_STEP = 2.0 ** -32
+CLOCK_STEPS = (1e-6, 1e-7)  # the coarser of these that every frame time lies on
+CLOCK_TOL_S = 2e-9  # off a step by at most this: on it (the real files: 0.8 ns at most)
+
+
+def _resolution(cine) -> float:
+    """The step of the frame times (s): 1e-6 when every frame's TIME64 fraction is a whole
+    number of microseconds (within CLOCK_TOL_S), else 1e-7 likewise, else 2**-32."""
+    frac = np.array([f for _, f in cine.frame_time_stamps], dtype=float)
+    for step in CLOCK_STEPS:
+        k = frac / step
+        if np.all(np.abs(k - np.round(k)) * step <= CLOCK_TOL_S):
+            return step
+    return TIME64_STEP

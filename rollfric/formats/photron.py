@@ -1,12 +1,12 @@
-"""Photron ``.cih``/``.cihx`` + ``.mraw`` recordings: the header parsed by pyMRAW, the frames
-memory-mapped here.
+"""Photron ``.cih``/``.cihx`` + ``.mraw`` recordings: the header parsed by
+:mod:`rollfric.formats.cih`, the frames memory-mapped here.
 
-The header (``.cih`` "key : value" text or ``.cihx`` XML) is read with
-:func:`pyMRAW.get_cih`: frame count, size, frame rate ("Record Rate(fps)"), bit depth ("Color
-Bit" 8, 12 or 16), the effective bits, the start frame (frame 0's number from the trigger). The
-``.mraw`` beside it (same stem) is the frames back to back, no headers: 8-bit, 16-bit
-little-endian, or 12-bit packed (two pixels in three bytes, big-endian nibble order, as
-pyMRAW's ``nb_read_uint12``).
+The header (``.cih`` "key : value" text or ``.cihx`` XML, any case of the extension) is read
+by :func:`rollfric.formats.cih.read_cih`: frame count, size, frame rate ("Record Rate(fps)"),
+bit depth ("Color Bit" 8, 12 or 16), the effective bits and their side, the exposure, the start
+frame (frame 0's number from the trigger), the colour type. The ``.mraw`` beside it (same stem,
+either case) is the frames back to back, no headers: 8-bit, 16-bit little-endian, or 12-bit
+packed (two pixels in three bytes, big-endian nibble order, as pyMRAW's ``nb_read_uint12``).
 
 pyMRAW's own frame reader is not used: a 12-bit file it decodes whole into memory (2 bytes a
 pixel of every frame: 10.5 GB for 4001 frames of 1280 x 1024 px) with a numba kernel compiled
@@ -15,33 +15,71 @@ only its own bytes (12-bit: the 3-byte pairs of its columns in its rows; with an
 rows do not start on a pair, so its rows are unpacked whole) - the same pixels as pyMRAW's.
 
 MRAW holds no per-frame times: ``timestamps`` is None, ``fps`` the header's record rate.
-Colour files are refused.
+Colour files are refused: "Color Type" Color, and Raw (the sensor's own values) from a colour
+camera (a Photron model name with "-C", e.g. ``type 1100K-C``: a Bayer mosaic); Raw from a
+monochrome camera ("-M") is monochrome.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 
+from rollfric.formats.cih import read_cih
 from rollfric.source import BaseSource, RecordingError
+
+
+def _beside(path: Path, suffix: str) -> Path | None:
+    """The file of ``path``'s stem with ``suffix`` in the case of ``path``'s own suffix, else in
+    the other case (a camera writes ``BALL.CIHX`` beside ``BALL.MRAW``); None if neither is."""
+    upper = path.suffix.isupper()
+    for s in ((suffix.upper(), suffix) if upper else (suffix, suffix.upper())):
+        p = path.with_suffix(s)
+        if p.is_file():
+            return p
+    return None
 
 
 def _header_and_data(path: Path) -> tuple[Path, Path]:
     """(header file, .mraw file) of a recording given by either."""
     if path.suffix.lower() == ".mraw":
         for suffix in (".cihx", ".cih"):
-            head = path.with_suffix(suffix)
-            if head.is_file():
+            head = _beside(path, suffix)
+            if head is not None:
                 return head, path
         raise RecordingError(f"{path}: no .cih or .cihx header beside it ({path.stem}.cih): "
                              "the header gives the frame size and bit depth")
-    data = path.with_suffix(".mraw")
-    if data.is_file():
+    data = _beside(path, ".mraw")
+    if data is not None:
         return path, data
     raise RecordingError(f"{path}: the frames file {path.with_suffix('.mraw').name} is missing "
                          "beside the header")
+
+
+def colour_type(cih: dict) -> str:
+    """"mono" or "colour": the header's "Color Type" (Mono, Color, or Raw, which is a colour
+    camera's Bayer mosaic when its model name says "-C")."""
+    kind = str(cih.get("Color Type", "Mono")).strip().lower()
+    if kind == "mono":
+        return "mono"
+    if kind == "raw":
+        model = str(cih.get("Camera Type", ""))
+        return "colour" if re.search(r"\d+K-C\b|-C-", model) else "mono"
+    return "colour"
+
+
+def data_bit_depth(cih: dict, bits: int) -> int:
+    """The bits of the stored values: the camera's effective bits when they sit in the lower
+    bits of each value ("EffectiveBit Side" Lower), the container's when the higher ones do (an
+    8-bit file of a 12-bit camera holds its upper 8 bits) or the header gives none."""
+    eff = cih.get("EffectiveBit Depth")
+    side = str(cih.get("EffectiveBit Side", "Lower")).strip().lower()
+    if isinstance(eff, int) and 0 < eff < bits and side == "lower":
+        return eff
+    return bits
 
 
 def unpack12(packed: np.ndarray) -> np.ndarray:
@@ -70,16 +108,10 @@ class PhotronSource(BaseSource):
     """A Photron recording (``.cih``/``.cihx`` header + ``.mraw`` frames) as a FrameSource."""
 
     def __init__(self, path: str | Path) -> None:
-        import pyMRAW
-
         path = Path(path)
         head, data = _header_and_data(path)
         self._head, self._data = head, data
-        try:
-            cih = pyMRAW.get_cih(str(head))
-        except Exception as exc:  # pyMRAW raises Exception, KeyError, IndexError, ExpatError...
-            raise RecordingError(f"{head}: not a readable Photron header ({type(exc).__name__}: "
-                                 f"{exc})") from None
+        cih = read_cih(head)
         try:
             n = int(cih["Total Frame"])
             w, h = int(cih["Image Width"]), int(cih["Image Height"])
@@ -90,9 +122,10 @@ class PhotronSource(BaseSource):
         if fmt.lower() != "mraw":
             raise RecordingError(f"{head}: the header says the frames are stored as {fmt!r}; "
                                  "rollfric reads MRAW")
-        if str(cih.get("Color Type", "Mono")).lower() != "mono" or bits not in (8, 12, 16):
-            raise RecordingError(f"{head}: {cih.get('Color Type', '')} {bits}-bit frames: "
-                                 "rollfric reads monochrome 8-, 12- and 16-bit MRAW")
+        if colour_type(cih) != "mono" or bits not in (8, 12, 16):
+            raise RecordingError(f"{head}: {cih.get('Color Type', '')} {bits}-bit frames of a "
+                                 f"{cih.get('Camera Type', 'camera')}: rollfric reads monochrome"
+                                 " 8-, 12- and 16-bit MRAW; export the recording as monochrome")
         if w <= 0 or h <= 0 or n <= 0:
             raise RecordingError(f"{head}: the header gives {n} frames of {w}x{h} px")
         npx = n * h * w
@@ -118,11 +151,16 @@ class PhotronSource(BaseSource):
             "header": str(head),
             "camera": cih.get("Camera Type"),
             "date": cih.get("Date"),
-            "camera_bit_depth": cih.get("EffectiveBit Depth"),
+            "camera_bit_depth": data_bit_depth(cih, bits),
+            "effective_bit_depth": cih.get("EffectiveBit Depth"),
             "effective_bit_side": cih.get("EffectiveBit Side"),
-            "shutter_s": _float_or_none(cih.get("Shutter Speed(s)")),
-            "start_frame": cih.get("Start Frame"),
+            "colour": colour_type(cih),
+            "shutter_s": cih["shutter_s"],
+            "start_frame": start if isinstance(start := cih.get("Start Frame"), int) else None,
         }
+        if self.attrs["start_frame"] is not None and self.fps:
+            # frame 0's time from the trigger: its number from the trigger frame, in periods
+            self.attrs["frame0_from_trigger_s"] = self.attrs["start_frame"] / self.fps
 
     def __getitem__(self, i: int) -> np.ndarray:
         i = self._index(i)
@@ -144,10 +182,3 @@ class PhotronSource(BaseSource):
         q0, q1 = p0 // 2, (p1 + 1) // 2
         px = unpack12(np.asarray(self._mm[3 * q0:3 * q1]))[p0 - 2 * q0:p1 - 2 * q0]
         return np.ascontiguousarray(px.reshape(y1 - y0, w)[:, x0:x1])
-
-
-def _float_or_none(v):
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return None
