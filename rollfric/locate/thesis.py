@@ -26,7 +26,7 @@ from rollfric.locate.search import coarse_find
 
 def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
                         roi: tuple[int, int, int, int] | None = None, window: int = 15,
-                        polarity: str = "abs") -> Location:
+                        polarity: str = "abs", full_scale: float | None = None) -> Location:
     """Thesis paper 1: the brightest pixel of the window of largest summed relative image.
 
     A ``window`` x ``window`` window traverses the sub-image ``roi``; the centre is the
@@ -45,6 +45,9 @@ def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
         What is summed: |frame - background| (default: finds a dark ball with a bright spot as
         well as a bright one), frame - background (as for the thesis's bright spot) or
         background - frame.
+    full_scale : float, optional
+        The camera's full scale, 2**bit_depth - 1 (DN): a spot whose window sums to less than
+        10 % of it is none; default the frame's word's (255 or 65535).
 
     Returns
     -------
@@ -69,7 +72,9 @@ def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
     sums = cv2.boxFilter(summed, -1, (window, window), normalize=False,
                          borderType=cv2.BORDER_CONSTANT)
     _, smax, _, (bx, by) = cv2.minMaxLoc(sums)
-    if smax < 0.1 * _full_scale(frame.dtype):  # 25 DN summed over the window (8 bit)
+    if full_scale is None:
+        full_scale = _full_scale(frame.dtype)
+    if smax < 0.1 * full_scale:  # 25 DN summed over the window (8 bit)
         return Location.missing("no spot in the search region")
     half = window // 2
     sub, sx0, sy0 = _crop(rel, bx - half, by - half, bx + half + 1, by + half + 1)
@@ -99,7 +104,7 @@ def _circle_known_radius(xs, ys, r, cx, cy, iters=20):
 def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, *,
                         side: int = 1, guess: tuple[float, float] | None = None,
                         threshold: float | None = None, neighbourhood: int = 15,
-                        step: float = 0.025) -> Location:
+                        step: float = 0.025, full_scale: float | None = None) -> Location:
     """Thesis paper 2, steps 1-7, for a ball of radius ``r_px`` (px).
 
     Parameters
@@ -121,6 +126,9 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
         Side of the square of candidate centres tried in step 6 (px; 15 in the thesis).
     step : float, optional
         Angular step (rad) around the candidate circles of step 6.
+    full_scale : float, optional
+        The camera's full scale, 2**bit_depth - 1 (DN), for the full-frame search
+        (:func:`coarse_find`); default the frame's word's.
 
     Returns
     -------
@@ -130,7 +138,7 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
     """
     rel_full_abs = None
     if guess is None:
-        guess = coarse_find(frame, background, r_px)
+        guess = coarse_find(frame, background, r_px, full_scale=full_scale)
         if guess is None:
             return Location.missing("no ball-like change in the frame")
     # step 1: the specular spots near the guess -> 101 x 101 (for the 10 mm ball) sub-image
@@ -222,7 +230,8 @@ def thesis_large_locator(frame, background, r_px: float, guess: tuple[float, flo
 
     :func:`locate_large_thesis` around ``guess`` (the full-frame search of :func:`coarse_find`
     without one), on the quarter of the ball on the side of the trough's axis ``center`` where
-    the ball is. The sub-pixel locator's options (``unused``) do not apply.
+    the ball is. Of the sub-pixel locator's options (``unused``) only ``opts.full_scale`` (the
+    camera's full scale) applies.
 
     Parameters
     ----------
@@ -240,12 +249,13 @@ def thesis_large_locator(frame, background, r_px: float, guess: tuple[float, flo
     -------
     Location
     """
+    fs = getattr(unused.get("opts"), "full_scale", None)
     if guess is None:
-        guess = coarse_find(frame, background, r_px)
+        guess = coarse_find(frame, background, r_px, full_scale=fs)
         if guess is None:
             return Location.missing("no ball-like change in the frame")
     side = 1 if guess[0] >= center[0] else -1
-    return locate_large_thesis(frame, background, r_px, side=side, guess=guess)
+    return locate_large_thesis(frame, background, r_px, side=side, guess=guess, full_scale=fs)
 
 
 def thesis_small_locator(frame, background, r_px: float, guess: tuple[float, float] | None,
@@ -254,7 +264,7 @@ def thesis_small_locator(frame, background, r_px: float, guess: tuple[float, flo
 
     :func:`locate_small_thesis` in a window of 2 r + 20 px a side around ``guess``, then over the
     whole frame when the spot is not found there. ``center`` and the sub-pixel locator's options
-    (``unused``) do not apply.
+    (``unused``) do not apply, but ``opts.full_scale`` (the camera's full scale).
 
     Parameters
     ----------
@@ -277,7 +287,8 @@ def thesis_small_locator(frame, background, r_px: float, guess: tuple[float, flo
         m = int(math.ceil(2 * r_px + 20))
         roi = (int(guess[0]) - m, int(guess[1]) - m, int(guess[0]) + m + 1,
                int(guess[1]) + m + 1)
-    loc = locate_small_thesis(frame, background, roi=roi)
+    fs = getattr(unused.get("opts"), "full_scale", None)
+    loc = locate_small_thesis(frame, background, roi=roi, full_scale=fs)
     if roi is not None and not loc.found:
-        loc = locate_small_thesis(frame, background)
+        loc = locate_small_thesis(frame, background, full_scale=fs)
     return loc
