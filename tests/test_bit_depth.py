@@ -224,3 +224,54 @@ def test_a_10_bit_recording_at_half_contrast_in_16_bit_words_measures(tmp_path, 
     guessed = [w for w in out["data"][1]["warnings"] if "bit depth" in w]
     assert len(guessed) == 1 and "taken as 10 from the data" in guessed[0]
     assert not any("bit depth" in w for w in out["tag"][1]["warnings"] + out["key"][1]["warnings"])
+
+
+# -- a locator without its feature reports the frame not found
+
+
+def _backlit_background(frames):
+    """The real clip's ball-free background: the backlight is clipped at 4095 all round the
+    ball's path, so frame 0 with the path's disc set to 4095."""
+    bg = frames[0].copy()
+    yy, xx = np.mgrid[0:bg.shape[0], 0:bg.shape[1]]
+    bg[np.hypot(xx - 176, yy - 128) < 110] = 4095
+    return bg
+
+
+def test_the_thesis_locators_find_no_highlight_on_a_backlit_ball():
+    """The real 12-bit clip of a dark ball on a clipped backlight (r = 63.6 px): no pixel of
+    the ball is brighter than the background. thesis-large took the window's first brightest
+    pixel for the highlight (all 15 frames found, 111-119 px from the subpixel centre) and
+    thesis-small the ball's least dark pixel (33-52 px off): now each frame is not found,
+    with the reason; the subpixel locator finds the ball in every frame."""
+    from rollfric.locate.thesis import thesis_large_locator, thesis_small_locator
+
+    src = io.open_recording(REAL / "ball_12bit.cihx")
+    frames = [src[i] for i in range(len(src))]
+    bg = _backlit_background(frames)
+    opts = SubpixelOptions(full_scale=4095.0)
+    for f in frames:
+        sub = locate_subpixel(f, bg, 63.6, opts=opts)
+        assert sub.found and 174 < sub.x < 177 and 108 < sub.y < 148
+        large = thesis_large_locator(f, bg, 63.6, None, (192.0, -500.0), opts=opts)
+        assert not large.found and "highlight" in large.reason
+        small = thesis_small_locator(f, bg, 63.6, None, (192.0, -500.0), opts=opts)
+        assert not small.found and "spot" in small.reason
+
+
+def test_thesis_large_on_a_drawn_dark_ball_without_highlight_is_not_found():
+    from rollfric.locate.thesis import locate_large_thesis
+
+    cov = disk_coverage(200, 200, 100.3, 99.6, 30.0)
+    rng = np.random.default_rng(3)
+    bg = np.rint(3500 + rng.normal(0, 4, (200, 200))).astype(np.uint16)
+    fr = np.rint(3500 - 3000 * cov + rng.normal(0, 4, (200, 200))).astype(np.uint16)
+    for guess in (None, (101.0, 99.0)):
+        loc = locate_large_thesis(fr, bg, 30.0, guess=guess, full_scale=4095.0)
+        assert not loc.found and "highlight" in loc.reason
+    # the same ball with a highlight brighter than the background is located by it
+    spot = np.exp(-((np.mgrid[0:200, 0:200][1] - 100.3) ** 2
+                    + (np.mgrid[0:200, 0:200][0] - 93.6) ** 2) / (2 * 3.0 ** 2))
+    lit = np.clip(fr + 3800 * spot * cov, 0, 4095).astype(np.uint16)
+    loc = locate_large_thesis(lit, bg, 30.0, guess=(101.0, 99.0), full_scale=4095.0)
+    assert loc.found and math.hypot(loc.x - 100.3, loc.y - 99.6) < 1.5

@@ -52,7 +52,9 @@ def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
     Returns
     -------
     Location
-        Integer-pixel centre; ``found`` False when the region lies outside the frame.
+        Integer-pixel centre; ``found`` False when the region lies outside the frame, holds no
+        spot, or the brightest pixel does not stand out from the ball around it (a uniformly
+        dark, backlit ball has no spot to locate by).
     """
     h, w = frame.shape
     x0, y0, x1, y1 = (0, 0, w, h) if roi is None else roi
@@ -79,7 +81,20 @@ def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
     half = window // 2
     sub, sx0, sy0 = _crop(rel, bx - half, by - half, bx + half + 1, by + half + 1)
     _, vmax, _, (px, py) = cv2.minMaxLoc(sub)
-    return Location(x=float(px + sx0 + x0), y=float(py + sy0 + y0), found=True)
+    sx, sy = px + sx0, py + sy0
+    # the spot must stand out from the ball around it: its height above the median of the
+    # ring 3..7 px about it (for the 15 px window) at least a quarter of the window's mean
+    # |frame - background|. The brightest pixel of a uniformly dark (backlit) ball is no spot,
+    # and reporting it would be a wrong place
+    r_in, r_out = max(2, window // 4), max(3, half)
+    ring, rx0, ry0 = _crop(rel, sx - r_out, sy - r_out, sx + r_out + 1, sy + r_out + 1)
+    yy, xx = np.mgrid[ry0:ry0 + ring.shape[0], rx0:rx0 + ring.shape[1]]
+    d = np.hypot(xx - sx, yy - sy)
+    around = ring[(d >= r_in) & (d <= r_out)]
+    if around.size and vmax - float(np.median(around)) < 0.25 * smax / window ** 2:
+        return Location.missing("no spot standing out on the ball (a uniformly dark ball, "
+                                "backlit?): thesis-small locates by the specular spot")
+    return Location(x=float(sx + x0), y=float(sy + y0), found=True)
 
 
 # --------------------------------------------------------------------------------------------
@@ -128,13 +143,15 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
         Angular step (rad) around the candidate circles of step 6.
     full_scale : float, optional
         The camera's full scale, 2**bit_depth - 1 (DN), for the full-frame search
-        (:func:`coarse_find`); default the frame's word's.
+        (:func:`coarse_find`) and the highlight (at least 1 % of it above the background);
+        default the frame's word's.
 
     Returns
     -------
     Location
         Integer-pixel centre (ties in step 6 averaged); ``found`` False when no ball-like
-        change is found.
+        change is found, or no specular highlight brighter than the background lies on the
+        ball (a dark ball on a bright backlight: the method has nothing to locate by).
     """
     rel_full_abs = None
     if guess is None:
@@ -149,8 +166,21 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
         return Location.missing("search region outside the frame")
     rel = relative_image(fr, background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]])
     spots = cv2.blur(rel, (3, 3))
-    _, _, _, (sx, sy) = cv2.minMaxLoc(spots)
+    _, smax, _, (sx, sy) = cv2.minMaxLoc(spots)
     scx, scy = sx + x0, sy + y0
+    # the method stands on the highlight: one no brighter than the background (a dark ball on
+    # a bright backlight) or off the ball is not found, never a wrong place
+    # the pixel noise from neighbours' differences (edges are few), a third of it after the
+    # 3 x 3 mean
+    noise = 1.4826 * float(np.median(np.abs(np.diff(rel, axis=1)))) / math.sqrt(2.0) / 3.0
+    fs = _full_scale(fr.dtype) if full_scale is None else float(full_scale)
+    if smax < max(8.0 * noise, 0.01 * fs):
+        return Location.missing("no specular highlight brighter than the background on the "
+                                "ball (a dark ball on a bright backlight?): thesis-large "
+                                "locates by the highlight; use the subpixel locator")
+    if math.hypot(scx - guess[0], scy - guess[1]) > r_px:
+        return Location.missing("the brightest spot near the ball lies off the ball: no "
+                                "specular highlight to locate by")
     half = int(round(r_px + 13))  # 50 for the 10 mm ball: the thesis's 101 x 101
     # step 2: background subtraction on the sub-image
     fr, x0, y0 = _crop(frame, scx - half, scy - half, scx + half + 1, scy + half + 1)
