@@ -275,3 +275,20 @@ def test_thesis_large_on_a_drawn_dark_ball_without_highlight_is_not_found():
     lit = np.clip(fr + 3800 * spot * cov, 0, 4095).astype(np.uint16)
     loc = locate_large_thesis(lit, bg, 30.0, guess=(101.0, 99.0), full_scale=4095.0)
     assert loc.found and math.hypot(loc.x - 100.3, loc.y - 99.6) < 1.5
+
+
+def test_the_overlay_shows_a_12_bit_frame_to_its_full_scale(tmp_path):
+    import pandas as pd
+
+    from rollfric.overlay import plot_overlays
+
+    frames = np.full((1, 64, 64), 4095, np.uint16)  # a 12-bit camera's white
+    tifffile.imwrite(tmp_path / "w.tif", frames, extratags=[(281, "H", 1, 4095, True)])
+    track = pd.DataFrame({"frame": [0], "t_s": [0.0], "x_px": [np.nan], "y_px": [np.nan],
+                          "theta_rad": [np.nan], "found": [0]})
+    png = plot_overlays(io.open_recording(tmp_path / "w.tif"), track, tmp_path / "o.png",
+                        r_px=10.0)
+    img = cv2.imread(str(png), cv2.IMREAD_GRAYSCALE)
+    # the frame fills the middle of the figure: white, not 4095 / 65535 of it (grey 16)
+    h, w = img.shape
+    assert np.median(img[h // 3:2 * h // 3, w // 3:2 * w // 3]) > 240
