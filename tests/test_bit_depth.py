@@ -292,3 +292,20 @@ def test_the_overlay_shows_a_12_bit_frame_to_its_full_scale(tmp_path):
     # the frame fills the middle of the figure: white, not 4095 / 65535 of it (grey 16)
     h, w = img.shape
     assert np.median(img[h // 3:2 * h // 3, w // 3:2 * w // 3]) > 240
+
+
+def test_the_real_12_bit_ball_at_110_dn_of_contrast_is_located():
+    """The real clip's ball (about 3900 DN below its backlight) scaled to 110 DN of contrast:
+    against 4095 every frame is located where the full-contrast frame is (within 0.01 px);
+    against the word's 65535 none ("no ball-like change in the frame")."""
+    src = io.open_recording(REAL / "ball_12bit.cihx")
+    frames = [src[i] for i in range(len(src))]
+    bg = _backlit_background(frames)
+    depth = SubpixelOptions(full_scale=bitdepth.full_scale(src.bit_depth))
+    k = 110.0 / 3900.0
+    for f in frames:
+        full = locate_subpixel(f, bg, 63.6, opts=depth)
+        low = np.rint(bg - (bg.astype(float) - f) * k).astype(np.uint16)
+        loc = locate_subpixel(low, bg, 63.6, opts=depth)
+        assert loc.found and math.hypot(loc.x - full.x, loc.y - full.y) < 0.01
+    assert not locate_subpixel(low, bg, 63.6).found
