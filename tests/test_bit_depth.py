@@ -224,6 +224,14 @@ def test_a_10_bit_recording_at_half_contrast_in_16_bit_words_measures(tmp_path, 
     guessed = [w for w in out["data"][1]["warnings"] if "bit depth" in w]
     assert len(guessed) == 1 and "taken as 10 from the data" in guessed[0]
     assert not any("bit depth" in w for w in out["tag"][1]["warnings"] + out["key"][1]["warnings"])
+    # a key the frames exceed is bad input naming both, nothing written
+    save_setup(rec.setup.replace(bit_depth=9), tmp_path / "setup9.toml")
+    assert main(["measure", str(tmp_path / "plain.tif"), "--setup", str(tmp_path / "setup9.toml"),
+                 "--out", str(tmp_path / "nine"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "camera.bit_depth = 9 (full scale 511 DN) contradicts the data" in err
+    assert int(err.split(" reach ")[1].split(" DN")[0]) > 511
+    assert not (tmp_path / "nine").exists()
 
 
 # -- a locator without its feature reports the frame not found
