@@ -123,7 +123,8 @@ def resolve_bit_depth(source, setup_bits: int | None = None, *,
     """The recording's effective bit depth: the file's, else the setup's, else the data's.
 
     The setup's value must agree with the file's where the file states one, and no sampled
-    frame may exceed the full scale of the depth the setup states. A depth from the data is
+    frame may exceed the full scale of the depth the setup states. A file's statement that its
+    own sampled frames exceed is not used (a note says so). A depth from the data is
     the smallest that holds the largest value of :data:`SAMPLED_FRAMES` sampled frames (a dim
     recording then gets a low depth: its thresholds are then lower, as they should be for its
     range), with a note saying so.
@@ -155,6 +156,14 @@ def resolve_bit_depth(source, setup_bits: int | None = None, *,
     word = dtype_bits(source.dtype)
     stated = getattr(source, "bit_depth_stated", None)
     name = getattr(source, "name", "the recording")
+    wrong = []  # the file's statement, when its own frames exceed it
+    if stated is not None and int(stated) < word:
+        vmax, k = sampled_max(source)
+        if vmax > full_scale(int(stated)):
+            wrong = [f"{name} says the camera's bit depth is {int(stated)} (full scale "
+                     f"{full_scale(int(stated)):.0f} DN), but {k} sampled frames reach {vmax} DN: "
+                     "not used"]
+            stated = None
     if setup_bits is not None:
         setup_bits = check_bits(setup_bits, where)
         if setup_bits > word:
@@ -169,14 +178,14 @@ def resolve_bit_depth(source, setup_bits: int | None = None, *,
                 raise InputError(f"{where} = {setup_bits} (full scale "
                                  f"{full_scale(setup_bits):.0f} DN) contradicts the data of "
                                  f"{name}: {k} sampled frames reach {vmax} DN")
-        return setup_bits, "setup", []
+        return setup_bits, "setup", wrong
     if stated is not None:
         return int(stated), "file", []
     if word == 8:
-        return 8, "file", []
+        return 8, "file", wrong
     vmax, k = sampled_max(source)
     bits = min(word, bits_for(vmax))
     note = (f"the camera's bit depth is neither in {name} nor in the setup: taken as {bits} "
             f"from the data (the largest value of {k} sampled frames is {vmax} DN; full scale "
             f"{full_scale(bits):.0f} DN); give {where} in the setup if the camera's is another")
-    return bits, "data", [note]
+    return bits, "data", wrong + [note]

@@ -144,16 +144,15 @@ class BaseSource:
     background: np.ndarray | None = None
     concurrent_reads: bool = False  # a file handle's reads are not safe from two threads
     bit_depth_stated: int | None = None  # the camera's bit depth as the file states it
-    _bit_depth_data: int | None = None  # else the data's, found once when asked
+    _bit_depth_data: int | None = None  # the depth found once when asked
 
     @property
     def bit_depth(self) -> int:
-        """The camera's effective bit depth: the file's (``bit_depth_stated``), 8 for 8-bit
-        frames, else the smallest that holds the largest value of a few sampled frames (a
-        warning says so; :func:`rollfric.bitdepth.resolve_bit_depth`, which the measurement
-        calls with the setup's ``camera.bit_depth``)."""
-        if self.bit_depth_stated is not None:
-            return int(self.bit_depth_stated)
+        """The camera's effective bit depth: the file's (``bit_depth_stated``, unless a few
+        sampled frames exceed it), 8 for 8-bit frames, else the smallest that holds the largest
+        value of a few sampled frames (a warning says so; found once, by
+        :func:`rollfric.bitdepth.resolve_bit_depth`, which the measurement calls with the
+        setup's ``camera.bit_depth``)."""
         if self._bit_depth_data is None:
             import logging
 

@@ -131,6 +131,18 @@ def test_the_setup_key_and_the_data_guess(tmp_path, caplog):
     assert bitdepth.resolve_bit_depth(cine, 12) == (12, "setup", [])
 
 
+def test_a_files_depth_its_frames_exceed_is_not_used(tmp_path):
+    frames = np.zeros((3, 8, 10), np.uint16)
+    frames[1, 4, 4] = 3000
+    tifffile.imwrite(tmp_path / "r.tif", frames, photometric="minisblack",
+                     extratags=[(281, "H", 1, 1023, True)])
+    src = io.open_recording(tmp_path / "r.tif")
+    assert src.bit_depth_stated == 10
+    bits, how, notes = bitdepth.resolve_bit_depth(src)
+    assert (bits, how) == (12, "data") and "says the camera's bit depth is 10" in notes[0]
+    assert bitdepth.resolve_bit_depth(src, 12)[:2] == (12, "setup")
+
+
 def test_the_setup_key_is_validated():
     base = thesis_setup().to_toml_dict()
     for bad in (0, 17, 12.0, "12", True):
