@@ -234,6 +234,14 @@ class FolderSource(_Source):
         self.files = files
         first = _imread(files[0])
         super().__init__(str(path), len(files), first.shape, first.dtype)
+        if files[0].suffix.lower() in TIFF_SUFFIXES and self.dtype != np.uint8:
+            import tifffile
+
+            try:  # the first image's MaxSampleValue / BitsPerSample, as for a TIFF stack
+                with tifffile.TiffFile(files[0]) as tif:
+                    self.bit_depth_stated = _tiff_bit_depth(tif.pages.first, self.dtype)
+            except Exception:  # read by OpenCV above; a tag tifffile cannot read states nothing
+                self.bit_depth_stated = None
 
     def __getitem__(self, i: int) -> np.ndarray:
         i = self._index(i)

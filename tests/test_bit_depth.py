@@ -108,6 +108,12 @@ def test_a_tiff_states_its_depth_by_max_sample_value(tmp_path):
     assert io.open_recording(tmp_path / "a.tif").bit_depth == 10
     assert io.open_recording(tmp_path / "b.tif").bit_depth_stated is None  # a 16-bit word only
     assert io.open_recording(tmp_path / "c.tif").bit_depth == 8
+    # a folder of TIFF images: the first one's tag
+    (tmp_path / "folder").mkdir()
+    for i in range(3):
+        tifffile.imwrite(tmp_path / "folder" / f"f{i}.tif", frames[i], photometric="minisblack",
+                         extratags=[(281, "H", 1, 4095, True)])
+    assert io.open_recording(tmp_path / "folder").bit_depth_stated == 12
 
 
 def test_the_setup_key_and_the_data_guess(tmp_path, caplog):
