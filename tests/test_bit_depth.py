@@ -335,3 +335,20 @@ def test_the_real_12_bit_ball_at_110_dn_of_contrast_is_located():
         loc = locate_subpixel(low, bg, 63.6, opts=depth)
         assert loc.found and math.hypot(loc.x - full.x, loc.y - full.y) < 0.01
     assert not locate_subpixel(low, bg, 63.6).found
+
+
+def test_a_zarr_store_states_its_depth_by_its_bit_depth_attribute(tmp_path):
+    import zarr
+
+    from rollfric.io import RecordingError
+
+    frames = np.full((3, 8, 10), 100, np.uint16)
+    for name, attr in (("twelve.zarr", 12), ("none.zarr", None), ("bad.zarr", 20)):
+        g = zarr.open_group(str(tmp_path / name), mode="w")
+        g.create_array("frames", data=frames)
+        if attr is not None:
+            g.attrs["bit_depth"] = attr
+    assert io.open_recording(tmp_path / "twelve.zarr").bit_depth == 12
+    assert io.open_recording(tmp_path / "none.zarr").bit_depth_stated is None
+    with pytest.raises(RecordingError, match="bit_depth"):
+        io.open_recording(tmp_path / "bad.zarr")
