@@ -75,7 +75,8 @@ def median(stack: np.ndarray) -> np.ndarray:
     return np.rint(np.median(stack, axis=0)).astype(stack.dtype)
 
 
-def median_background(source, r_px: float, max_frames: int = 41) -> tuple[np.ndarray, list]:
+def median_background(source, r_px: float, max_frames: int = 41, *,
+                      full_scale: float | None = None) -> tuple[np.ndarray, list]:
     """The per-pixel median of up to ``max_frames`` frames, repaired where the ball rested.
 
     The discs where the ball (or its cast shadow) rested in most of the sampled frames are
@@ -89,6 +90,9 @@ def median_background(source, r_px: float, max_frames: int = 41) -> tuple[np.nda
         The ball's radius in pixels.
     max_frames : int, optional
         Frames in the median.
+    full_scale : float, optional
+        The camera's full scale, 2**bit_depth - 1 (DN), for the search of the ball in the
+        sampled frames (:func:`rollfric.locate.coarse_candidates`); default the frames' word's.
 
     Returns
     -------
@@ -99,7 +103,8 @@ def median_background(source, r_px: float, max_frames: int = 41) -> tuple[np.nda
     """
     idx, stack = sample(source, max_frames)
     bg = median(stack)
-    cands = [locate.coarse_candidates(f, bg, r_px, n_candidates=3) for f in stack]
+    cands = [locate.coarse_candidates(f, bg, r_px, n_candidates=3, full_scale=full_scale)
+             for f in stack]
     showing = [j for j, c in enumerate(cands) if c]
     quiet = len(stack) - len(showing)
     if quiet == 0:

@@ -67,7 +67,7 @@ class CylinderContour:
     rms_px : float
         Rms distance of the edge points from the circle (px).
     saturated_fraction : float
-        Fraction of the edge points with a saturated pixel (the image type's largest value)
+        Fraction of the edge points with a saturated pixel (the camera's full scale)
         within their profile: a clipped step is not a linear image of the edge, and its edge
         points move with the local contrast (by up to the blur's width); the uncertainty
         above does not cover that.
@@ -188,7 +188,7 @@ def _ransac_circle(xs, ys, r_expected, rng, iters=400, tol=2.0):
 
 def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = None,
                          seed: int = 0, min_arc_deg: float = 60.0,
-                         undistort=None) -> CylinderContour:
+                         undistort=None, full_scale: float | None = None) -> CylinderContour:
     """Centre (px) of the trough's contour circle in ``background``.
 
     Parameters
@@ -207,6 +207,9 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
         :meth:`rollfric.lens.Calibration.undistort`): the chords' end points are undistorted
         and the centre and radius are those of the circle through them (least squares on the
         distances), in the undistorted image.
+    full_scale : float, optional
+        The camera's full scale, 2**bit_depth - 1 (DN): a pixel at it is saturated (4095 for
+        a 12-bit camera's frames in 16-bit words); default the image type's largest value.
 
     Returns
     -------
@@ -320,8 +323,10 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     u_edge = tuple(float(v / math.sqrt(3.0)) for v in dmax)
     u = tuple(float(math.hypot(a, b)) for a, b in zip(u_fit, u_edge, strict=True))
     saturated = 0.0
-    if np.issubdtype(background.dtype, np.integer):
-        top = (background >= np.iinfo(background.dtype).max).astype(np.float32)
+    if full_scale is None and np.issubdtype(background.dtype, np.integer):
+        full_scale = float(np.iinfo(background.dtype).max)
+    if full_scale is not None:
+        top = (background >= full_scale).astype(np.float32)
         if top.any():
             a = EDGE_HALF_PX + PLATEAU_PX
             prof = _profiles(top, (bx + off * nx)[keep], (by + off * ny)[keep], nx[keep],

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rollfric.errors import InputError
 from rollfric.source import (  # noqa: F401  (FrameSource, RegionSource: the readers' protocol)
     BaseSource,
     FrameSource,
@@ -109,6 +110,7 @@ class TiffSource(_Source):
         self._path = path
         self._mmap = None  # the whole file, memory-mapped for region reads of plain pages
         super().__init__(str(path), n, hw, first.dtype)
+        self.bit_depth_stated = _tiff_bit_depth(first, self.dtype)
 
     def __getitem__(self, i: int) -> np.ndarray:
         i = self._index(i)
@@ -143,6 +145,28 @@ class TiffSource(_Source):
                                  f"end of the file (truncated or corrupt file?)")
         img = self._mmap[off:off + h * w * dt.itemsize].view(dt).reshape(h, w)
         return np.ascontiguousarray(img[y0:y1, x0:x1], dtype=self.dtype)
+
+
+def _tiff_bit_depth(page, dtype) -> int | None:
+    """The camera's bit depth a TIFF page states: from ``MaxSampleValue`` (4095: 12 bits), else
+    ``BitsPerSample`` unless it is only the 16-bit word every writer uses for uint16 data (that
+    says nothing of the camera: the setup's ``camera.bit_depth`` or the data then tell)."""
+    from rollfric.bitdepth import bits_for, dtype_bits
+
+    word = dtype_bits(dtype)
+    try:
+        tag = page.tags.get("MaxSampleValue")
+        vmax = tag.value if tag is not None else None
+        if isinstance(vmax, (tuple, list)):
+            vmax = max(vmax) if vmax else None
+        bps = page.bitspersample
+    except Exception:  # a tag tifffile cannot decode states nothing
+        return None if word > 8 else 8
+    if isinstance(vmax, (int, np.integer)) and 0 < int(vmax) < 2 ** word:
+        return bits_for(int(vmax))
+    if isinstance(bps, (int, np.integer)) and 0 < int(bps) < 16:
+        return min(int(bps), word)
+    return None
 
 
 def _drop_record(record) -> bool:
@@ -210,6 +234,14 @@ class FolderSource(_Source):
         self.files = files
         first = _imread(files[0])
         super().__init__(str(path), len(files), first.shape, first.dtype)
+        if files[0].suffix.lower() in TIFF_SUFFIXES and self.dtype != np.uint8:
+            import tifffile
+
+            try:  # the first image's MaxSampleValue / BitsPerSample, as for a TIFF stack
+                with tifffile.TiffFile(files[0]) as tif:
+                    self.bit_depth_stated = _tiff_bit_depth(tif.pages.first, self.dtype)
+            except Exception:  # read by OpenCV above; a tag tifffile cannot read states nothing
+                self.bit_depth_stated = None
 
     def __getitem__(self, i: int) -> np.ndarray:
         i = self._index(i)
@@ -285,6 +317,7 @@ class VideoSource(_Source):
         self._next = 1
         self._last = (0, frame)
         super().__init__(str(path), n, frame.shape, frame.dtype)
+        self.bit_depth_stated = 8 * self.dtype.itemsize  # OpenCV decodes video to 8 bits
         fps = self._cap.get(cv2.CAP_PROP_FPS)
         self.fps = float(fps) if fps and math.isfinite(fps) and fps > 0 else None
 
@@ -319,6 +352,7 @@ class ZarrArraySource(_Source):
         self._arr = arr
         super().__init__(str(path), arr.shape[0], arr.shape[1:], arr.dtype)
         self.attrs = dict(group.attrs)
+        self.bit_depth_stated = _stated_bits(self.attrs.get("bit_depth"), self.dtype, str(path))
         fps = self.attrs.get("fps")
         self.fps = float(fps) if isinstance(fps, (int, float)) and fps > 0 else None
         if "background" in group:
@@ -340,6 +374,23 @@ class ZarrArraySource(_Source):
             return np.asarray(self._arr[i, y0:y1, x0:x1])
         except Exception as exc:
             raise RecordingError(f"{self.name}: cannot read frame {i} ({exc})") from None
+
+
+def _stated_bits(value, dtype, name: str) -> int | None:
+    """A bit depth a store or reader states (``bit_depth``), checked against its frames' word;
+    None when it states none."""
+    from rollfric.bitdepth import check_bits, dtype_bits
+
+    if value is None:
+        return None
+    try:
+        bits = check_bits(value, f"{name}: its bit_depth")
+    except InputError as exc:
+        raise RecordingError(str(exc)) from None
+    if bits > dtype_bits(dtype):
+        raise RecordingError(f"{name}: its bit_depth {bits} exceeds its {dtype_bits(dtype)}-bit "
+                             "frames")
+    return bits
 
 
 def zarr_reader_entry_points() -> list:
@@ -398,6 +449,12 @@ class _WrappedSource(_Source):
         attrs = dict(group.attrs)
         attrs.update(dict(getattr(src, "attrs", None) or {}))
         self.attrs = attrs
+        # the reader's own statement of the camera's depth, else the store's attribute
+        stated = getattr(src, "bit_depth_stated", None)
+        if stated is None and not isinstance(getattr(type(src), "bit_depth", None), property):
+            stated = getattr(src, "bit_depth", None)
+        self.bit_depth_stated = _stated_bits(attrs.get("bit_depth") if stated is None
+                                             else stated, self.dtype, name)
 
     def __getitem__(self, i: int) -> np.ndarray:
         i = self._index(i)

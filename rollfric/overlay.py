@@ -86,8 +86,12 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
     axes = fig.subplots(nrow, ncol, squeeze=False)
     for ax in axes.ravel():
         ax.axis("off")
+    # grey levels to the camera's full scale where the file states it (a 12-bit camera's
+    # frames in 16-bit words shown against 65535 are black)
+    stated = getattr(source, "bit_depth_stated", None)
     for ax, f in zip(axes.ravel(), frames, strict=False):
         img = np.asarray(source[int(f)])
+        vmax = float(2 ** int(stated) - 1) if stated else float(np.iinfo(img.dtype).max)
         row = track.loc[track["frame"] == f].iloc[0]
         h, w = img.shape
         if row["found"] == 1:
@@ -96,8 +100,7 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
         else:
             x, y, r = w / 2, h / 2, r_default
         half = zoom * r_default
-        ax.imshow(img, cmap="gray", interpolation="nearest", vmin=0,
-                  vmax=float(np.iinfo(img.dtype).max))
+        ax.imshow(img, cmap="gray", interpolation="nearest", vmin=0, vmax=vmax)
         ax.set_xlim(x - half, x + half)
         ax.set_ylim(y + half, y - half)
         if row["found"] == 1:

@@ -41,6 +41,12 @@ contour is moved to the ball's plane along the line of sight::
                                   # behind (-) the ball's plane (default 0)
 
 The optical axis meets the image at the calibration's (cx, cy), else at the frame's centre.
+
+The camera's effective bit depth, where the recording's file does not state it (a TIFF of 16-bit
+words from a 12-bit camera)::
+
+    [camera]
+    bit_depth = 12   # the frames' values run 0..4095: every threshold is taken against that
 """
 
 from __future__ import annotations
@@ -149,6 +155,8 @@ class Setup:
     working_distance: float | None = None  # m, pinhole to the ball's plane; None: not given
     contour_depth: float | None = None  # m, the contour's edge in front of (+) the ball's
     # plane; None: not stated (from the contour's radius when working_distance is given)
+    bit_depth: int | None = None  # the camera's effective bit depth (camera.bit_depth); None:
+    # the recording's file states it, or the data tell (rollfric.bitdepth)
 
     def __post_init__(self) -> None:
         for name in ("cylinder_radius", "ball_diameter", "ball_mass", "fps", "pixel_size",
@@ -180,6 +188,10 @@ class Setup:
                                or (wd is not None and not abs(zc) < 0.5 * wd)):
             raise SetupError(f"contour_depth must be finite and nearer than half the working "
                              f"distance, got {zc!r}")
+        bd = self.bit_depth
+        if bd is not None and (isinstance(bd, bool) or not isinstance(bd, int)
+                               or not 1 <= bd <= 16):
+            raise SetupError(f"bit_depth must be a whole number of bits, 1..16, got {bd!r}")
 
     def u(self, name: str):
         """Standard uncertainty of one field.
@@ -234,6 +246,8 @@ class Setup:
             out["camera"].update(self.calibration.to_toml_dict())
         if self.working_distance is not None:
             out["camera"]["working_distance_mm"] = self.working_distance * 1e3
+        if self.bit_depth is not None:
+            out["camera"]["bit_depth"] = int(self.bit_depth)
         if self.contour_depth is not None:
             cyl["contour_depth_mm"] = self.contour_depth * 1e3
         if self.gravity != STANDARD_GRAVITY:
@@ -289,7 +303,7 @@ _SCHEMA = {
     "cylinder": {"radius_mm": True, "center_px": False, "contour_depth_mm": False},
     "ball": {"diameter_mm": True, "mass_g": True},
     "camera": {"fps": True, "pixel_size_mm": True, "matrix": False, "distortion": False,
-               "image_size_px": False, "working_distance_mm": False},
+               "image_size_px": False, "working_distance_mm": False, "bit_depth": False},
     "environment": {"gravity_m_s2": False},
 }
 _REQUIRED_SECTIONS = ("cylinder", "ball", "camera")
@@ -420,6 +434,11 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
     if wd is not None and zc is not None and not abs(zc) * 1e-3 < 0.5 * wd:
         raise SetupError(f"{source}: cylinder.contour_depth_mm ({zc:g}) must be nearer the "
                          f"ball's plane than half of camera.working_distance_mm")
+    bits = data["camera"].get("bit_depth")
+    if bits is not None and (isinstance(bits, bool) or not isinstance(bits, int)
+                             or not 1 <= bits <= 16):
+        raise SetupError(f"{source}: camera.bit_depth must be the camera's effective bit depth, "
+                         f"a whole number of bits 1..16 (12 for a 12-bit camera), got {bits!r}")
     try:
         calibration = calibration_from_dict(data["camera"], source)
     except CalibrationError as exc:
@@ -436,6 +455,7 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
         uncertainty=tuple(uncertainty),
         working_distance=wd,
         contour_depth=None if zc is None else float(zc) * 1e-3,
+        bit_depth=bits,
     )
 
 

@@ -24,6 +24,10 @@ class FrameSource(Protocol):
         (T, H, W): frames, rows, columns.
     dtype : numpy.dtype
         uint8 or uint16.
+    bit_depth : int
+        The camera's effective bit depth: the frames' values run 0..2**bit_depth - 1 (12 for a
+        12-bit camera's frames in 16-bit words); every threshold, floor and saturation test
+        is taken against that full scale (:mod:`rollfric.bitdepth`).
     fps : float or None
         The frame rate the file states, if any.
     background : ndarray or None
@@ -39,6 +43,7 @@ class FrameSource(Protocol):
 
     shape: tuple[int, int, int]
     dtype: np.dtype
+    bit_depth: int
     fps: float | None
     background: np.ndarray | None
     attrs: dict
@@ -138,6 +143,26 @@ class BaseSource:
     timestamps: np.ndarray | None = None
     background: np.ndarray | None = None
     concurrent_reads: bool = False  # a file handle's reads are not safe from two threads
+    bit_depth_stated: int | None = None  # the camera's bit depth as the file states it
+    _bit_depth_data: int | None = None  # the depth found once when asked
+
+    @property
+    def bit_depth(self) -> int:
+        """The camera's effective bit depth: the file's (``bit_depth_stated``, unless a few
+        sampled frames exceed it), 8 for 8-bit frames, else the smallest that holds the largest
+        value of a few sampled frames (a warning says so; found once, by
+        :func:`rollfric.bitdepth.resolve_bit_depth`, which the measurement calls with the
+        setup's ``camera.bit_depth``)."""
+        if self._bit_depth_data is None:
+            import logging
+
+            from rollfric.bitdepth import resolve_bit_depth
+
+            bits, _, notes = resolve_bit_depth(self)
+            for msg in notes:
+                logging.getLogger(__name__).warning(msg)
+            self._bit_depth_data = bits
+        return self._bit_depth_data
 
     def __init__(self, name: str, n: int, hw: tuple[int, int], dtype) -> None:
         from rollfric.limits import MAX_FRAME_PIXELS

@@ -24,7 +24,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from rollfric import cpus, io, locate, plausibility, quality, timing
+from rollfric import bitdepth, cpus, io, locate, plausibility, quality, timing
 from rollfric.background import median_background
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
@@ -523,7 +523,8 @@ def _tiff_pages(path) -> int:
         return 1
 
 
-def resolve_background(source, background, *, r_px: float, median_frames: int = 41):
+def resolve_background(source, background, *, r_px: float, median_frames: int = 41,
+                       full_scale: float | None = None):
     """The background: the given image, the recording's own, or the median of frames.
 
     The median (:func:`rollfric.background.median_background`) is repaired where the ball of
@@ -540,6 +541,8 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
         The ball's radius (px).
     median_frames : int, optional
         Frames in the median.
+    full_scale : float, optional
+        The camera's full scale (DN) the median's repair searches the ball with.
 
     Returns
     -------
@@ -571,7 +574,7 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
     k = min(len(source), median_frames)
     logger.info(f"no background given: using the per-pixel median of {k} frames spread over "
                 "the recording")
-    bg, notes = median_background(source, r_px, median_frames)
+    bg, notes = median_background(source, r_px, median_frames, full_scale=full_scale)
     for msg in notes:
         logger.warning(msg)
     return bg, f"per-pixel median of {k} frames" + (", repaired" if notes else ""), notes
@@ -624,7 +627,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                     progress: bool = True, opts=None,
                     times=None, drops: bool = True,
                     read_ahead: bool = False,
-                    segments: int | str = "auto") -> tuple[pd.DataFrame, TrackInfo]:
+                    segments: int | str = "auto",
+                    bit_depth: int | None = None) -> tuple[pd.DataFrame, TrackInfo]:
     """Locate the ball in every frame of ``source``; one row a frame (see TRACK_COLUMNS), plus
     r_px, sigma_px (estimated centre error) and inlier_frac where the locator gives them.
     ``times``: t_s of each frame (default frame / setup.fps; see :func:`frame_times`).
@@ -675,6 +679,10 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         threads at once (its attribute ``concurrent_reads``; synth's recordings), else one
         after another: the track is the same either way. 1: one pass through the recording,
         as before 2026-11-23.
+    bit_depth : int or None
+        The camera's effective bit depth (:func:`rollfric.bitdepth.resolve_bit_depth`): the
+        locators' contrast floors are fractions of its full scale, 2**bit_depth - 1; None: the
+        source's ``bit_depth``, else its frames' word's.
 
     Returns
     -------
@@ -722,6 +730,12 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     # radius and the centre are confounded (centres 0.1-0.15 px off on the harsh lamp's arcs
     # over half of the rim), the calibrated one pins the centre
     base = opts if opts is not None else locate.SubpixelOptions()
+    if bit_depth is None:
+        bit_depth = getattr(source, "bit_depth", None)
+    if base.full_scale is None and bit_depth is not None:
+        # the thresholds against the camera's full scale, not the 16-bit word's
+        base = dataclasses.replace(base, full_scale=bitdepth.full_scale(bit_depth))
+        opts = base
     if setup.working_distance is not None and method == "subpixel" and base.pinhole is None:
         # a pinhole at a stated working distance sees the ball as an ellipse
         # (rollfric.locate.silhouette_stretch), stretched away from the principal point
@@ -1258,17 +1272,21 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         raise InputError(f"{getattr(source, 'name', recording)}: the recording has only "
                          f"{len(source)} frames: at least {fitmod.MIN_SAMPLES} are needed to fit "
                          "mu; rollfric track writes the track of a recording of any length")
+    # the camera's bit depth: every threshold and the saturation test use its full scale
+    bits, bits_how, bits_notes = bitdepth.resolve_bit_depth(source, setup.bit_depth)
+    fs = bitdepth.full_scale(bits)
+    logger.info(f"the camera's bit depth: {bits} (from the {bits_how}; full scale {fs:.0f} DN)")
     t, times_desc, time_notes = frame_times(source, setup.fps, times)
     # a recording with its own per-frame times is checked against them (frame_times), one
     # without against the rate in its header
     fps_note = fps_mismatch(getattr(source, "fps", None), setup.fps) \
         if times_desc == TIMES_FPS else None
-    time_notes = time_notes + ([fps_note] if fps_note else [])
+    time_notes = time_notes + ([fps_note] if fps_note else []) + bits_notes
     for msg in time_notes:
         logger.warning(msg)
     lap("open")
     bg, bg_desc, bg_notes = resolve_background(source, background, median_frames=median_frames,
-                                               r_px=ball_radius_px(setup))
+                                               r_px=ball_radius_px(setup), full_scale=fs)
     lap("background")
     center_u, contour_notes = None, []
     ellipse = None
@@ -1278,7 +1296,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         R_px = setup.cylinder_radius / setup.pixel_size
         lens = setup.calibration
         contour = find_cylinder_center(bg, radius_px=R_px,
-                                       undistort=None if lens is None else lens.undistort)
+                                       undistort=None if lens is None else lens.undistort,
+                                       full_scale=fs)
         if abs(contour.radius - R_px) > 0.1 * R_px:
             raise SetupError(
                 f"the setup does not fit the images: the trough contour in the background has a "
@@ -1317,7 +1336,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     df, info = track_recording(source, setup, bg, method=method, angle=angle, center=center,
                                progress=progress,
                                times=None if times_desc == TIMES_FPS else t, drops=drops,
-                               read_ahead=read_ahead, segments=segments)
+                               read_ahead=read_ahead, segments=segments, bit_depth=bits)
     check_track_fits(df, setup)
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,

@@ -37,11 +37,14 @@ def _pack_fields(fields, values: dict) -> bytes:
 
 
 def write_cine(path, frames, *, fps: float = 1000.0, times=None, trigger=None, packed12=False,
-               first_image_no: int = 0, annotation: bytes = b"rollfric") -> Path:
+               first_image_no: int = 0, annotation: bytes = b"rollfric",
+               packed10=False) -> Path:
     """A minimal valid monochrome .cine file: CINEFILEHEADER, BITMAPINFOHEADER, SETUP (frame
     rate), tagged blocks 1002 (TIME64 per frame) and 1003 (exposure per frame), the image
     offsets, then each frame: annotation (size, bytes, image size) and the pixels, bottom row
-    first (8 or 16 bit), or top row first 12-bit packed (as pims reads packed frames).
+    first (8 or 16 bit), or top row first 12-bit packed (as pims reads packed frames), or
+    ``packed10``: the frames' values (< 1024) as P10 codes, 10-bit packed (the maker's
+    compression 256).
 
     ``times``: seconds of each frame from frame 0 (default i / fps); ``trigger``: the trigger's
     time from frame 0 (default 0)."""
@@ -49,6 +52,7 @@ def write_cine(path, frames, *, fps: float = 1000.0, times=None, trigger=None, p
         BITMAP_INFO_FIELDS,
         HEADER_FIELDS,
         SETUP_FIELDS,
+        _sixteen2ten,
         _sixteen2twelve,
     )
 
@@ -70,7 +74,10 @@ def write_cine(path, frames, *, fps: float = 1000.0, times=None, trigger=None, p
     off_setup = off_bmp + bmp_size
     off_offsets = off_setup + setup_len + len(tagged)
     data_start = off_offsets + 8 * n
-    if packed12:
+    if packed10:
+        image_size = h * w * 10 // 8
+        images = [_sixteen2ten(f.astype(np.uint16).ravel()).tobytes() for f in frames]
+    elif packed12:
         image_size = h * w * 12 // 8
         images = [_sixteen2twelve(f.astype(np.uint16).ravel()).tobytes() for f in frames]
     else:
@@ -87,12 +94,13 @@ def write_cine(path, frames, *, fps: float = 1000.0, times=None, trigger=None, p
         "trigger_time": time64(trigger)})
     bmp = _pack_fields(BITMAP_INFO_FIELDS, {
         "bi_size": bmp_size, "bi_width": w, "bi_height": h, "bi_planes": 1,
-        "bi_bit_count": 16 if packed12 else bits, "bi_compression": 256 if packed12 else 0,
+        "bi_bit_count": 16 if packed12 or packed10 else bits,
+        "bi_compression": 256 if packed10 else 1024 if packed12 else 0,
         "bi_image_size": image_size})
     setup = _pack_fields(SETUP_FIELDS, {
         "frame_rate_16": min(int(fps), 65535), "length": setup_len, "im_width": w,
         "im_height": h, "frame_rate": int(round(fps)), "software_version": 702,
-        "real_bpp": 12 if packed12 else bits, "cfa": 0})
+        "real_bpp": 10 if packed10 else 12 if packed12 else bits, "cfa": 0})
     assert len(setup) == setup_len
     with open(path, "wb") as f:
         f.write(header + bmp + setup + tagged + struct.pack(f"<{n}Q", *offsets))

@@ -7,9 +7,10 @@ import warnings
 import numpy as np
 import pytest
 import tifffile
-from test_real_camera_files import CINES, EXPECTED, PHOTRONS, REAL
+from test_real_camera_files import CINES, EXPECTED, P10, PHOTRONS, REAL
 
 from rollfric.cli import main
+from rollfric.formats.phantom_lut import P10_BITS
 
 
 def _info(capsys, *argv):
@@ -30,7 +31,9 @@ def test_info_of_the_real_cine_files_against_pims(capsys, name):
     assert (info["n_frames"], info["height"], info["width"]) == (len(ref), *hw)
     assert (info["n_frames"], info["width"], info["height"]) == (n, w, h)
     assert info["dtype"] == np.dtype(dtype).name and info["colour"] == "mono"
-    assert info["bit_depth"] == bits == ref.setup_fields_dict["real_bpp"]
+    assert bits == ref.setup_fields_dict["real_bpp"]
+    # a P10 cine's frames are the maker's linear 12-bit values
+    assert info["bit_depth"] == (P10_BITS if name in P10 else bits)
     assert info["fps"] == ref.frame_rate == fps
     assert info["shutter_s"] == pytest.approx(float(np.median(ref.all_exposures)), rel=1e-12)
     assert info["start_frame"] == start == ref.header_dict["first_image_no"]

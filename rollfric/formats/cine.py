@@ -7,8 +7,12 @@ offsets. Its frame read decodes the whole frame from a ``file.read``; here the f
 uncompressed monochrome file (8 or 16 bits a pixel, stored bottom row first as pims reads them)
 are read through ``numpy.memmap`` instead, so a region of interest reads only its own rows and
 columns (a 100 x 100 px region of a 1280 x 1024 px frame touches 1 % of its bytes). Packed 10-
-and 12-bit frames are decoded whole by pims, then cropped. Colour and compressed files are
-refused (InputError): rollfric measures monochrome frames.
+and 12-bit frames are decoded whole by pims, then cropped; packed 10-bit (P10) codes are
+linearised with the maker's table (:mod:`rollfric.formats.phantom_lut`: 12-bit values, which pims
+does not do). Colour and compressed files are refused (InputError): rollfric measures
+monochrome frames.
+
+``bit_depth_stated``: the SETUP's real bit depth (``real_bpp``), 12 for P10 frames.
 
 Times: the per-frame ``image_time_only`` block (TIME64: seconds since 1970 in 32.32 fixed point,
 2**-32 s resolution) gives ``timestamps`` as seconds from the first frame; the SETUP's frame rate
@@ -26,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rollfric.formats.phantom_lut import P10_BITS, P10_TO_LINEAR
 from rollfric.source import BaseSource, RecordingError
 
 
@@ -82,9 +87,17 @@ class CineSource(BaseSource):
         shutter_us = cine.setup_fields_dict.get("shutter")  # the SETUP's, whole microseconds
         exposure = float(np.median(exposures)) if exposures else \
             (float(shutter_us) * 1e-6 if shutter_us else None)
+        real = int(cine.setup_fields_dict.get("real_bpp") or 0)
+        word = 8 if self._bits == 8 else 16
+        if self._bits == 10:
+            self.bit_depth_stated = P10_BITS  # the maker's table gives 12-bit linear values
+        elif 0 < real <= word:
+            self.bit_depth_stated = real
+        elif self._bits in (8, 12):
+            self.bit_depth_stated = self._bits
         self.attrs = {
             "format": "phantom-cine",
-            "camera_bit_depth": int(cine.setup_fields_dict.get("real_bpp") or self._bits),
+            "camera_bit_depth": self.bit_depth_stated or self._bits,
             "colour": "mono",
             "first_image_no": int(cine.header_dict["first_image_no"]),
             "start_frame": int(cine.header_dict["first_image_no"]),
@@ -135,6 +148,9 @@ class CineSource(BaseSource):
             except Exception as exc:
                 raise RecordingError(f"{self.name}: cannot decode packed frame {i} ({exc})") \
                     from None
+            if self._bits == 10:
+                # P10 codes are not linear in the light: the maker's table linearises them
+                img = P10_TO_LINEAR[np.minimum(img, 1023)]
             return self._check(img.astype(self.dtype, copy=False), i)
         return np.ascontiguousarray(self._pixels(i)[::-1], dtype=self.dtype)
 

@@ -14,6 +14,9 @@ on import. Here every format is a ``numpy.memmap``, and a region of interest rea
 only its own bytes (12-bit: the 3-byte pairs of its columns in its rows; with an odd frame width
 rows do not start on a pair, so its rows are unpacked whole) - the same pixels as pyMRAW's.
 
+``bit_depth_stated``: the header's effective bit depth ("EffectiveBit Depth", at most the word's
+"Color Bit"), the word's own depth where the effective bits are on the high side.
+
 MRAW holds no per-frame times: ``timestamps`` is None, ``fps`` the header's record rate.
 Colour files are refused: "Color Type" Color, and Raw (the sensor's own values) from a colour
 camera (a Photron model name with "-C", e.g. ``type 1100K-C``: a Bayer mosaic); Raw from a
@@ -146,6 +149,11 @@ class PhotronSource(BaseSource):
         fps = cih.get("Record Rate(fps)")
         self.fps = float(fps) if isinstance(fps, (int, float)) and math.isfinite(fps) \
             and fps > 0 else None
+        eff, side = cih.get("EffectiveBit Depth"), str(cih.get("EffectiveBit Side", "Lower"))
+        if isinstance(eff, int) and 0 < eff and side.lower() != "higher":
+            self.bit_depth_stated = min(eff, bits)  # values in the word's low bits
+        elif bits in (8, 12) or (isinstance(eff, int) and side.lower() == "higher"):
+            self.bit_depth_stated = bits  # packed, or left-aligned: the word's full range
         self.attrs = {
             "format": "photron-mraw",
             "header": str(head),

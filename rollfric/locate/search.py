@@ -71,6 +71,7 @@ def _refine_candidate(frame, background, r_px: float, cx: float, cy: float, reac
 
 def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
                 min_contrast: float | None = None,
+                full_scale: float | None = None,
                 n_candidates: int = 3) -> tuple[float, float] | None:
     """Full-frame search: a rough centre of the ball, good to about a pixel.
 
@@ -85,6 +86,9 @@ def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
     min_contrast : float, optional
         Mean |frame - background| over the ball that counts as a ball (DN); default 1 % of
         full scale.
+    full_scale : float, optional
+        The camera's full scale, 2**bit_depth - 1 (DN; :mod:`rollfric.bitdepth`); default the
+        frame's word's (255 or 65535).
     n_candidates : int, optional
         Candidates compared.
 
@@ -94,12 +98,13 @@ def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
         (x, y) in px, or None when nothing ball-like differs from the background.
     """
     cands = coarse_candidates(frame, background, r_px, min_contrast=min_contrast,
-                              n_candidates=n_candidates)
+                              full_scale=full_scale, n_candidates=n_candidates)
     return (cands[0][0], cands[0][1]) if cands else None
 
 
 def coarse_candidates(frame: np.ndarray, background: np.ndarray, r_px: float, *,
                       min_contrast: float | None = None,
+                      full_scale: float | None = None,
                       n_candidates: int = 3) -> list[tuple[float, float, float]]:
     """Full-frame search: up to ``n_candidates`` places where a ball of radius ``r_px`` may be.
 
@@ -124,6 +129,9 @@ def coarse_candidates(frame: np.ndarray, background: np.ndarray, r_px: float, *,
     min_contrast : float, optional
         Mean |frame - background| over the ball that counts as a ball (DN); default 1 % of
         full scale.
+    full_scale : float, optional
+        The camera's full scale, 2**bit_depth - 1 (DN; :mod:`rollfric.bitdepth`); default the
+        frame's word's (255 or 65535).
     n_candidates : int, optional
         Most candidates returned.
 
@@ -136,7 +144,7 @@ def coarse_candidates(frame: np.ndarray, background: np.ndarray, r_px: float, *,
     frame = as_array(frame)
     h, w = frame.shape
     if min_contrast is None:
-        min_contrast = 0.01 * _full_scale(frame.dtype)
+        min_contrast = 0.01 * (_full_scale(frame.dtype) if full_scale is None else full_scale)
     f = max(1, int(r_px // 3))
     hs, ws = h // f, w // f
     if hs < 1 or ws < 1:

@@ -74,6 +74,9 @@ class SubpixelOptions:
     mirror_sector: float = 0.25
     mirror_flank: float = 30.0  # deg: with local_contrast on, the full-contrast rays this close
     # to the low-contrast sector are left out (the rim's tapering crescent of mirrored backdrop)
+    full_scale: float | None = None  # the camera's full scale, 2**bit_depth - 1 (DN), which
+    # the search's and the edges' contrast floors are fractions of; None: the frame's word's
+    # (255 or 65535), too high for a 12-bit camera's frames in 16-bit words
     pinhole: tuple | None = None  # (principal x, principal y, focal length) px of a pinhole
     # camera whose image plane is parallel to the ball's plane (rollfric.perspective): the
     # ball's silhouette is then an ellipse (:func:`silhouette_stretch`), fitted as one; None:
@@ -257,7 +260,7 @@ def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
     rk = (float(r_px) if r_known is None else float(r_known),
           opts.radius_sigma if r_known_sigma is None else float(r_known_sigma))
     if guess is None:
-        cands = coarse_candidates(frame, background, r_px)
+        cands = coarse_candidates(frame, background, r_px, full_scale=opts.full_scale)
         if not cands:
             return Location.missing("no ball-like change in the frame")
         # the most disk-like candidate that the fit accepts (a cast shadow may look more
@@ -360,7 +363,7 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
     mirror_rim = -1 if opts.mirror_rim is None else int(bool(opts.mirror_rim))
     local = -1 if opts.local_contrast is None else int(bool(opts.local_contrast))
     nz = -1.0 if noise is None else float(noise)
-    floor = 0.004 * _full_scale(frame.dtype)
+    floor = 0.004 * (_full_scale(frame.dtype) if opts.full_scale is None else opts.full_scale)
     bg_dtype = background.dtype
     raw = bg_dtype == frame.dtype and bg_dtype in (np.uint8, np.uint16)
     loc = Location.missing("no edge found")

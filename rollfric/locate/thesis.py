@@ -26,7 +26,7 @@ from rollfric.locate.search import coarse_find
 
 def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
                         roi: tuple[int, int, int, int] | None = None, window: int = 15,
-                        polarity: str = "abs") -> Location:
+                        polarity: str = "abs", full_scale: float | None = None) -> Location:
     """Thesis paper 1: the brightest pixel of the window of largest summed relative image.
 
     A ``window`` x ``window`` window traverses the sub-image ``roi``; the centre is the
@@ -45,11 +45,16 @@ def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
         What is summed: |frame - background| (default: finds a dark ball with a bright spot as
         well as a bright one), frame - background (as for the thesis's bright spot) or
         background - frame.
+    full_scale : float, optional
+        The camera's full scale, 2**bit_depth - 1 (DN): a spot whose window sums to less than
+        10 % of it is none; default the frame's word's (255 or 65535).
 
     Returns
     -------
     Location
-        Integer-pixel centre; ``found`` False when the region lies outside the frame.
+        Integer-pixel centre; ``found`` False when the region lies outside the frame, holds no
+        spot, or the brightest pixel does not stand out from the ball around it (a uniformly
+        dark, backlit ball has no spot to locate by).
     """
     h, w = frame.shape
     x0, y0, x1, y1 = (0, 0, w, h) if roi is None else roi
@@ -69,12 +74,27 @@ def locate_small_thesis(frame: np.ndarray, background: np.ndarray, *,
     sums = cv2.boxFilter(summed, -1, (window, window), normalize=False,
                          borderType=cv2.BORDER_CONSTANT)
     _, smax, _, (bx, by) = cv2.minMaxLoc(sums)
-    if smax < 0.1 * _full_scale(frame.dtype):  # 25 DN summed over the window (8 bit)
+    if full_scale is None:
+        full_scale = _full_scale(frame.dtype)
+    if smax < 0.1 * full_scale:  # 25 DN summed over the window (8 bit)
         return Location.missing("no spot in the search region")
     half = window // 2
     sub, sx0, sy0 = _crop(rel, bx - half, by - half, bx + half + 1, by + half + 1)
     _, vmax, _, (px, py) = cv2.minMaxLoc(sub)
-    return Location(x=float(px + sx0 + x0), y=float(py + sy0 + y0), found=True)
+    sx, sy = px + sx0, py + sy0
+    # the spot must stand out from the ball around it: its height above the median of the
+    # ring 3..7 px about it (for the 15 px window) at least a quarter of the window's mean
+    # |frame - background|. The brightest pixel of a uniformly dark (backlit) ball is no spot,
+    # and reporting it would be a wrong place
+    r_in, r_out = max(2, window // 4), max(3, half)
+    ring, rx0, ry0 = _crop(rel, sx - r_out, sy - r_out, sx + r_out + 1, sy + r_out + 1)
+    yy, xx = np.mgrid[ry0:ry0 + ring.shape[0], rx0:rx0 + ring.shape[1]]
+    d = np.hypot(xx - sx, yy - sy)
+    around = ring[(d >= r_in) & (d <= r_out)]
+    if around.size and vmax - float(np.median(around)) < 0.25 * smax / window ** 2:
+        return Location.missing("no spot standing out on the ball (a uniformly dark ball, "
+                                "backlit?): thesis-small locates by the specular spot")
+    return Location(x=float(sx + x0), y=float(sy + y0), found=True)
 
 
 # --------------------------------------------------------------------------------------------
@@ -99,7 +119,7 @@ def _circle_known_radius(xs, ys, r, cx, cy, iters=20):
 def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, *,
                         side: int = 1, guess: tuple[float, float] | None = None,
                         threshold: float | None = None, neighbourhood: int = 15,
-                        step: float = 0.025) -> Location:
+                        step: float = 0.025, full_scale: float | None = None) -> Location:
     """Thesis paper 2, steps 1-7, for a ball of radius ``r_px`` (px).
 
     Parameters
@@ -121,16 +141,21 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
         Side of the square of candidate centres tried in step 6 (px; 15 in the thesis).
     step : float, optional
         Angular step (rad) around the candidate circles of step 6.
+    full_scale : float, optional
+        The camera's full scale, 2**bit_depth - 1 (DN), for the full-frame search
+        (:func:`coarse_find`) and the highlight (at least 1 % of it above the background);
+        default the frame's word's.
 
     Returns
     -------
     Location
         Integer-pixel centre (ties in step 6 averaged); ``found`` False when no ball-like
-        change is found.
+        change is found, or no specular highlight brighter than the background lies on the
+        ball (a dark ball on a bright backlight: the method has nothing to locate by).
     """
     rel_full_abs = None
     if guess is None:
-        guess = coarse_find(frame, background, r_px)
+        guess = coarse_find(frame, background, r_px, full_scale=full_scale)
         if guess is None:
             return Location.missing("no ball-like change in the frame")
     # step 1: the specular spots near the guess -> 101 x 101 (for the 10 mm ball) sub-image
@@ -141,8 +166,21 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
         return Location.missing("search region outside the frame")
     rel = relative_image(fr, background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]])
     spots = cv2.blur(rel, (3, 3))
-    _, _, _, (sx, sy) = cv2.minMaxLoc(spots)
+    _, smax, _, (sx, sy) = cv2.minMaxLoc(spots)
     scx, scy = sx + x0, sy + y0
+    # the method stands on the highlight: one no brighter than the background (a dark ball on
+    # a bright backlight) or off the ball is not found, never a wrong place
+    # the pixel noise from neighbours' differences (edges are few), a third of it after the
+    # 3 x 3 mean
+    noise = 1.4826 * float(np.median(np.abs(np.diff(rel, axis=1)))) / math.sqrt(2.0) / 3.0
+    fs = _full_scale(fr.dtype) if full_scale is None else float(full_scale)
+    if smax < max(8.0 * noise, 0.01 * fs):
+        return Location.missing("no specular highlight brighter than the background on the "
+                                "ball (a dark ball on a bright backlight?): thesis-large "
+                                "locates by the highlight; use the subpixel locator")
+    if math.hypot(scx - guess[0], scy - guess[1]) > r_px:
+        return Location.missing("the brightest spot near the ball lies off the ball: no "
+                                "specular highlight to locate by")
     half = int(round(r_px + 13))  # 50 for the 10 mm ball: the thesis's 101 x 101
     # step 2: background subtraction on the sub-image
     fr, x0, y0 = _crop(frame, scx - half, scy - half, scx + half + 1, scy + half + 1)
@@ -222,7 +260,8 @@ def thesis_large_locator(frame, background, r_px: float, guess: tuple[float, flo
 
     :func:`locate_large_thesis` around ``guess`` (the full-frame search of :func:`coarse_find`
     without one), on the quarter of the ball on the side of the trough's axis ``center`` where
-    the ball is. The sub-pixel locator's options (``unused``) do not apply.
+    the ball is. Of the sub-pixel locator's options (``unused``) only ``opts.full_scale`` (the
+    camera's full scale) applies.
 
     Parameters
     ----------
@@ -240,12 +279,13 @@ def thesis_large_locator(frame, background, r_px: float, guess: tuple[float, flo
     -------
     Location
     """
+    fs = getattr(unused.get("opts"), "full_scale", None)
     if guess is None:
-        guess = coarse_find(frame, background, r_px)
+        guess = coarse_find(frame, background, r_px, full_scale=fs)
         if guess is None:
             return Location.missing("no ball-like change in the frame")
     side = 1 if guess[0] >= center[0] else -1
-    return locate_large_thesis(frame, background, r_px, side=side, guess=guess)
+    return locate_large_thesis(frame, background, r_px, side=side, guess=guess, full_scale=fs)
 
 
 def thesis_small_locator(frame, background, r_px: float, guess: tuple[float, float] | None,
@@ -254,7 +294,7 @@ def thesis_small_locator(frame, background, r_px: float, guess: tuple[float, flo
 
     :func:`locate_small_thesis` in a window of 2 r + 20 px a side around ``guess``, then over the
     whole frame when the spot is not found there. ``center`` and the sub-pixel locator's options
-    (``unused``) do not apply.
+    (``unused``) do not apply, but ``opts.full_scale`` (the camera's full scale).
 
     Parameters
     ----------
@@ -277,7 +317,8 @@ def thesis_small_locator(frame, background, r_px: float, guess: tuple[float, flo
         m = int(math.ceil(2 * r_px + 20))
         roi = (int(guess[0]) - m, int(guess[1]) - m, int(guess[0]) + m + 1,
                int(guess[1]) + m + 1)
-    loc = locate_small_thesis(frame, background, roi=roi)
+    fs = getattr(unused.get("opts"), "full_scale", None)
+    loc = locate_small_thesis(frame, background, roi=roi, full_scale=fs)
     if roi is not None and not loc.found:
-        loc = locate_small_thesis(frame, background)
+        loc = locate_small_thesis(frame, background, full_scale=fs)
     return loc
