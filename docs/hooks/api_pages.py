@@ -1,66 +1,58 @@
-"""MkDocs hook: one API reference page per public module, generated at build time.
+"""MkDocs hook: the API reference of rollfric's public names, generated at build time.
 
-The modules are found by walking the packages' source folders (no import), so a module that is
-added, renamed or split into a package appears in the reference without editing ``mkdocs.yml``.
-Each page holds one mkdocstrings directive (``::: package.module``); the pages are appended to
-the ``API reference`` section of ``nav``, measurement first, then the validation suite.
+The public API is ``rollfric.__all__``; each name gets a mkdocstrings directive on the page of
+its concept (the module that defines it), so a name that is added to ``__all__`` appears in
+the reference without editing ``mkdocs.yml``, and internals never do.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from mkdocs.structure.files import File
 
-GROUPS = {
-    "rollfric (the measurement)": ["rollfric"],
-    "Validation suite": ["sim", "synth", "validation"],
-}
 SECTION = "API reference"
+# the module that defines a name -> the page it is listed on
+TITLES = {
+    "rollfric.track": "Measuring",
+    "rollfric.io": "Recordings",
+    "rollfric.source": "Recordings",
+    "rollfric.setup": "Setup and calibration",
+    "rollfric.lens": "Setup and calibration",
+    "rollfric.fit": "Fitting mu",
+    "rollfric.uncertainty": "Uncertainty",
+    "rollfric.errors": "Errors",
+}
 
 
-def _modules(root: Path, package: str) -> list[str]:
-    """Dotted names of ``package`` and its public submodules, in path order."""
-    base = root / package
-    if not (base / "__init__.py").is_file():
-        return []
-    names = []
-    for path in sorted(base.rglob("*.py")):
-        rel = path.relative_to(root).with_suffix("")
-        parts = list(rel.parts)
-        if parts[-1] == "__init__":
-            parts = parts[:-1]
-        if any(p.startswith("_") for p in parts) or parts[-1] == "__main__":
-            continue
-        if not all((root / Path(*parts[:i]) / "__init__.py").is_file()
-                   for i in range(1, len(parts))):
-            continue  # a folder of scripts, not a subpackage
-        names.append(".".join(parts))
-    return names
+def _pages() -> dict[str, list[str]]:
+    """Page title -> the dotted paths of the public names it documents, in __all__'s order of
+    definition."""
+    import rollfric
+
+    pages: dict[str, list[str]] = {}
+    for name in rollfric.__all__:
+        module = getattr(rollfric, name).__module__
+        pages.setdefault(TITLES.get(module, module), []).append(f"{module}.{name}")
+    return pages
 
 
-def _pages(config) -> dict[str, list[str]]:
-    root = Path(config["config_file_path"]).parent
-    return {group: [m for p in pkgs for m in _modules(root, p)] for group, pkgs in GROUPS.items()}
+def _slug(title: str) -> str:
+    return "".join(c if c.isalnum() else "-" for c in title.lower()).strip("-")
 
 
 def on_config(config):
-    """Append the generated pages to the ``API reference`` section of ``nav``."""
-    groups = _pages(config)
-    config["extra"]["api_modules"] = groups
+    """Append one page a concept to the ``API reference`` section of ``nav``."""
+    pages = _pages()
+    config["extra"]["api_pages"] = pages
     for item in config["nav"] or []:
         if isinstance(item, dict) and SECTION in item:
-            entries = item[SECTION]
-            for group, mods in groups.items():
-                entries.append({group: [{m: f"api/{m}.md"} for m in mods]})
+            item[SECTION].extend({title: f"api/{_slug(title)}.md"} for title in pages)
     return config
 
 
 def on_files(files, config):
-    """Add one in-memory page per module: its title and the mkdocstrings directive."""
-    for mods in config["extra"]["api_modules"].values():
-        for m in mods:
-            files.append(File.generated(config, f"api/{m}.md",
-                                        content=f"# `{m}`\n\n::: {m}\n    options:\n"
-                                                f"      show_root_heading: false\n"))
+    """Add the pages in memory: a title and one mkdocstrings directive a public name."""
+    for title, paths in config["extra"]["api_pages"].items():
+        body = "\n\n".join(f"::: {p}\n    options:\n      heading_level: 2" for p in paths)
+        files.append(File.generated(config, f"api/{_slug(title)}.md",
+                                    content=f"# {title}\n\n{body}\n"))
     return files
