@@ -7,7 +7,8 @@ from validation.report import _pct, _verdict_lines
 
 
 @pytest.mark.parametrize("rel, text", [(4.7e-5, "+0.0047 %"), (-0.0123, "-1.23 %"),
-                                       (0.5, "+50.00 %"), (0.0, "0 %"), (float("nan"), "n/a")])
+                                       (0.5, "+50.00 %"), (2.3e-10, "+0.0000 %"),
+                                       (0.0, "0 %"), (float("nan"), "n/a")])
 def test_percent_keeps_two_significant_digits(rel, text):
     assert _pct(rel) == text
 

@@ -188,13 +188,13 @@ def _toml_value(v) -> str:
 
 
 def _pct(rel: float) -> str:
-    """A relative error in percent: two decimals, or two significant digits when smaller
-    (+0.0047 %, not +0.00 %)."""
+    """A relative error in percent: two decimals, or two significant digits when smaller, down
+    to four decimals (+0.0047 %, not +0.00 %)."""
     if not math.isfinite(rel):
         return "n/a"
     if rel == 0:
         return "0 %"
-    digits = max(2, 1 - math.floor(math.log10(abs(100 * rel))))
+    digits = min(4, max(2, 1 - math.floor(math.log10(abs(100 * rel)))))
     return f"{100 * rel:+.{digits}f} %"
 
 
