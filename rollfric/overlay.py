@@ -120,3 +120,66 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
     with replacing(path) as tmp:
         fig.savefig(tmp, dpi=110)
     return path
+
+
+def plot_full_frame(source, track, info, path, *, frame: int | None = None) -> Path:
+    """The whole frame with the trough's axis, the circle the ball's centre runs on, the
+    located path and the ball: where the measurement looked and what it found.
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording.
+    track : pandas.DataFrame
+        Its track (``x_px``, ``y_px``, ``found``, ``theta_rad``).
+    info : rollfric.track.TrackInfo
+        How it was measured: ``center_px`` (the trough's axis), ``track_radius_px`` (the
+        radius of the centre's path, R - r) and ``ball_radius_px``.
+    path : str or pathlib.Path
+        The PNG to write (atomically).
+    frame : int, optional
+        The frame shown (default: the found frame farthest from the bottom, where the angle
+        is largest).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    from matplotlib.patches import Circle
+
+    found = (track["found"].to_numpy() == 1) & np.isfinite(track["x_px"].to_numpy(float))
+    theta = track["theta_rad"].to_numpy(float)
+    if frame is None:
+        frame = int(np.nanargmax(np.where(found, np.abs(theta), -np.inf))) if found.any() else 0
+    img = np.asarray(source[int(frame)])
+    h, w = img.shape
+    cx, cy = info.center_px
+    L = info.track_radius_px
+    r = info.ball_radius_px
+    fig = Figure(figsize=(9, 9 * h / w + 0.6))
+    ax = fig.subplots()
+    ax.imshow(img, cmap="gray", interpolation="nearest", extent=(-0.5, w - 0.5, h - 0.5, -0.5))
+    phi = np.linspace(-np.pi / 2, np.pi / 2, 181)  # the lower half: where a ball can roll
+    ax.plot(cx + L * np.sin(phi), cy + L * np.cos(phi), "--", color="tab:orange", lw=1,
+            label=f"the centre's circle, R - r = {L:.1f} px")
+    ax.plot([cx, cx], [cy, cy + L], ":", color="tab:orange", lw=1)
+    ax.plot(cx, cy, "+", color="tab:orange", ms=12, mew=2, label="the trough's axis")
+    x = track["x_px"].to_numpy(float)
+    y = track["y_px"].to_numpy(float)
+    ax.plot(x[found], y[found], "-", color="tab:cyan", lw=0.8, label="located path")
+    if found[frame]:
+        ax.add_patch(Circle((x[frame], y[frame]), r, fill=False, color="tab:red", lw=1.2))
+        ax.plot([cx, x[frame]], [cy, y[frame]], "-", color="tab:red", lw=0.8,
+                label=f"frame {frame}: theta = {np.degrees(theta[frame]):+.2f} deg")
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)
+    ax.set_xlabel("x (px)")
+    ax.set_ylabel("y (px)")
+    ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
+    ax.set_title(f"frame {frame} of {len(track)}: {int(found.sum())} frames located")
+    fig.tight_layout()
+    path = Path(path)
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    return path

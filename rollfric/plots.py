@@ -22,7 +22,7 @@ def plot_fit(t, theta, result, path, *, title: str | None = None) -> Path:
     path : str or pathlib.Path
         The PNG to write (atomically).
     title : str, optional
-        Default: the relative error.
+        Default: mu and the residual rms.
 
     Returns
     -------
@@ -33,17 +33,20 @@ def plot_fit(t, theta, result, path, *, title: str | None = None) -> Path:
     theta = np.asarray(theta, dtype=float)
     fig = Figure(figsize=(9, 6))  # no pyplot: no backend, no global figure state
     ax, axr = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    ax.plot(t, np.degrees(theta), ".", ms=2, color="tab:red", label="measured")
-    ax.plot(result.t, np.degrees(result.curve), "-", lw=1.2, color="tab:blue",
-            label=f"model ({result.method}), mu = {result.mu:.5f}")
+    # the model under the data, so that every measured point stays visible
+    ax.plot(result.t, np.degrees(result.curve), "-", lw=2.5, color="tab:blue", alpha=0.45,
+            zorder=1, label=f"equation of motion ({result.method}), mu = {result.mu:.6f}")
+    ax.plot(t, np.degrees(theta), ".", ms=1.5, color="black", zorder=2, label="measured")
     ax.set_ylabel("theta (deg)")
     ax.legend(loc="upper right")
     ax.grid(alpha=0.3)
-    ax.set_title(title or f"Angle vs equation of motion: relative error "
-                          f"{100 * result.relative_error:.2f} %")
-    resid = np.degrees(np.interp(t, result.t, result.curve, left=np.nan, right=np.nan) - theta)
+    resid = np.degrees(theta - np.interp(t, result.t, result.curve, left=np.nan, right=np.nan))
+    rms = float(np.sqrt(np.nanmean(resid ** 2))) if np.isfinite(resid).any() else float("nan")
+    ax.set_title(title or f"theta(t) and the fitted equation of motion: mu = {result.mu:.6f}, "
+                          f"residual rms {rms:.2g} deg")
     axr.plot(t, resid, ".", ms=1.5, color="0.3")
-    axr.set_ylabel("model - data (deg)")
+    axr.axhline(0, color="tab:blue", lw=1)
+    axr.set_ylabel("data - model (deg)")
     axr.set_xlabel("t (s)")
     axr.grid(alpha=0.3)
     fig.tight_layout()

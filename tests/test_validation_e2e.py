@@ -39,8 +39,13 @@ def test_validate_small_case_end_to_end(tmp_path, capsys):
     assert m["t_render_s"] > 0 and m["t_total_s"] >= m["t_render_s"] + m["t_measure_s"]
     for name in ("metrics.json", "case.toml", "fit.json", "fit_truth.json", "frames.csv",
                  "angle_vs_model.png", "center_error_hist.png", "center_error_vs_time.png",
-                 "overlays.png"):
+                 "overlays.png", "full_frame.png", "report.html"):
         assert (out / name).stat().st_size > 0, name
+    # the page stands alone: the verdict first, every figure embedded, nothing from a network
+    page = (out / "report.html").read_text()
+    assert page.index('class="verdict') < page.index("<pre>") < page.index("<figure>")
+    assert page.count("data:image/png;base64,") == 5
+    assert "http://" not in page and "https://" not in page and "<script" not in page
     assert json.loads((out / "metrics.json").read_text())["case_id"] == m["case_id"]
     # the report's case file runs the same case
     assert C.case_id(C.load_case_dict(out / "case.toml")) == m["case_id"]

@@ -11,6 +11,8 @@ Files (all written to a temporary name and renamed)::
     center_error_hist.png   histogram of the per-frame centre error (x, y, |e|)
     center_error_vs_time.png    centre error (x, y) and theta error against time
     overlays.png        frames with the located circle/centre and the true centre (zoomed)
+    full_frame.png      the whole frame: the trough's axis, the centre's circle, the located path
+    report.html         all of it on one self-contained page (images embedded), verdict first
 """
 
 from __future__ import annotations
@@ -30,7 +32,8 @@ from rollfric.fit import json_safe  # noqa: F401  (validation.cli prints with it
 # removes only these names; recording.zarr with --keep-recording)
 OUTPUTS = {name: "file" for name in (
     "metrics.json", "case.toml", "setup.toml", "fit.json", "fit_truth.json", "frames.csv",
-    "angle_vs_model.png", "center_error_hist.png", "center_error_vs_time.png", "overlays.png")}
+    "angle_vs_model.png", "center_error_hist.png", "center_error_vs_time.png", "overlays.png",
+    "full_frame.png", "report.html")}
 OUTPUTS["recording.zarr"] = "folder"
 
 
@@ -101,9 +104,41 @@ def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
     fig.tight_layout()
     _savefig(fig, out / "center_error_vs_time.png")
 
-    if result.recording is not None or getattr(result, "_source", None) is not None:
+    if result.recording is not None:
+        from rollfric import io
+        from rollfric.overlay import plot_full_frame
+
         _overlays(result, pf, out / "overlays.png", overlay_frames)
+        plot_full_frame(io.open_recording(result.recording), result.track, result.track_info,
+                        out / "full_frame.png")
+    write_html(result, out)
     return out
+
+
+def write_html(result, out: Path) -> Path:
+    """``out/report.html``: the verdict, the summary and the report's figures on one page."""
+    from validation import html_report
+
+    m = result.metrics
+    verdict = _verdict_lines(m)
+    words = verdict[0].split("verdict", 1)[1].strip() if verdict else (
+        f"mu recovered {m['mu_recovered']:.6f} against the true {m['mu_true']:.6f} "
+        f"(bias {_pct(m['mu_bias_rel'])}); no uncertainty budget was computed")
+    figures = [
+        (out / "full_frame.png", "Where did it look? The whole frame with the trough's axis, "
+                                 "the circle the ball's centre runs on, and the located path."),
+        (out / "angle_vs_model.png", "Does the equation of motion fit the measured angle? "
+                                     "theta(t) with the fit, and what is left over."),
+        (out / "center_error_vs_time.png", "How far is each located centre from the truth, "
+                                           "frame by frame?"),
+        (out / "center_error_hist.png", "How are the centre errors distributed?"),
+        (out / "overlays.png", "What did the locator see? Frames with the located circle and "
+                               "the true centre."),
+    ]
+    page = html_report.render(f"rollfric validate: {result.case.name}", words,
+                              bool(m.get("within_U", True)), summary_text(result), figures)
+    write_text(out / "report.html", page)
+    return out / "report.html"
 
 
 def _overlays(result, pf, path: Path, k: int) -> None:
@@ -126,6 +161,12 @@ def _overlays(result, pf, path: Path, k: int) -> None:
     axes = fig.subplots(nrow, ncol, squeeze=False)
     half = int(math.ceil(1.5 * r)) + 4
     h, w = src.shape[1:]
+    # the errors are hundredths of a pixel: drawn as arrows magnified by a power of ten
+    worst_err = float(np.nanmax(err)) if np.isfinite(err).any() else 0.0
+    gain = 1.0
+    if worst_err > 0:  # the largest of 1, 2, 5 x 10^k that draws the worst error <= r / 2
+        decade = 10.0 ** math.floor(math.log10(0.5 * r / worst_err))
+        gain = max(g * decade for g in (1, 2, 5) if g * decade * worst_err <= 0.5 * r)
     for ax, i in zip(axes.flat, picks, strict=False):
         row = pf.iloc[int(i)]
         cx, cy = float(row["truth_x_px"]), float(row["truth_y_px"])
@@ -141,17 +182,19 @@ def _overlays(result, pf, path: Path, k: int) -> None:
         if row["found"] and np.isfinite(row["x_px"]):
             ax.add_patch(Circle((row["x_px"], row["y_px"]), r, fill=False, color="tab:blue",
                                 lw=1))
-            ax.plot(row["x_px"], row["y_px"], "+", color="tab:blue", ms=10, mew=1.5)
+            ax.annotate("", xy=(cx + gain * (row["x_px"] - cx), cy + gain * (row["y_px"] - cy)),
+                        xytext=(cx, cy), arrowprops={"arrowstyle": "-|>", "color": "tab:blue",
+                                                     "lw": 2})
             title = f"frame {i}: error {row['err_px']:.3f} px"
         else:
             title = f"frame {i}: not found"
         ax.plot(cx, cy, "x", color="tab:red", ms=8, mew=1.5)
         ax.set_title(title, fontsize=9)
-        ax.set_xticks([])
-        ax.set_yticks([])
+        ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(picks):]:
         ax.axis("off")
-    fig.suptitle("located circle and centre (blue +) vs true silhouette centre (red x)")
+    fig.suptitle(f"located circle (blue) and the error from the true centre (red x) to the located "
+                 f"one, drawn x{gain:g} (axes in px)")
     fig.tight_layout()
     _savefig(fig, path)
 
@@ -255,8 +298,8 @@ def summary_text(result, out: str | Path | None = None) -> str:
             for k, v in tm.items()),
     ]
     if out is not None:
-        lines += ["", f"  report: {Path(out).resolve()}/"
-                      " (metrics.json, angle_vs_model.png, center_error_*.png, overlays.png)"]
+        lines += ["", f"  report: {Path(out).resolve() / 'report.html'} (open it in a browser;"
+                      " beside it metrics.json, fit.json, frames.csv and the figures)"]
     return "\n".join(lines)
 
 
