@@ -207,6 +207,8 @@ def test_list_sweep_with_a_failing_case_still_writes_table_plots_and_summary(cli
             "scenario_motion_mu.png", "scenario_motion_theta0_deg.png"]
         text = (out / "summary.md").read_text()
         assert "## failed" in text and "no good: mu 0.0" in text and "## notes" not in text
+        page = (out / "report.html").read_text()
+        assert "4 of 5 case(s) ran, 1 failed" in page and page.count("data:image/png") == 2
 
 
 def test_overwrite_starts_a_sweep_afresh(client, tmp_path):
@@ -316,3 +318,22 @@ def test_from_recordings_cli_checks_its_input(tmp_path, capsys):
                  str(tmp_path / "new")]) == 2
     assert not (tmp_path / "new").exists()
     assert "only measure.* keys" in capsys.readouterr().err
+
+
+def test_metrics_are_plotted_in_the_unit_a_user_reads():
+    assert S.metric_axis("mu_bias_rel") == (100.0, "bias in mu (%)")
+    assert S.metric_axis("found_fraction") == (100.0, "frames located (%)")
+    scale, label = S.metric_axis("theta_rms_rad")
+    assert scale == pytest.approx(57.29577951308232) and label == "angle error, rms (deg)"
+    assert S.metric_axis("center_rms_px") == (1.0, "centre error, rms (px)")
+
+
+def test_identical_metrics_share_one_panel_and_the_verdict_counts_cases_within_U():
+    df = pd.DataFrame({"status": ["ok"] * 4, "a": [1.0, 2.0, 3.0, 4.0],
+                       "b": [1.0, 2.0, 3.0, 4.0], "c": [1.0, 2.0, 3.0, 5.0],
+                       "within_U": [True, True, True, False]})
+    assert S._distinct_metrics(df, ["a", "b", "c"]) == (["a", "c"], {"b": "a"})
+    words, good = S.sweep_verdict(df)
+    assert "within U(mu) (k = 2) in 3 of 4 (75 %" in words and good is False
+    words, good = S.sweep_verdict(df.assign(within_U=True))
+    assert "4 of 4 (100 %" in words and good is True

@@ -490,7 +490,8 @@ def _write_recordings_index(out: Path, spec: SweepSpec, df) -> None:
 
 # what a sweep writes into OUT (rollfric.outputs: --overwrite replaces only these)
 OUTPUTS = {"parts": "folder", "plots": "folder", "recordings": "folder", "sweep.toml": "file",
-           "results.parquet": "file", "results.csv": "file", "summary.md": "file"}
+           "results.parquet": "file", "results.csv": "file", "summary.md": "file",
+           "report.html": "file"}
 
 
 def _previous_name(out: Path) -> str | None:
@@ -557,7 +558,7 @@ def _remove_own_outputs(out: Path) -> None:
                 _remove(p)
         with contextlib.suppress(OSError):
             d.rmdir()  # only if empty
-    for name in ("sweep.toml", "results.parquet", "results.csv", "summary.md"):
+    for name in ("sweep.toml", "results.parquet", "results.csv", "summary.md", "report.html"):
         _remove(out / name)
 
 
@@ -582,6 +583,7 @@ class SweepSummary:
         if self.plots:
             lines.append(f"plots:   {self.out / 'plots'}/ ({len(self.plots)} files)")
         lines.append(f"summary: {self.out / 'summary.md'}")
+        lines.append(f"report:  {self.out / 'report.html'} (open it in a browser)")
         return "\n".join(lines)
 
 
@@ -685,6 +687,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
         plots = []
         notes.append(f"the plots could not be drawn: {type(exc).__name__}: {exc}")
     write_summary(df, spec, out, plots, notes=notes)
+    write_html(df, spec, out, plots)
     _ = pd
     return SweepSummary(out=out, n_cases=len(spec.cases), n_done_before=n_before,
                         n_run=len(todo), n_ok=n_ok, n_failed=n_failed_total,
@@ -703,17 +706,22 @@ def write_summary(df, spec: SweepSpec, out: Path, plots: list, notes=()) -> Path
 
     cols = [k for k in spec.swept if k in df.columns]
     mets = [m for m in spec.metrics if m in df.columns]
+    axes = {m: metric_axis(m) for m in mets}  # in the unit the CLI prints: %, px, deg
     lines = [f"# sweep {spec.name}", "", spec.description, "",
              f"{len(spec.cases)} case(s) from {spec.source or 'a sweep dict'}, stages "
              f"{spec.stages}; {int((df['status'] == 'ok').sum()) if len(df) else 0} ok, "
              f"{int((df['status'] != 'ok').sum()) if len(df) else 0} failed, "
              f"{len(spec.cases) - len(df)} not run. Table: results.parquet, results.csv.", "",
-             "| case_id | " + " | ".join(cols + ["status"] + mets) + " |",
+             "| case_id | " + " | ".join(cols + ["status"] + [axes[m][1] for m in mets]) + " |",
              "|" + "---|" * (len(cols) + len(mets) + 2)]
+
+    def scaled(v, m):
+        return v * axes[m][0] if isinstance(v, float) else v
+
     for _, r in df.iterrows():
         lines.append("| " + " | ".join([str(r["case_id"])] + [fmt(r[c]) for c in cols]
-                                       + [str(r["status"])] + [fmt(r[m]) for m in mets])
-                     + " |")
+                                       + [str(r["status"])]
+                                       + [fmt(scaled(r[m], m)) for m in mets]) + " |")
     failed = df[df["status"] != "ok"] if len(df) else df
     if len(failed):
         lines += ["", "## failed", ""]
@@ -727,11 +735,92 @@ def write_summary(df, spec: SweepSpec, out: Path, plots: list, notes=()) -> Path
     return write_text(out / "summary.md", "\n".join(lines) + "\n")
 
 
+def sweep_verdict(df) -> tuple[str, bool]:
+    """The sweep's answer in words, and whether it is the hoped-for one: how many cases ran,
+    and of those with an uncertainty budget how many hold the truth within U(mu)."""
+    n = len(df)
+    ok = df[df["status"] == "ok"] if n else df
+    failed = n - len(ok)
+    words = f"{len(ok)} of {n} case(s) ran" + (f", {failed} failed" if failed else "")
+    good = failed == 0
+    if len(ok) and "within_U" in ok.columns and ok["within_U"].notna().any():
+        w = ok["within_U"].dropna().astype(bool)
+        words += (f"; the truth is within U(mu) (k = 2) in {int(w.sum())} of {len(w)} "
+                  f"({100 * w.mean():.0f} %; about 95 % expected)")
+        good = good and bool(w.mean() >= 0.9 or len(w) < 10 and w.all())
+    return words + ".", good
+
+
+def write_html(df, spec: SweepSpec, out: Path, plots: list) -> Path:
+    """OUT/report.html: the verdict, the summary table and the plots on one page."""
+    from validation import html_report
+
+    words, good = sweep_verdict(df)
+    table = (out / "summary.md").read_text() if (out / "summary.md").is_file() else ""
+    figures = [(p, f"Each metric against {p.stem.replace('_', '.')}: one point a case"
+                   + ("; error bars and the grey band are U(mu), k = 2" if "U_mu" in df.columns
+                      else "")) for p in plots]
+    page = html_report.render(f"rollfric sweep: {spec.name}", words, good, table, figures)
+    return write_text(out / "report.html", page)
+
+
 # -- plots ------------------------------------------------------------------------------------
 
+# what a metric is called on a plot, by name (the rest: its name without the unit suffix)
+METRIC_NAMES = {
+    "mu_bias_rel": "bias in mu",
+    "mu_pipeline_bias_rel": "bias in mu from the camera, locator and fit",
+    "mu_engine_bias_rel": "bias in mu of the engine",
+    "center_rms_px": "centre error, rms",
+    "center_max_px": "centre error, largest",
+    "theta_rms_rad": "angle error, rms",
+    "theta_max_rad": "angle error, largest",
+    "found_fraction": "frames located",
+}
+
+
+def metric_axis(name: str) -> tuple[float, str]:
+    """(scale, label) that shows metric ``name`` in the unit a user reads: a relative error
+    or a fraction in percent, radians in degrees, pixels as pixels."""
+    label = METRIC_NAMES.get(name, name.replace("_", " "))
+    if name.endswith("_rel") or name.endswith("fraction"):
+        return 100.0, f"{label} (%)"
+    if name.endswith("_rad"):
+        return 180.0 / math.pi, f"{label.removesuffix(' rad')} (deg)"
+    if name.endswith("_px"):
+        return 1.0, f"{label.removesuffix(' px')} (px)"
+    if name.endswith("_s"):
+        return 1.0, f"{label.removesuffix(' s')} (s)"
+    return 1.0, label
+
+
+def _distinct_metrics(ok, metrics: list[str]) -> tuple[list[str], dict]:
+    """The metrics with a panel of their own, and {dropped: kept} for those whose column
+    equals an earlier one's in every case (on an exact engine the pipeline's bias is the
+    whole bias: one panel, not two identical ones)."""
+    import numpy as np
+
+    kept, same = [], {}
+    for m in metrics:
+        v = ok[m].to_numpy(float)
+        twin = next((k for k in kept if np.allclose(ok[k].to_numpy(float), v, rtol=0,
+                                                     atol=1e-15, equal_nan=True)), None)
+        if twin is None:
+            kept.append(m)
+        else:
+            same[m] = twin
+    return kept, same
+
+
 def plot_sweep(df, spec: SweepSpec, plot_dir: Path) -> list[Path]:
-    """For every swept key x and metric y: y vs x (mean +- std over the other repeats), one
-    line per combination of the other swept keys. Categorical x are spread evenly."""
+    """For every swept key x: one panel per metric against x, in the metric's unit.
+
+    Every case is a point; a relative bias in mu carries its case's expanded uncertainty
+    U(mu) (k = 2) as an error bar, with the median U as a grey band about zero (the target:
+    a bias inside it is within what the measurement claims). The mean over repeats is
+    joined by a line when x is a number; categories (a lighting preset, a renderer) are
+    points only. The other swept keys are colours.
+    """
     import numpy as np
     from matplotlib.figure import Figure  # no pyplot: no backend, no global figure state
 
@@ -741,6 +830,8 @@ def plot_sweep(df, spec: SweepSpec, plot_dir: Path) -> list[Path]:
     plot_dir.mkdir(parents=True, exist_ok=True)
     written = []
     keys = [k for k in spec.swept if k in ok.columns and k != "render.seed"]
+    metrics, same = _distinct_metrics(ok, [m for m in spec.metrics if m in ok.columns])
+    has_U = {"U_mu", "mu_true"} <= set(ok.columns)
 
     def determines(a, b):  # every value of a comes with one value of b (where both are set)
         both = ok[ok[a].notna() & ok[b].notna()]
@@ -751,42 +842,61 @@ def plot_sweep(df, spec: SweepSpec, plot_dir: Path) -> list[Path]:
         if any(determines(x, k) and determines(k, x) for k in plotted):
             continue  # co-varies one to one with a key already plotted (a list sweep)
         plotted.append(x)
-        metrics = [m for m in spec.metrics if m in ok.columns]
         # the cases that set x (in a list sweep a case may leave a key at the base's value)
         sub = ok[ok[x].notna()]
-        # separate lines only for keys that vary among them, independently of x
+        # colours only for keys that vary among them, independently of x
         others = [k for k in keys if k != x and not determines(x, k)
                   and sub[k].nunique(dropna=False) > 1]
         if not metrics or sub.empty:
             continue
-        fig = Figure(figsize=(8, 2.8 * len(metrics) + 0.6))
+        fig = Figure(figsize=(8, 2.6 * len(metrics) + 0.8))
         axes = fig.subplots(len(metrics), 1, squeeze=False, sharex=True)
         xs_all = list(dict.fromkeys(sub[x].tolist()))
         numeric = all(isinstance(v, (int, float, np.number)) and not isinstance(v, bool)
                       for v in xs_all)
         pos = ({v: float(v) for v in xs_all} if numeric
                else {v: float(i) for i, v in enumerate(xs_all)})
+        span = (max(pos.values()) - min(pos.values())) or 1.0
         groups = list(sub.groupby(others, dropna=False)) if others else [((), sub)]
         for ax, met in zip(axes[:, 0], metrics, strict=True):
-            for gkey, g in groups:
-                agg = g.groupby(x, dropna=False)[met].agg(["mean", "std", "count"])
-                agg = agg.reindex([v for v in xs_all if v in agg.index])
-                px = [pos[v] for v in agg.index]
+            scale, ylabel = metric_axis(met)
+            with_U = has_U and met.startswith("mu_") and met.endswith("bias_rel")
+            for j, (gkey, g) in enumerate(groups):
                 gkey = gkey if isinstance(gkey, tuple) else (gkey,)
-                label = ", ".join(f"{k}={v}" for k, v in zip(others, gkey, strict=True)) or None
-                ax.errorbar(px, agg["mean"].to_numpy(float),
-                            yerr=np.nan_to_num(agg["std"].to_numpy(float)), marker="o",
-                            ms=4, capsize=3, lw=1, label=label)
-            ax.set_ylabel(met)
-            ax.grid(alpha=0.3)
-            if met.startswith("mu_") and "bias" in met:
+                label = ", ".join(f"{k} = {v}" for k, v in zip(others, gkey, strict=True))
+                # repeats side by side, not on top of each other
+                shift = (j - (len(groups) - 1) / 2) * 0.015 * span
+                px = np.array([pos[v] for v in g[x]]) + shift
+                y = scale * g[met].to_numpy(float)
+                yerr = (scale * g["U_mu"].to_numpy(float) / g["mu_true"].to_numpy(float)
+                        if with_U else None)
+                line = ax.errorbar(px, y, yerr=yerr, fmt="o", ms=4, capsize=2, lw=0.8,
+                                   label=label or None)
+                if numeric:
+                    mean = g.groupby(x)[met].mean().reindex([v for v in xs_all
+                                                              if v in set(g[x])])
+                    ax.plot([pos[v] + shift for v in mean.index], scale * mean.to_numpy(float),
+                            "-", lw=1, color=line[0].get_color())
+            if with_U:
+                band = float(np.nanmedian(scale * sub["U_mu"] / sub["mu_true"]))
+                ax.axhspan(-band, band, color="0.85", zorder=0,
+                           label=f"median U(mu), k = 2: +-{band:.2g} %")
                 ax.axhline(0, color="k", lw=0.7)
-            if others and len(groups) <= 12:
+            elif np.nanmin(sub[met].to_numpy(float)) >= 0:
+                ax.set_ylim(bottom=0)  # a small spread is not drawn as a cliff
+            ax.set_ylabel(ylabel, fontsize=9)
+            ax.grid(alpha=0.3)
+            twins = [d for d, k in same.items() if k == met]
+            title = METRIC_NAMES.get(met, met) + (
+                f" (the same as {', '.join(twins)} here)" if twins else "")
+            ax.set_title(title, fontsize=9)
+            handles, _ = ax.get_legend_handles_labels()
+            if handles and len(groups) <= 12:
                 ax.legend(fontsize=7, loc="best")
         axes[-1, 0].set_xlabel(x)
         if not numeric:
             axes[-1, 0].set_xticks(list(pos.values()), [str(v) for v in pos], rotation=20)
-        fig.suptitle(f"{spec.name}: {', '.join(metrics)} vs {x}", fontsize=10)
+        fig.suptitle(f"sweep {spec.name}: against {x}", fontsize=10)
         fig.tight_layout()
         path = plot_dir / f"{x.replace('.', '_')}.png"
         with replacing(path) as tmp:
