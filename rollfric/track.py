@@ -24,8 +24,8 @@ import time
 import numpy as np
 import pandas as pd
 
-from rollfric import cpus, io, locate, plausibility, quality, timing
-from rollfric.background import median_background
+from rollfric import ballfree, cpus, io, locate, plausibility, quality, timing
+from rollfric.background import repaired_median, sample
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
 from rollfric.locate.kernels import _ring_sums, _same_values
@@ -523,12 +523,19 @@ def _tiff_pages(path) -> int:
         return 1
 
 
-def resolve_background(source, background, *, r_px: float, median_frames: int = 41):
-    """The background: the given image, the recording's own, or the median of frames.
+def resolve_background(source, background, *, r_px: float, median_frames: int = 41,
+                       kind: str = "median"):
+    """The background: the given image, the recording's own, or one made from the frames.
 
-    The median (:func:`rollfric.background.median_background`) is repaired where the ball of
-    radius ``r_px`` rested in most of the frames; the notes say so, also as warnings of the
-    ``rollfric.track`` logger.
+    Made from ``median_frames`` frames spread over the recording, by ``kind``
+    (:data:`rollfric.ballfree.KINDS`): "median", the per-pixel median
+    (:func:`rollfric.background.median_background`), repaired where the ball of radius
+    ``r_px`` rested in most of the frames; "max", the per-pixel maximum less its noise bias
+    (a backlit rig's dark ball, :func:`rollfric.ballfree.max_background`); "clip", a flat
+    field at the backlight's level (:func:`rollfric.ballfree.clip_background`). The median
+    and the maximum are then made free of the ball where it goes
+    (:func:`rollfric.ballfree.check_ball_free`), or refused. The notes say what was repaired
+    or rebuilt, also as warnings of the ``rollfric.track`` logger.
 
     Parameters
     ----------
@@ -540,6 +547,8 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
         The ball's radius (px).
     median_frames : int, optional
         Frames in the median.
+    kind : {"median", "max", "clip"}, optional
+        How a background is made from the frames when none is given.
 
     Returns
     -------
@@ -554,7 +563,15 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
     ------
     RecordingError
         An unreadable image, or one of another size than the frames.
+    InputError
+        An unknown ``kind``, or one given with a background image; a background made from
+        the frames that holds the ball (:func:`rollfric.ballfree.check_ball_free`).
     """
+    if kind not in ballfree.KINDS:
+        raise InputError(f"unknown background {kind!r} (known: {', '.join(ballfree.KINDS)})")
+    if background is not None and kind != "median":
+        raise InputError(f"a background image and --background-from {kind} are two "
+                         "backgrounds: give one")
     if background is not None:
         if isinstance(background, np.ndarray):
             return io.check_background(background, source), "given array", []
@@ -565,16 +582,34 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
                              " use the median of the recording's frames")
         bg = io.read_image(background)
         return io.check_background(bg, source, f"background {background}"), str(background), []
-    if getattr(source, "background", None) is not None:
+    if getattr(source, "background", None) is not None and kind == "median":
         return io.check_background(source.background, source, "the recording's background"), \
             "stored in the recording", []
     k = min(len(source), median_frames)
-    logger.info(f"no background given: using the per-pixel median of {k} frames spread over "
-                "the recording")
-    bg, notes = median_background(source, r_px, median_frames)
+    idx, stack = sample(source, median_frames)
+    if kind == "clip":
+        bg, level = ballfree.clip_background(stack)
+        logger.info(f"background: a flat field at the backlight's level, {level:g} DN")
+        return bg, (f"clip level: a flat field at {level:g} DN (the backlight's level, the "
+                    f"{ballfree.CLIP_PERCENTILE:g}th percentile of the median of {k} frames)"), []
+    if kind == "max":
+        bg, sigma = ballfree.max_background(stack)
+        desc = (f"per-pixel maximum of {k} frames less its noise bias ({sigma:.3g} DN noise x "
+                f"{ballfree.expected_max_normal(len(stack)):.3f})")
+        bg, notes = ballfree.check_ball_free(stack, bg, r_px, kind="max", sigma=sigma,
+                                             what=f"the per-pixel maximum of {k} frames")
+    else:
+        logger.info(f"no background given: using the per-pixel median of {k} frames spread "
+                    "over the recording")
+        bg, notes, sources = repaired_median(stack, r_px)
+        desc = f"per-pixel median of {k} frames" + (", repaired" if notes else "")
+        bg, more = ballfree.check_ball_free(stack, bg, r_px, sources=sources,
+                                            what=f"the per-pixel median of {k} frames")
+        notes = notes + more
+        desc += ", rebuilt where it held the ball" if more else ""
     for msg in notes:
         logger.warning(msg)
-    return bg, f"per-pixel median of {k} frames" + (", repaired" if notes else ""), notes
+    return bg, desc, notes
 
 
 def track_segments(n: int, segments: int | str = "auto") -> list[tuple[int, int]]:
@@ -1159,7 +1194,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             offset: bool | str = "auto", fit: bool = True, progress: bool = False,
             median_frames: int = 41, fit_kwargs: dict | None = None,
             times: str = "auto", drops: bool = True, read_ahead: bool = False,
-            segments: int | str = "auto"):
+            segments: int | str = "auto", background_from: str = "median"):
     """Measure mu from a recording: (track DataFrame, TrackInfo, FitResult or None).
 
     ``recording``: a path (see :func:`rollfric.io.open_recording`) or a FrameSource.
@@ -1201,6 +1236,12 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         Show a progress bar on stderr.
     median_frames : int
         Frames in the median background when there is none.
+    background_from : {"median", "max", "clip"}
+        How the background is made from the frames when none is given
+        (:func:`resolve_background`): the per-pixel median (default), or for a backlit rig
+        (a dark ball on a bright field) the per-pixel maximum less its noise bias, or a flat
+        field at the backlight's level. A median or maximum that holds the ball where it goes
+        is rebuilt from the frames clear of it, or refused.
     fit_kwargs : dict or None
         More keywords of :func:`rollfric.fit.fit_mu`.
     drops : bool
@@ -1259,7 +1300,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         logger.warning(msg)
     lap("open")
     bg, bg_desc, bg_notes = resolve_background(source, background, median_frames=median_frames,
-                                               r_px=ball_radius_px(setup))
+                                               r_px=ball_radius_px(setup), kind=background_from)
     lap("background")
     center_u, contour_notes = None, []
     ellipse = None
