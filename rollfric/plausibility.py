@@ -86,6 +86,10 @@ STUCK_FRAC = 0.1
 STUCK_LEAD = 3
 STUCK_KEEP = 0.5
 STUCK_MIN_STEP_PX = 0.5
+# ... and above STUCK_ACC_FACTOR x the track's step change (this percentile of |change of the
+# step| from frame to frame): a speed lost in so few changes is no real halt
+STUCK_ACC_PERCENTILE = 90.0
+STUCK_ACC_FACTOR = 4.0
 
 
 def _robust(v: np.ndarray) -> tuple[float, float]:
@@ -259,8 +263,9 @@ def stuck(x, y, ok) -> np.ndarray:
     STUCK_FRAMES frames whose steps are all below STUCK_FRAC of the speed v of the steady
     motion next to it, where v is the value at the run of a line through the STUCK_LEAD steps
     before it (or after it; none below STUCK_KEEP of the largest), at least STUCK_KEEP of their
-    mean and STUCK_MIN_STEP_PX: a ball slowing to a halt (a rest) or speeding up from one (a
-    release) has that line near zero there.
+    mean, STUCK_MIN_STEP_PX and STUCK_ACC_FACTOR x the track's typical step change (its
+    STUCK_ACC_PERCENTILE: acceleration, noise, rounding): a ball slowing to a halt (a rest)
+    or speeding up from one (a release) has that line near zero there.
 
     Parameters
     ----------
@@ -284,6 +289,9 @@ def stuck(x, y, ok) -> np.ndarray:
     st = np.hypot(np.diff(px), np.diff(py)) / np.diff(idx)  # st[k]: idx[k] -> idx[k + 1]
     m = idx.size
     n_run = STUCK_FRAMES - 1  # steps inside a run
+    # the track's own step changes (its acceleration, its noise and rounding): a speed that
+    # could be lost in a few such changes may be a real halt
+    acc = float(np.percentile(np.abs(np.diff(st)), STUCK_ACC_PERCENTILE))
 
     def lead_speed(steps: np.ndarray) -> float:
         """The speed a line through ``steps`` (oldest first) reaches one step on."""
@@ -300,7 +308,8 @@ def stuck(x, y, ok) -> np.ndarray:
                 continue
             v = lead_speed(lead)
             # a steady motion (no stuck place or jump among the lead's steps either)
-            if v < max(STUCK_MIN_STEP_PX, STUCK_KEEP * float(lead.mean())) \
+            if v < max(STUCK_MIN_STEP_PX, STUCK_KEEP * float(lead.mean()),
+                       STUCK_ACC_FACTOR * acc) \
                     or lead.min() < STUCK_KEEP * lead.max():
                 continue
             if run.max() < STUCK_FRAC * v:
