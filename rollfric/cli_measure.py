@@ -217,6 +217,9 @@ def _run(args) -> int:
                  "n_refitted": info.n_refitted,
                  # frames left out of the fit, by track.csv flag
                  "frames_flagged": dict(info.flags),
+                 # a held start and a rest, left out of the fit (rollfric.still)
+                 "frames_held": int((track["still"] == "held").sum()),
+                 "frames_rest": int((track["still"] == "rest").sum()),
                  "frames_dropped": [{"after_frame": int(k), "frames": int(m)}
                                     for k, m in info.frames_dropped],
                  "timing_irregular": [{"frame": int(k), "step_ratio": float(r)}

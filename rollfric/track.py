@@ -36,7 +36,7 @@ from rollfric.setup import Setup, SetupError, setup_from_dict
 
 logger = logging.getLogger(__name__)  # messages: info (what was done), warning (check this)
 
-TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found", "flag"]
+TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found", "flag", "still"]
 ANGLES = ("atan2", "arcsin")
 TIMES = ("auto", "fps")
 # the recording's timestamps are checked against the setup's rate and for even spacing
@@ -1351,6 +1351,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                times=None if times_desc == TIMES_FPS else t, drops=drops,
                                read_ahead=read_ahead, segments=segments)
     check_track_fits(df, setup)
+    still_notes = _mark_still(df, setup)
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,
                                center_u_px=center_u,
@@ -1358,7 +1359,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                recording=str(getattr(source, "name", recording)),
                                times=times_desc,
                                warnings=info.warnings + tuple(bg_notes) + tuple(contour_notes)
-                               + tuple(time_notes))
+                               + tuple(time_notes) + tuple(still_notes))
     if n_found < len(df):
         logger.info(f"ball not found in {len(df) - n_found} of {len(df)} frames (left out of "
                     "the fit)")
@@ -1372,6 +1373,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             raise InputError(f"the ball was found in only {n_found} of {len(df)} frames: at "
                              f"least {fitmod.MIN_SAMPLES} are needed to fit mu")
         t_s, th = df["t_s"].to_numpy(), df["theta_rad"].to_numpy()
+        still_rows = (df["still"] != "").to_numpy()  # a held start, a rest: not the motion
+        th = np.where(still_rows, np.nan, th)
         use, why = resolve_offset(offset, t_s, th, setup, fit_method)
         info = dataclasses.replace(info, offset_fitted=use, offset_reason=why)
         if offset == "auto":
@@ -1404,7 +1407,10 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             coded.append(("timing", irregular_message(info.timing_irregular)))
         if info.located_irregular:
             coded.append(("located_frames", located_frames_reason(info)))
-        side = quality.swing_coverage_reason(df["found"].to_numpy() == 1, result, setup)
+        # a held start and a rest are no part of the swing (their times left out)
+        swung = result if not still_rows.any() or np.shape(result.t) != still_rows.shape else \
+            dataclasses.replace(result, t=np.where(still_rows, np.nan, result.t))
+        side = quality.swing_coverage_reason(df["found"].to_numpy() == 1, swung, setup)
         if side is not None:
             coded.append((side.code, side.message))
         track_reasons = quality.check_track(df, setup, center, warnings=coded,
@@ -1413,6 +1419,32 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
         lap("checks")
     return df, dataclasses.replace(info, seconds=seconds), result
+
+
+def _mark_still(df, setup) -> list:
+    """Frames of a held start or a rest (:func:`rollfric.still.still_spells`) marked ``held`` /
+    ``rest`` in the column ``still`` (kept out of the fit); the warnings saying so."""
+    from rollfric import still
+
+    df["still"] = ""
+    found = df["found"].to_numpy() == 1
+    spells = still.still_spells(df["t_s"].to_numpy(), df["theta_rad"].to_numpy(), found, setup)
+    notes = []
+    for name, what in (("held", "held still before its release"),
+                       ("rest", "at rest from there on")):
+        mask = spells[name] & found
+        if not mask.any():
+            continue
+        k = np.flatnonzero(mask)
+        t = df["t_s"].to_numpy()
+        nat = spells["natural_s"][0 if name == "held" else 1]
+        df.loc[mask, "still"] = name
+        notes.append(f"the ball was {what}: frames {int(k[0])}-{int(k[-1])} "
+                     f"({t[k[-1]] - t[k[0]]:.3g} s, more than {still.STILL_FACTOR:g} x the "
+                     f"{nat * 1e3:.3g} ms a ball turning there is still), flagged '{name}' and "
+                     "left out of the fit")
+        logger.warning(notes[-1])
+    return notes
 
 
 def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fit_kwargs):
