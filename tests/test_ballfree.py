@@ -128,3 +128,34 @@ def test_the_clip_level_is_the_backlights_level():
     clipped = np.minimum(stack.astype(int) + 2000, 4095).astype(np.uint16)
     bg, level = ballfree.clip_background(clipped)
     assert level == FULL_12 and (bg == 4095).all() and bg.dtype == np.uint16
+
+
+def test_the_command_refuses_the_ghost_clip_and_reports_the_background_it_used(tmp_path, capsys):
+    import json
+
+    import pandas as pd
+    import tifffile
+
+    from rollfric.cli import main
+    from rollfric.setup import save_setup
+
+    save_setup(_real_setup(), tmp_path / "real.toml")
+    out = tmp_path / "o"
+    code = main(["measure", str(REAL), "--setup", str(tmp_path / "real.toml"), "--out", str(out),
+                 "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and "holds the ball" in err and "--background-from clip" in err
+    assert "Traceback" not in err and not out.exists()
+    # a drawn recording (a dark ball on a brighter backdrop) with the maximum as background
+    rec = make_recording(160, noise=1.0)
+    tifffile.imwrite(tmp_path / "rec.tif", np.stack(rec.frames))
+    save_setup(rec.setup, tmp_path / "setup.toml")
+    code = main(["measure", str(tmp_path / "rec.tif"), "--setup", str(tmp_path / "setup.toml"),
+                 "--background-from", "max", "--out", str(out), "--no-progress"])
+    assert code in (0, 3), capsys.readouterr().err
+    fit = json.loads((out / "fit.json").read_text())
+    assert fit["background_from"] == "max"
+    assert fit["background"].startswith("per-pixel maximum of 41 frames less its noise bias")
+    df = pd.read_csv(out / "track.csv")
+    err = np.hypot(df["x_px"] - rec.centers[:, 0], df["y_px"] - rec.centers[:, 1])
+    assert (df["found"] == 1).all() and err.max() < 0.1, err.max()
