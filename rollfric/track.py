@@ -1352,6 +1352,34 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                read_ahead=read_ahead, segments=segments)
     check_track_fits(df, setup)
     still_notes = _mark_still(df, setup)
+    bg_coded = bg_notes  # the background's notes that make the measurement suspect
+    if still_notes and bg_notes and bg_desc.startswith("per-pixel median"):
+        # the ball held or at rest made the median hold it: the median of the other frames
+        got = _median_without_still(source, df, bg, ball_radius_px(setup), median_frames)
+        if got is not None:
+            bg2, same, k2 = got
+            if not same:
+                logger.warning("the median background differs from the median of the frames "
+                               "in which the ball is neither held nor at rest: tracking again "
+                               "with the latter")
+                df, info = track_recording(source, setup, bg2, method=method, angle=angle,
+                                           center=center, progress=progress,
+                                           times=None if times_desc == TIMES_FPS else t,
+                                           drops=drops, read_ahead=read_ahead,
+                                           segments=segments)
+                check_track_fits(df, setup)
+                still_notes = _mark_still(df, setup)
+                bg = bg2
+                bg_desc = (f"per-pixel median of the {k2} sampled frames in which the ball is "
+                           "neither held nor at rest")
+            else:
+                bg_desc += (f" (as the median of the {k2} sampled frames in which the ball is "
+                            "neither held nor at rest)")
+            bg_notes = [f"{m} (the ball held or at rest there: the median of the {k2} sampled "
+                        "frames without it agrees)" if same else
+                        f"{m} (the ball held or at rest there: tracked again with the median of "
+                        f"the {k2} sampled frames without it)" for m in bg_notes]
+            bg_coded = []
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,
                                center_u_px=center_u,
@@ -1396,7 +1424,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                            warnings=info.warnings + (msg,))
             lap("turning points")
         coded = [("background_repaired", f"{msg}: a background image without the ball "
-                  "(--background) rules out a trace of it") for msg in bg_notes]
+                  "(--background) rules out a trace of it") for msg in bg_coded]
         if ellipse is not None:
             info, ell_coded = _ellipse_check(ellipse, info, t_s, th, setup, result, use,
                                              fit_method, fit_kwargs)
@@ -1419,6 +1447,31 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
         lap("checks")
     return df, dataclasses.replace(info, seconds=seconds), result
+
+
+def _median_without_still(source, df, bg, r_px: float, median_frames: int):
+    """The median background of the sampled frames whose ball is neither held nor at rest:
+    (background, whether it agrees with ``bg``, frames in it), or None when fewer than
+    :data:`rollfric.ballfree.MIN_CLEAR` are left or it still holds the ball."""
+    import cv2
+
+    from rollfric.background import median
+
+    idx, stack = sample(source, median_frames)
+    still_rows = df["still"].to_numpy() != ""
+    keep = [j for j, i in enumerate(idx) if not still_rows[int(i)]]
+    if len(keep) < ballfree.MIN_CLEAR:
+        return None
+    sub = stack[keep]
+    try:
+        bg2, _ = ballfree.check_ball_free(sub, median(sub), r_px)
+    except InputError:
+        return None
+    # a ball's trace is a ball-sized difference: averaged over r x r, above the noise
+    d = cv2.blur(np.abs(bg2.astype(np.float32) - bg.astype(np.float32)),
+                 (max(1, int(r_px)), max(1, int(r_px))))
+    tol = max(2.0, ballfree.noise_sigma(stack))
+    return bg2, bool(d.max() <= tol), len(keep)
 
 
 def _mark_still(df, setup) -> list:

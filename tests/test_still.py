@@ -77,3 +77,13 @@ def test_rollfric_fit_leaves_the_still_rows_of_a_track_out(tmp_path):
                  + "0.62,0.1,1,,rest\n")
     t, theta = read_track(p)[:2]
     assert np.isnan(theta[[0, 1, 62]]).all() and np.isfinite(theta[2:62]).all()
+
+
+def test_a_rest_held_by_the_median_background_is_named_and_the_fit_is_ok():
+    # at rest in 400 of 608 frames: the median of all frames holds the ball there
+    setup, bg, frames, theta = _recording(0, 240, 400, mu=0.02)
+    df, info, res = measure(_Plain([np.asarray(f) for f in frames]), setup, None)
+    assert (df["still"] == "rest").sum() >= 390 and (df["found"] == 1).all()
+    assert "neither held nor at rest" in info.background
+    assert res.quality == "ok", [r.message for r in res.quality_reasons]
+    assert abs(res.mu - 0.02) < max(3 * res.mu_stderr, 2e-4), (res.mu, res.mu_stderr)
