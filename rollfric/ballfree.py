@@ -187,15 +187,23 @@ def seen_places(stack: np.ndarray, background: np.ndarray, r_px: float) -> tuple
     return places, holes
 
 
-def _cover(places: list, unknown: list, r: float, shape) -> np.ndarray:
-    """(k, H, W) bool: pixel within ``r`` of a place of frame k; a frame whose ball is not
-    known may be at any of the ``unknown`` places."""
-    h, w = shape
-    yy, xx = np.mgrid[0:h, 0:w]
-    out = np.zeros((len(places), h, w), dtype=bool)
-    for k, ps in enumerate(places):
-        for x, y in (ps if ps else unknown):
-            out[k] |= (xx - x) ** 2 + (yy - y) ** 2 <= r * r
+def _discs(shape, points, r: float) -> np.ndarray:
+    """(H, W) bool: the pixels within ``r`` of any of ``points`` (x, y)."""
+    import cv2
+
+    mask = np.zeros(shape, dtype=np.uint8)
+    for x, y in points:
+        # 4 fractional bits: the discs' centres and radius to 1/16 px
+        cv2.circle(mask, (int(round(x * 16)), int(round(y * 16))), int(round(r * 16)), 1, -1,
+                   lineType=cv2.LINE_8, shift=4)
+    return mask.astype(bool)
+
+
+def _near(ys, xs, points, r: float) -> np.ndarray:
+    """Bool per pixel (ys, xs): within ``r`` of any of ``points``."""
+    out = np.zeros(len(ys), dtype=bool)
+    for x, y in points:
+        out |= (xs - x) ** 2 + (ys - y) ** 2 <= r * r
     return out
 
 
@@ -245,13 +253,10 @@ def check_ball_free(stack: np.ndarray, background: np.ndarray, r_px: float, *,
     k = len(stack)
     shape = background.shape
     r_clear = CLEAR_RADII * r_px + CLEAR_PAD_PX
-    # each pixel's frames: all, or a repaired disc's
-    member = np.ones((k,) + shape, dtype=bool)
-    for mask, use in sources:
-        sub = np.zeros((k, int(mask.sum())), dtype=bool)
-        sub[list(use)] = True
-        member[:, mask] = sub
-    rebuilt = np.zeros(shape, dtype=bool)
+    # each pixel's frames: all, a repaired disc's (``sources``), or, once rebuilt, those clear
+    # of it (column own[p] of own_use, (k, n))
+    own = np.full(shape, -1, dtype=np.int64)
+    own_use = np.zeros((k, 0), dtype=bool)
     worst_on, where = 0, None
     for attempt in range(ATTEMPTS):
         places, holes = seen_places(stack, background, r_px)
@@ -259,21 +264,32 @@ def check_ball_free(stack: np.ndarray, background: np.ndarray, r_px: float, *,
             break
         # a frame whose ball is not seen may have it where the background holds a ball
         unknown = holes or [p for ps in places for p in ps]
-        on_ball = _cover(places, unknown, r_px + 2.0, shape)  # the ball's own pixels
-        n_from = member.sum(axis=0)
-        n_on = (on_ball & member).sum(axis=0)
-        bad = ((2 * n_on >= n_from) if kind != "max" else (n_on >= n_from)) \
-            & on_ball.any(axis=0)
+        n_from = np.zeros(shape, dtype=np.int32)
+        n_on = np.zeros(shape, dtype=np.int32)
+        seen = np.zeros(shape, dtype=bool)
+        mine = own >= 0
+        for j in range(k):
+            on = _discs(shape, places[j] or unknown, r_px + 2.0)  # the ball's own pixels
+            member = np.ones(shape, dtype=bool)
+            for mask, use in sources:
+                if j not in use:
+                    member[mask] = False
+            member[mine] = own_use[j, own[mine]]
+            n_from += member
+            n_on += on & member
+            seen |= on
+        bad = ((2 * n_on >= n_from) if kind != "max" else (n_on >= n_from)) & seen
         if not bad.any():
             break
-        clear = ~_cover(places, unknown, r_clear, shape)  # frames clear of the pixel
-        n_clear = clear.sum(axis=0)
         ys, xs = np.nonzero(bad)
+        # frames whose ball is clear of each bad pixel
+        use = np.stack([~_near(ys, xs, places[j] or unknown, r_clear) for j in range(k)])
+        n_clear = use.sum(axis=0)
         cx, cy = float(xs.mean()), float(ys.mean())
         allp = np.array([ps[0] for ps in places if ps] + holes)  # the most ball-like
         span = float(np.max(np.hypot(allp[:, None, 0] - allp[None, :, 0],
                                      allp[:, None, 1] - allp[None, :, 1])))
-        short = bad & (n_clear < (MIN_CLEAR if kind != "max" else 1))
+        short = n_clear < (MIN_CLEAR if kind != "max" else 1)
         if attempt == ATTEMPTS - 1 or short.any():
             worst = int(n_on[bad].max())
             few = ", and too few frames leave it clear to rebuild it" if short.any() else ""
@@ -283,23 +299,23 @@ def check_ball_free(stack: np.ndarray, background: np.ndarray, r_px: float, *,
                 f"diameter is {2 * r_px:.0f} px; it covers that place in {worst} of the "
                 f"{k} sampled frames{few}), so it would be found at its ghost; {REMEDIES[kind]}")
         vals = stack[:, ys, xs].astype(np.float64)
-        use = clear[:, ys, xs]
         vals[~use] = np.nan
         med = np.nanmedian(vals, axis=0)
         if kind == "max":
             top = np.nanmax(vals, axis=0)
-            e = np.array([expected_max_normal(int(n)) for n in use.sum(axis=0)])
+            e = np.array([expected_max_normal(int(n)) for n in n_clear])
             new = np.where(top > med, top - sigma * e, top)
         else:
             new = med
         background = background.copy()
         background[ys, xs] = np.rint(new).astype(stack.dtype)
-        member[:, ys, xs] = use
-        rebuilt |= bad
+        own[ys, xs] = own_use.shape[1] + np.arange(len(ys))
+        own_use = np.concatenate([own_use, use], axis=1)
         worst_on = max(worst_on, int(n_on[bad].max()))
         where = where or (cx, cy)
-    notes = [] if not rebuilt.any() else [
-        f"{what} held the ball around ({where[0]:.0f}, {where[1]:.0f}) px ({int(rebuilt.sum())} "
-        f"px, the ball on them in up to {worst_on} of {k} sampled frames); they were rebuilt "
-        "from the frames in which the ball is clear of them"]
+    n_rebuilt = int((own >= 0).sum())
+    notes = [] if not n_rebuilt else [
+        f"{what} held the ball around ({where[0]:.0f}, {where[1]:.0f}) px ({n_rebuilt} px, the "
+        f"ball on them in up to {worst_on} of {k} sampled frames); they were rebuilt from the "
+        "frames in which the ball is clear of them"]
     return background, notes
