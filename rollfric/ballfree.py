@@ -286,18 +286,15 @@ def check_ball_free(stack: np.ndarray, background: np.ndarray, r_px: float, *,
         use = np.stack([~_near(ys, xs, places[j] or unknown, r_clear) for j in range(k)])
         n_clear = use.sum(axis=0)
         cx, cy = float(xs.mean()), float(ys.mean())
-        allp = np.array([ps[0] for ps in places if ps] + holes)  # the most ball-like
-        span = float(np.max(np.hypot(allp[:, None, 0] - allp[None, :, 0],
-                                     allp[:, None, 1] - allp[None, :, 1])))
         short = n_clear < (MIN_CLEAR if kind != "max" else 1)
         if attempt == ATTEMPTS - 1 or short.any():
             worst = int(n_on[bad].max())
             few = ", and too few frames leave it clear to rebuild it" if short.any() else ""
             raise InputError(
                 f"{what} holds the ball around ({cx:.0f}, {cy:.0f}) px: the ball does not move "
-                f"clear of where it is (it is seen within {span:.0f} px over the frames, its "
-                f"diameter is {2 * r_px:.0f} px; it covers that place in {worst} of the "
-                f"{k} sampled frames{few}), so it would be found at its ghost; {REMEDIES[kind]}")
+                f"clear of where it is (a ball {2 * r_px:.0f} px across, on that place in "
+                f"{worst} of the {k} sampled frames{few}: a short clip, a slow ball or one at "
+                f"rest), so it would be found at its ghost; {REMEDIES[kind]}")
         vals = stack[:, ys, xs].astype(np.float64)
         vals[~use] = np.nan
         med = np.nanmedian(vals, axis=0)
