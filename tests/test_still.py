@@ -102,3 +102,25 @@ def test_a_rest_held_by_the_median_background_is_named_and_the_fit_is_ok():
     assert "neither held nor at rest" in info.background
     assert res.quality == "ok", [r.message for r in res.quality_reasons]
     assert abs(res.mu - 0.02) < max(3 * res.mu_stderr, 2e-4), (res.mu, res.mu_stderr)
+
+
+def test_the_median_without_the_still_frames_tells_a_held_ball_from_the_backdrop():
+    import pandas as pd
+
+    from rollfric.background import median, sample
+    from rollfric.track import _median_without_still
+
+    # at rest in 400 of 608 frames: the plain median holds the ball at its rest place
+    setup, bg_true, frames, theta = _recording(0, 240, 400, mu=0.02)
+    src = _Plain([np.asarray(f) for f in frames])
+    n = len(frames)
+    df = pd.DataFrame({"still": [""] * (n - 400) + ["rest"] * 400})
+    _, stack = sample(src, 41)
+    plain = median(stack)
+    r = setup.ball_radius / PIX
+    bg2, same, k2 = _median_without_still(src, df, plain, r, 41)
+    assert not same and k2 == 14  # the 14 sampled frames before the rest
+    assert np.abs(bg2.astype(int) - bg_true.astype(int)).max() <= 5
+    # against a background that is right there, it agrees
+    _, same, _ = _median_without_still(src, df, bg2, r, 41)
+    assert same
