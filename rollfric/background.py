@@ -102,33 +102,45 @@ def median_background(source, r_px: float, max_frames: int = 41, *,
         What was repaired, or why it could not be (then a background image is needed).
     """
     idx, stack = sample(source, max_frames)
+    bg, notes, _ = repaired_median(stack, r_px, full_scale=full_scale)
+    return bg, notes
+
+
+def repaired_median(stack: np.ndarray, r_px: float, *,
+                    full_scale: float | None = None) -> tuple[np.ndarray, list, list]:
+    """:func:`median_background` of sampled frames: (background, notes, sources).
+
+    ``sources``: (disc mask, frame numbers in ``stack``) of each repaired disc, the frames
+    its pixels were taken from (every other pixel is the median of all of them).
+    """
     bg = median(stack)
     cands = [locate.coarse_candidates(f, bg, r_px, n_candidates=3, full_scale=full_scale)
              for f in stack]
     showing = [j for j, c in enumerate(cands) if c]
     quiet = len(stack) - len(showing)
     if quiet == 0:
-        return bg, []
+        return bg, [], []
     if len(showing) < MIN_FRAMES_SHOWING:
-        return bg, [f"the ball shows against the median background in only {len(showing)} of "
-                    f"{len(stack)} sampled frames: if it rests in one place for most of the "
-                    "recording the median holds it there; give a background image"]
+        return bg, [f"the ball shows against the median background in only {len(showing)} "
+                    f"of {len(stack)} sampled frames: if it rests in one place for most of the "
+                    "recording the median holds it there; give a background image"], []
     holes = _holes([cands[j] for j in showing], r_px)
     if not holes:
-        return bg, []
+        return bg, [], []
     repaired = bg.copy()
     h, w = bg.shape
     yy, xx = np.mgrid[0:h, 0:w]
-    notes = []
+    notes, sources = [], []
     for x, y, frames_with in holes:
         rad = 1.5 * r_px + 3.0
         disc = (xx - x) ** 2 + (yy - y) ** 2 <= rad * rad
         use = [showing[k] for k in frames_with]
         repaired[disc] = median(stack[use][:, disc])
+        sources.append((disc, use))
         notes.append(f"the median background held a resting ball (or its shadow) at "
                      f"({x:.1f}, {y:.1f}) px, unseen in {quiet} of {len(stack)} sampled frames; "
                      f"that disc was taken from the {len(use)} frames showing the backdrop there")
-    return repaired, notes
+    return repaired, notes, sources
 
 
 def _holes(cands_per_frame: list, r_px: float) -> list:

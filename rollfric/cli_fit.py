@@ -140,6 +140,13 @@ def read_track(path):
             logging.getLogger(__name__).warning(
                 f"{path}: {int(dropped.sum())} row(s) with found = 0 and an angle left out")
             theta = np.where(dropped, np.nan, theta)
+    if "still" in df.columns:  # rollfric measure's held start and rest: not the motion
+        still = df["still"].fillna("").astype(str).str.strip().isin(("held", "rest"))
+        held = still.to_numpy(bool) & np.isfinite(theta)
+        if held.any():
+            logging.getLogger(__name__).warning(
+                f"{path}: {int(held.sum())} row(s) marked still (held or rest) left out")
+            theta = np.where(held, np.nan, theta)
     return check_track(t, theta, path)
 
 

@@ -71,6 +71,13 @@ def add_tracking_arguments(p) -> None:
     p.add_argument("--background", metavar="BG", default=None,
                    help="background image without the ball (default: the recording's own, else "
                         "the per-pixel median of --median-frames frames)")
+    p.add_argument("--background-from", default="median", choices=["median", "clip", "max"],
+                   help="the background made from the frames when none is given: median "
+                        "(per-pixel median, default), or for a backlit rig (a dark ball on a "
+                        "bright field) clip (a flat field at the backlight's level) or max "
+                        "(per-pixel maximum less its noise bias); a median or maximum that "
+                        "still holds the ball where it goes is rebuilt from the frames clear "
+                        "of it, or refused (exit 2)")
     p.add_argument("--median-frames", type=int, default=41,
                    help="frames in the median background when none is given")
     p.add_argument("--method", default="subpixel", choices=list(LOCATORS),
@@ -170,6 +177,8 @@ def track_summary(track, info) -> dict:
             # angles from lens-undistorted centres ([camera] matrix, distortion)
             "undistorted": bool(info.undistorted),
             "background": info.background,
+            # how: given (--background), recording (its own), median, clip or max
+            "background_from": info.background_from,
             "times": info.times,
             "ball_radius_px": info.ball_radius_px,
             # the apparent radius calibrated from full-rim frames (None: too few)
@@ -178,6 +187,9 @@ def track_summary(track, info) -> dict:
             "n_refitted": info.n_refitted,
             # frames left out of the fit, by track.csv flag
             "frames_flagged": dict(info.flags),
+            # a held start and a rest, left out of the fit (rollfric.still)
+            "frames_held": int((track["still"] == "held").sum()),
+            "frames_rest": int((track["still"] == "rest").sum()),
             "frames_dropped": [{"after_frame": int(k), "frames": int(m)}
                                for k, m in info.frames_dropped],
             "timing_irregular": [{"frame": int(k), "step_ratio": float(r)}
@@ -283,7 +295,8 @@ def _run(args) -> int:
                             angle=args.angle, fit_method=args.fit_method,
                                   offset={"on": True, "off": False}.get(args.offset, "auto"),
                                   progress=not args.no_progress,
-                                  median_frames=args.median_frames, times=args.times)
+                                  median_frames=args.median_frames, times=args.times,
+                                  background_from=args.background_from)
     keys, budget = run_budget(measurement_from_track(track, info), result, args)
     remove_legacy_leftovers(out)
     with staged_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure") as tmp:

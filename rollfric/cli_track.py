@@ -76,7 +76,8 @@ def _run(args) -> int:
     out = check_tracking_outputs(args, OUTPUTS, "track")
     track, info, _ = measure(args.recording, args.setup, args.background, method=args.method,
                              angle=args.angle, fit=False, progress=not args.no_progress,
-                             median_frames=args.median_frames, times=args.times)
+                             median_frames=args.median_frames, times=args.times,
+                             background_from=args.background_from)
     with staged_folder(out, OUTPUTS, overwrite=args.overwrite, command="track") as tmp:
         write_track_csv(track, tmp / "track.csv")
         summary = {"setup": args.setup if args.setup is not None

@@ -16,6 +16,9 @@ what the recording itself says (no camera-specific threshold):
   polynomial through them, judged against that prediction's own error; a swapped frame, or
   one located on something else, stands out;
 - ``duplicate``: a ``jump`` whose centre equals the previous frame's (a repeated frame);
+- ``stuck``: a run of frames located at one place, entered or left at full speed (the ball
+  slows to a halt or speeds up from one; a place that stays put while the motion goes on is
+  something else: the ball's ghost in a background that holds it);
 - ``off_path``: the centre is off the path the other frames trace about the trough centre
   (its distance from the centre against a + b sin(theta) + c cos(theta) fitted to all frames:
   the trough's circle seen about a centre that may be off by a few pixels). It catches a
@@ -35,7 +38,7 @@ import numpy as np
 from rollfric.localfit import polyfit_rows
 
 FLAGS = ("not_found", "off_track", "contrast", "residual", "radius", "occluded", "jump",
-         "duplicate", "off_path")
+         "duplicate", "off_path", "stuck")
 
 # jump: the prediction's residual |e| of a frame, for Gaussian centre errors of sigma per
 # axis, is Rayleigh-distributed: P(|e| > k sigma_e) = exp(-k^2 / 2), so at 6 sigma one good
@@ -71,6 +74,22 @@ OCCLUDED_WINDOW = 3
 # by more than that, a ball located on something else is off by a good part of its radius)
 OFF_PATH_SIGMAS = 8.0
 OFF_PATH_FLOOR = 0.1
+# stuck: at least STUCK_FRAMES frames in a row whose steps are all below STUCK_FRAC of the
+# speed the STUCK_LEAD steps before (or after) them keep up to the run (steady: none below
+# STUCK_KEEP of the largest; their line's value there at least STUCK_KEEP of their mean, and
+# at least STUCK_MIN_STEP_PX a frame): the ball
+# does not stop dead from full speed, it slows to a halt (a rest) or speeds up from one (a
+# release), so such a run is a place the locator is stuck on (a ghost of the ball in the
+# background) while the ball moves on
+STUCK_FRAMES = 4
+STUCK_FRAC = 0.1
+STUCK_LEAD = 3
+STUCK_KEEP = 0.5
+STUCK_MIN_STEP_PX = 0.5
+# ... and above STUCK_ACC_FACTOR x the track's step change (this percentile of |change of the
+# step| from frame to frame): a speed lost in so few changes is no real halt
+STUCK_ACC_PERCENTILE = 90.0
+STUCK_ACC_FACTOR = 4.0
 
 
 def _robust(v: np.ndarray) -> tuple[float, float]:
@@ -237,6 +256,73 @@ def off_path(x, y, ok, center, r_ball: float) -> np.ndarray:
     return out
 
 
+def stuck(x, y, ok) -> np.ndarray:
+    """Frames in a run located at one place that the motion enters or leaves at full speed.
+
+    Over the ``ok`` frames (steps per frame between successive ones): a run of at least
+    STUCK_FRAMES frames whose steps are all below STUCK_FRAC of the speed v of the steady
+    motion next to it, where v is the value at the run of a line through the STUCK_LEAD steps
+    before it (or after it; none below STUCK_KEEP of the largest), at least STUCK_KEEP of their
+    mean, STUCK_MIN_STEP_PX and STUCK_ACC_FACTOR x the track's typical step change (its
+    STUCK_ACC_PERCENTILE: acceleration, noise, rounding): a ball slowing to a halt (a rest)
+    or speeding up from one (a release) has that line near zero there.
+
+    Parameters
+    ----------
+    x, y : array_like
+        Centres (px), one a frame.
+    ok : array_like of bool
+        Frames to judge (the others are skipped).
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        The stuck frames.
+    """
+    x = np.asarray(x, dtype=float)
+    ok = np.asarray(ok, dtype=bool)
+    out = np.zeros(x.size, dtype=bool)
+    idx = np.flatnonzero(ok & np.isfinite(x) & np.isfinite(np.asarray(y, dtype=float)))
+    if idx.size < STUCK_FRAMES + STUCK_LEAD + 1:
+        return out
+    px, py = x[idx], np.asarray(y, dtype=float)[idx]
+    st = np.hypot(np.diff(px), np.diff(py)) / np.diff(idx)  # st[k]: idx[k] -> idx[k + 1]
+    m = idx.size
+    n_run = STUCK_FRAMES - 1  # steps inside a run
+    # the track's own step changes (its acceleration, its noise and rounding): a speed that
+    # could be lost in a few such changes may be a real halt
+    acc = float(np.percentile(np.abs(np.diff(st)), STUCK_ACC_PERCENTILE))
+
+    def lead_speed(steps: np.ndarray) -> float:
+        """The speed a line through ``steps`` (oldest first) reaches one step on."""
+        t = np.arange(steps.size, dtype=float)
+        slope, icpt = np.polyfit(t, steps, 1)
+        return float(slope * steps.size + icpt)
+
+    for k in range(m - n_run):
+        run = st[k:k + n_run]  # steps of frames idx[k] .. idx[k + n_run]
+        # entered: the steps before the one into the run
+        for lead in (st[max(0, k - 1 - STUCK_LEAD):max(0, k - 1)],
+                     st[k + n_run + 1:k + n_run + 1 + STUCK_LEAD][::-1]):
+            if lead.size < STUCK_LEAD:
+                continue
+            v = lead_speed(lead)
+            # a steady motion (no stuck place or jump among the lead's steps either)
+            if v < max(STUCK_MIN_STEP_PX, STUCK_KEEP * float(lead.mean()),
+                       STUCK_ACC_FACTOR * acc) \
+                    or lead.min() < STUCK_KEEP * lead.max():
+                continue
+            if run.max() < STUCK_FRAC * v:
+                # the whole still run: on while the steps stay below STUCK_FRAC v
+                lo, hi = k, k + n_run
+                while lo > 0 and st[lo - 1] < STUCK_FRAC * v:
+                    lo -= 1
+                while hi < m - 1 and st[hi] < STUCK_FRAC * v:
+                    hi += 1
+                out[idx[lo:hi + 1]] = True
+    return out
+
+
 def _culprit(i: int, z: np.ndarray, x, y, ok: np.ndarray, pos, zscore) -> int:
     """Which frame to reject for the worst residual ``z[i]``: of the frames near i (within
     MAX_GAP) above JUMP_SIGMAS, the one whose removal leaves the others' largest z smallest.
@@ -311,6 +397,7 @@ def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlie
         reject(np.isfinite(f) & np.isfinite(ref) & (f < OCCLUDED_RATIO * ref), "occluded")
     if center is not None and r_ball:
         reject(off_path(x, y, ok, center, r_ball), "off_path")
+    reject(stuck(x, y, ok), "stuck")
     # a repeated frame: the ball's pixels equal the frame before's (``same_pixels``; without
     # it the same centre to 1e-4 px: a locator's answers for two exposures differ by its
     # noise), while the ball moved between the frames around it (the frames of a resting ball

@@ -24,8 +24,8 @@ import time
 import numpy as np
 import pandas as pd
 
-from rollfric import bitdepth, cpus, io, locate, plausibility, quality, timing
-from rollfric.background import median_background
+from rollfric import ballfree, bitdepth, cpus, io, locate, plausibility, quality, timing
+from rollfric.background import repaired_median, sample
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
 from rollfric.locate.kernels import _ring_sums, _same_values
@@ -36,7 +36,7 @@ from rollfric.setup import Setup, SetupError, setup_from_dict
 
 logger = logging.getLogger(__name__)  # messages: info (what was done), warning (check this)
 
-TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found", "flag"]
+TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found", "flag", "still"]
 ANGLES = ("atan2", "arcsin")
 TIMES = ("auto", "fps")
 # the recording's timestamps are checked against the setup's rate and for even spacing
@@ -139,6 +139,9 @@ class TrackInfo:
         frame times), "background", "trough centre", "tracking", "fit", "turning points"
         (the dropped-frame search where the ball turns), "ellipse check", "checks"; empty
         from :func:`track_recording` alone. Not written to fit.json.
+    background_from : str
+        How the background was had: "given" (an image), "recording" (the recording's own),
+        or made from the frames: "median", "clip" or "max".
     """
 
     setup: Setup
@@ -170,6 +173,7 @@ class TrackInfo:
     timing_irregular: tuple = ()
     located_irregular: tuple = ()
     seconds: dict = dataclasses.field(default_factory=dict)
+    background_from: str = "given"  # given, recording (its own), median, clip or max
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -524,12 +528,18 @@ def _tiff_pages(path) -> int:
 
 
 def resolve_background(source, background, *, r_px: float, median_frames: int = 41,
-                       full_scale: float | None = None):
-    """The background: the given image, the recording's own, or the median of frames.
+                       kind: str = "median", full_scale: float | None = None):
+    """The background: the given image, the recording's own, or one made from the frames.
 
-    The median (:func:`rollfric.background.median_background`) is repaired where the ball of
-    radius ``r_px`` rested in most of the frames; the notes say so, also as warnings of the
-    ``rollfric.track`` logger.
+    Made from ``median_frames`` frames spread over the recording, by ``kind``
+    (:data:`rollfric.ballfree.KINDS`): "median", the per-pixel median
+    (:func:`rollfric.background.median_background`), repaired where the ball of radius
+    ``r_px`` rested in most of the frames; "max", the per-pixel maximum less its noise bias
+    (a backlit rig's dark ball, :func:`rollfric.ballfree.max_background`); "clip", a flat
+    field at the backlight's level (:func:`rollfric.ballfree.clip_background`). The median
+    and the maximum are then made free of the ball where it goes
+    (:func:`rollfric.ballfree.check_ball_free`), or refused. The notes say what was repaired
+    or rebuilt, also as warnings of the ``rollfric.track`` logger.
 
     Parameters
     ----------
@@ -541,8 +551,10 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
         The ball's radius (px).
     median_frames : int, optional
         Frames in the median.
+    kind : {"median", "max", "clip"}, optional
+        How a background is made from the frames when none is given.
     full_scale : float, optional
-        The camera's full scale (DN) the median's repair searches the ball with.
+        The camera's full scale (DN) the ball is searched with in the sampled frames.
 
     Returns
     -------
@@ -557,7 +569,15 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
     ------
     RecordingError
         An unreadable image, or one of another size than the frames.
+    InputError
+        An unknown ``kind``, or one given with a background image; a background made from
+        the frames that holds the ball (:func:`rollfric.ballfree.check_ball_free`).
     """
+    if kind not in ballfree.KINDS:
+        raise InputError(f"unknown background {kind!r} (known: {', '.join(ballfree.KINDS)})")
+    if background is not None and kind != "median":
+        raise InputError(f"a background image and --background-from {kind} are two "
+                         "backgrounds: give one")
     if background is not None:
         if isinstance(background, np.ndarray):
             return io.check_background(background, source), "given array", []
@@ -568,16 +588,36 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
                              " use the median of the recording's frames")
         bg = io.read_image(background)
         return io.check_background(bg, source, f"background {background}"), str(background), []
-    if getattr(source, "background", None) is not None:
+    if getattr(source, "background", None) is not None and kind == "median":
         return io.check_background(source.background, source, "the recording's background"), \
             "stored in the recording", []
     k = min(len(source), median_frames)
-    logger.info(f"no background given: using the per-pixel median of {k} frames spread over "
-                "the recording")
-    bg, notes = median_background(source, r_px, median_frames, full_scale=full_scale)
+    idx, stack = sample(source, median_frames)
+    if kind == "clip":
+        bg, level = ballfree.clip_background(stack)
+        logger.info(f"background: a flat field at the backlight's level, {level:g} DN")
+        return bg, (f"clip level: a flat field at {level:g} DN (the backlight's level, the "
+                    f"{ballfree.CLIP_PERCENTILE:g}th percentile of the median of {k} frames)"), []
+    if kind == "max":
+        bg, sigma = ballfree.max_background(stack)
+        desc = (f"per-pixel maximum of {k} frames less its noise bias ({sigma:.3g} DN noise x "
+                f"{ballfree.expected_max_normal(len(stack)):.3f})")
+        bg, notes = ballfree.check_ball_free(stack, bg, r_px, kind="max", sigma=sigma,
+                                             what=f"the per-pixel maximum of {k} frames",
+                                             full_scale=full_scale)
+    else:
+        logger.info(f"no background given: using the per-pixel median of {k} frames spread "
+                    "over the recording")
+        bg, notes, sources = repaired_median(stack, r_px, full_scale=full_scale)
+        desc = f"per-pixel median of {k} frames" + (", repaired" if notes else "")
+        bg, more = ballfree.check_ball_free(stack, bg, r_px, sources=sources,
+                                            what=f"the per-pixel median of {k} frames",
+                                            full_scale=full_scale)
+        notes = notes + more
+        desc += ", rebuilt where it held the ball" if more else ""
     for msg in notes:
         logger.warning(msg)
-    return bg, f"per-pixel median of {k} frames" + (", repaired" if notes else ""), notes
+    return bg, desc, notes
 
 
 def track_segments(n: int, segments: int | str = "auto") -> list[tuple[int, int]]:
@@ -1178,7 +1218,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             offset: bool | str = "auto", fit: bool = True, progress: bool = False,
             median_frames: int = 41, fit_kwargs: dict | None = None,
             times: str = "auto", drops: bool = True, read_ahead: bool = False,
-            segments: int | str = "auto"):
+            segments: int | str = "auto", background_from: str = "median"):
     """Measure mu from a recording: (track DataFrame, TrackInfo, FitResult or None).
 
     ``recording``: a path (see :func:`rollfric.io.open_recording`) or a FrameSource.
@@ -1220,6 +1260,12 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         Show a progress bar on stderr.
     median_frames : int
         Frames in the median background when there is none.
+    background_from : {"median", "max", "clip"}
+        How the background is made from the frames when none is given
+        (:func:`resolve_background`): the per-pixel median (default), or for a backlit rig
+        (a dark ball on a bright field) the per-pixel maximum less its noise bias, or a flat
+        field at the backlight's level. A median or maximum that holds the ball where it goes
+        is rebuilt from the frames clear of it, or refused.
     fit_kwargs : dict or None
         More keywords of :func:`rollfric.fit.fit_mu`.
     drops : bool
@@ -1286,7 +1332,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         logger.warning(msg)
     lap("open")
     bg, bg_desc, bg_notes = resolve_background(source, background, median_frames=median_frames,
-                                               r_px=ball_radius_px(setup), full_scale=fs)
+                                               r_px=ball_radius_px(setup), kind=background_from,
+                                               full_scale=fs)
     lap("background")
     center_u, contour_notes = None, []
     ellipse = None
@@ -1338,14 +1385,47 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                times=None if times_desc == TIMES_FPS else t, drops=drops,
                                read_ahead=read_ahead, segments=segments, bit_depth=bits)
     check_track_fits(df, setup)
+    still_notes = _mark_still(df, setup)
+    bg_coded = bg_notes  # the background's notes that make the measurement suspect
+    if still_notes and bg_notes and bg_desc.startswith("per-pixel median"):
+        # the ball held or at rest made the median hold it: the median of the other frames
+        got = _median_without_still(source, df, bg, ball_radius_px(setup), median_frames,
+                                    full_scale=fs)
+        if got is not None:
+            bg2, same, k2 = got
+            if not same:
+                logger.warning("the median background differs from the median of the frames "
+                               "in which the ball is neither held nor at rest: tracking again "
+                               "with the latter")
+                df, info = track_recording(source, setup, bg2, method=method, angle=angle,
+                                           center=center, progress=progress,
+                                           times=None if times_desc == TIMES_FPS else t,
+                                           drops=drops, read_ahead=read_ahead,
+                                           segments=segments, bit_depth=bits)
+                check_track_fits(df, setup)
+                still_notes = _mark_still(df, setup)
+                bg = bg2
+                bg_desc = (f"per-pixel median of the {k2} sampled frames in which the ball is "
+                           "neither held nor at rest")
+            else:
+                bg_desc += (f" (as the median of the {k2} sampled frames in which the ball is "
+                            "neither held nor at rest)")
+            bg_notes = [f"{m} (the ball held or at rest there: the median of the {k2} sampled "
+                        "frames without it agrees)" if same else
+                        f"{m} (the ball held or at rest there: tracked again with the median of "
+                        f"the {k2} sampled frames without it)" for m in bg_notes]
+            bg_coded = []
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,
+                               background_from="given" if background is not None else
+                               "recording" if bg_desc == "stored in the recording" else
+                               background_from,
                                center_u_px=center_u,
                                n_frames=len(df), n_found=n_found,
                                recording=str(getattr(source, "name", recording)),
                                times=times_desc,
                                warnings=info.warnings + tuple(bg_notes) + tuple(contour_notes)
-                               + tuple(time_notes))
+                               + tuple(time_notes) + tuple(still_notes))
     if n_found < len(df):
         logger.info(f"ball not found in {len(df) - n_found} of {len(df)} frames"
                     + (" (left out of the fit)" if fit else ""))
@@ -1359,6 +1439,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             raise InputError(f"the ball was found in only {n_found} of {len(df)} frames: at "
                              f"least {fitmod.MIN_SAMPLES} are needed to fit mu")
         t_s, th = df["t_s"].to_numpy(), df["theta_rad"].to_numpy()
+        still_rows = (df["still"] != "").to_numpy()  # a held start, a rest: not the motion
+        th = np.where(still_rows, np.nan, th)
         use, why = resolve_offset(offset, t_s, th, setup, fit_method)
         info = dataclasses.replace(info, offset_fitted=use, offset_reason=why)
         if offset == "auto":
@@ -1380,7 +1462,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                            warnings=info.warnings + (msg,))
             lap("turning points")
         coded = [("background_repaired", f"{msg}: a background image without the ball "
-                  "(--background) rules out a trace of it") for msg in bg_notes]
+                  "(--background) rules out a trace of it") for msg in bg_coded]
         if ellipse is not None:
             info, ell_coded = _ellipse_check(ellipse, info, t_s, th, setup, result, use,
                                              fit_method, fit_kwargs)
@@ -1391,7 +1473,10 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             coded.append(("timing", irregular_message(info.timing_irregular)))
         if info.located_irregular:
             coded.append(("located_frames", located_frames_reason(info)))
-        side = quality.swing_coverage_reason(df["found"].to_numpy() == 1, result, setup)
+        # a held start and a rest are no part of the swing (their times left out)
+        swung = result if not still_rows.any() or np.shape(result.t) != still_rows.shape else \
+            dataclasses.replace(result, t=np.where(still_rows, np.nan, result.t))
+        side = quality.swing_coverage_reason(df["found"].to_numpy() == 1, swung, setup)
         if side is not None:
             coded.append((side.code, side.message))
         track_reasons = quality.check_track(df, setup, center, warnings=coded,
@@ -1400,6 +1485,58 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
         lap("checks")
     return df, dataclasses.replace(info, seconds=seconds), result
+
+
+def _median_without_still(source, df, bg, r_px: float, median_frames: int, *,
+                          full_scale: float | None = None):
+    """The median background of the sampled frames whose ball is neither held nor at rest:
+    (background, whether it agrees with ``bg``, frames in it), or None when fewer than
+    :data:`rollfric.ballfree.MIN_CLEAR` are left or it still holds the ball."""
+    import cv2
+
+    from rollfric.background import median
+
+    idx, stack = sample(source, median_frames)
+    still_rows = df["still"].to_numpy() != ""
+    keep = [j for j, i in enumerate(idx) if not still_rows[int(i)]]
+    if len(keep) < ballfree.MIN_CLEAR:
+        return None
+    sub = stack[keep]
+    try:
+        bg2, _ = ballfree.check_ball_free(sub, median(sub), r_px, full_scale=full_scale)
+    except InputError:
+        return None
+    # a ball's trace is a ball-sized difference: averaged over r x r, above the noise
+    d = cv2.blur(np.abs(bg2.astype(np.float32) - bg.astype(np.float32)),
+                 (max(1, int(r_px)), max(1, int(r_px))))
+    tol = max(2.0, ballfree.noise_sigma(stack))
+    return bg2, bool(d.max() <= tol), len(keep)
+
+
+def _mark_still(df, setup) -> list:
+    """Frames of a held start or a rest (:func:`rollfric.still.still_spells`) marked ``held`` /
+    ``rest`` in the column ``still`` (kept out of the fit); the warnings saying so."""
+    from rollfric import still
+
+    df["still"] = ""
+    found = df["found"].to_numpy() == 1
+    spells = still.still_spells(df["t_s"].to_numpy(), df["theta_rad"].to_numpy(), found, setup)
+    notes = []
+    for name, what in (("held", "held still before its release"),
+                       ("rest", "at rest from there on")):
+        mask = spells[name] & found
+        if not mask.any():
+            continue
+        k = np.flatnonzero(mask)
+        t = df["t_s"].to_numpy()
+        nat = spells["natural_s"][0 if name == "held" else 1]
+        df.loc[mask, "still"] = name
+        notes.append(f"the ball was {what}: frames {int(k[0])}-{int(k[-1])} "
+                     f"({t[k[-1]] - t[k[0]]:.3g} s, more than {still.STILL_FACTOR:g} x the "
+                     f"{nat * 1e3:.3g} ms a ball turning there is still), flagged '{name}' and "
+                     "left out of the fit")
+        logger.warning(notes[-1])
+    return notes
 
 
 def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fit_kwargs):
