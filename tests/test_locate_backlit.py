@@ -85,3 +85,15 @@ def test_real_backlit_clip_no_noisier_than_the_edge_point_fit():
     assert np.all(r_ours <= 0.005)
     assert np.all(np.abs(np.mean(xy - ref, axis=0)) <= 0.01)
     assert np.max(np.hypot(*(xy - ref).T)) <= 0.05
+
+
+def test_bench_shadowgraph_case_rows():
+    # the bench's shadowgraph case: the default locator and the edge-point baseline both
+    # within 0.01 px of the exact centres; RANSAC's Canny edges are not
+    from validation.bench_locate import run_case, shadow_case
+
+    rows = {r["locator"]: r for r in run_case(shadow_case(4, seed=1))}
+    assert rows["subpixel (ROI)"]["found"] == 1.0
+    assert rows["subpixel (ROI)"]["rms_px"] <= 0.01
+    assert rows["edge points (find_contours + CircleModel)"]["rms_px"] <= 0.01
+    assert "skimage CircleModel+RANSAC" in rows

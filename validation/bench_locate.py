@@ -3,7 +3,8 @@ beside OpenCV HoughCircles, scikit-image CircleModel + RANSAC, a plain edge-poin
 (scikit-image ``find_contours`` at the half level + ``CircleModel``), and the Cramer-Rao bound.
 
 Frames are drawn analytically (validation.drawn_frames: exact area coverage, the thesis's
-1280 x 1024 geometry with the 85.3 mm trough at 0.1343 mm/px) and rendered by ``synth``
+1280 x 1024 geometry with the 85.3 mm trough at 0.1343 mm/px; validation.shadow_frames: a
+backlit ball as a shadowgraph rig records it) and rendered by ``synth``
 (the thesis scene with its lamps, specular spots and shadows; clean and with the realistic
 sensor model), each with its exact truth.
 
@@ -68,6 +69,24 @@ def mirror_case(n: int, *, noise: float = 2.0, seed: int = 0) -> Case:
     contrast = scene.backdrop * scene.full_scale / 2  # the upper rim's step, half the lower's
     return Case(f"10mm drawn steel mirror, noise {noise:g} DN", scene.r_px, bg, frames, truth,
                 noise, contrast, scene.center)
+
+
+def shadow_case(n: int, *, noise: float = 8.0, seed: int = 0) -> Case:
+    """``n`` drawn shadowgraph frames (:mod:`validation.shadow_frames`: a backlit ball, a dark
+    disc with a bright central spot and a limb shading into its inside, blurred, on a bright
+    field; about the real 12-bit clip's, r 63.6 px) at sub-pixel centres spread over a pixel,
+    with their exact centres."""
+    from validation.shadow_frames import ShadowScene, background, draw
+
+    scene = ShadowScene(noise=noise)
+    rng = np.random.default_rng(seed)
+    c0 = 0.5 * (scene.width - 1)
+    truth = c0 + rng.uniform(-0.5, 0.5, (n, 2))
+    frames = [draw(scene, x, y, seed=seed * 1000 + i) for i, (x, y) in enumerate(truth)]
+    # the silhouette's step: the backlight against the limb's level at the rim
+    contrast = scene.bright - scene.dark - scene.limb
+    return Case(f"{scene.r_px:g} px drawn shadowgraph (12 bit), noise {noise:g} DN", scene.r_px,
+                background(scene), frames, truth, noise, contrast, (c0, -500.0))
 
 
 def rendered_case(ball: str, n: int, *, noise: str = "none", lighting: str = "thesis",
@@ -315,6 +334,7 @@ def bench_locators(quick: bool = False) -> list[dict]:
     cases += [drawn_case(b, n, noise=3.0, seed=10 + i) for i, b in enumerate(BALLS)]
     cases += [drawn_case("10mm", n, shadow=0.5, seed=20)]
     cases += [mirror_case(n, seed=25)]
+    cases += [shadow_case(n, seed=26)]
     balls = ("10mm",) if quick else tuple(BALLS)
     cases += [rendered_case(b, n, noise=nz, seed=30 + i) for i, b in enumerate(balls)
               for nz in ("none", "realistic")]
