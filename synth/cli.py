@@ -36,8 +36,8 @@ def register(sub) -> None:
                    help="sub-frames integrated over the exposure (1: none)")
     p.add_argument("--exposure-us", type=float, default=None,
                    help="exposure time (default: the noise preset's, 200 us)")
-    p.add_argument("--bit-depth", type=int, choices=[8, 10, 12], default=None,
-                   help="sensor bit depth (default: the noise preset's)")
+    p.add_argument("--bit-depth", type=int, choices=[8, 10, 12, 14], default=None,
+                   help="sensor bit depth, 10-14 in 16-bit words (default: the noise preset's)")
     p.add_argument("--renderer", default="pyrender", choices=["pyrender", "mitsuba"],
                    help="pyrender: rasterised, fast; mitsuba: path traced, a physically based "
                         "steel ball (the extra rollfric[mitsuba], docs/how/renderers.md)")

@@ -54,12 +54,15 @@ class Lamp:
 
 @dataclasses.dataclass(frozen=True)
 class Lighting:
-    """Lamps, ambient light and the paper backdrop's reflectance."""
+    """Lamps, ambient light, the paper backdrop's reflectance and its own glow (a backlight)."""
 
     lamps: tuple[Lamp, ...] = (Lamp(position=(0.06, 0.0, 0.40)),
                                Lamp(position=(-0.06, 0.0, 0.40)))
     ambient: float = 0.03  # pyrender ambient light (same on all channels)
     backdrop_reflectance: float = 0.85  # diffuse albedo of the white paper
+    # the backdrop's emission (a diffuse backlight panel, display value 0..1; 0: none): a
+    # shadowgraph rig shows the ball as a dark disc on it (pyrender only)
+    backlight: float = 0.0
 
     def __post_init__(self) -> None:
         lamps = tuple(lp if isinstance(lp, Lamp) else Lamp(**lp) for lp in self.lamps)
@@ -71,6 +74,8 @@ class Lighting:
         if not 0 < self.backdrop_reflectance <= 1:
             raise SynthError(f"backdrop_reflectance must be in (0, 1], got "
                              f"{self.backdrop_reflectance!r}")
+        if not 0 <= self.backlight <= 1:
+            raise SynthError(f"backlight must be in [0, 1], got {self.backlight!r}")
 
     def to_dict(self) -> dict:
         """The lighting as plain data (lamps as dicts), the form stored in a recording's attributes.
@@ -133,6 +138,9 @@ class SceneConfig:
         if not isinstance(self.motion_blur, int) or not 1 <= self.motion_blur <= 64:
             raise SynthError(f"motion_blur must be an integer 1..64 sub-frames, got "
                              f"{self.motion_blur!r}")
+        if self.renderer == "mitsuba" and self.lighting.backlight > 0:
+            raise SynthError("a backlight (lighting.backlight, the backlit preset) is rendered "
+                             "by pyrender only, not by renderer mitsuba")
         if self.ball_model not in BALL_MODELS:
             raise SynthError(f"ball_model must be one of {', '.join(BALL_MODELS)}, got "
                              f"{self.ball_model!r}")
@@ -232,7 +240,8 @@ class SensorConfig:
     irradiance E = c**2.2 (1.0: a white the lamps fill the well with at ``reference_exposure``);
     electrons e = E * vignette * (1 + prnu) * full_well * exposure / reference_exposure, Poisson
     shot noise, Gaussian read noise and a per-pixel dark offset (dsnu) in electrons; then
-    DN = round(gain * e / full_well * (2**bits - 1) + black_level), clipped.
+    DN = round(gain * e / full_well * (2**bits - 1) + black_level), clipped to 0..2**bits - 1:
+    8 bits in uint8, 10, 12 and 14 bits in 16-bit words (as such cameras store them).
     """
 
     bit_depth: int = 8
@@ -248,8 +257,8 @@ class SensorConfig:
     dsnu: float = 0.0  # dark-signal non-uniformity, electrons rms (fixed pattern)
 
     def __post_init__(self) -> None:
-        if self.bit_depth not in (8, 10, 12):
-            raise SynthError(f"bit_depth must be 8, 10 or 12, got {self.bit_depth!r}")
+        if self.bit_depth not in (8, 10, 12, 14):
+            raise SynthError(f"bit_depth must be 8, 10, 12 or 14, got {self.bit_depth!r}")
         for name in ("exposure", "reference_exposure", "gain", "full_well"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
@@ -320,6 +329,10 @@ LIGHTING_PRESETS: dict[str, Lighting] = {
     "flat": Lighting(lamps=_lamps({"position": (0.06, 0.0, 0.40), "intensity": 0.03},
                                   {"position": (-0.06, 0.0, 0.40), "intensity": 0.03}),
                      ambient=0.25),
+    # a shadowgraph rig: a bright diffuse backlight behind the ball, which shows as a dark disc
+    # with a small spot of the weak lamp at the camera near its centre; no cast shadows
+    "backlit": Lighting(lamps=_lamps({"position": (0.0, 0.0, 0.40), "intensity": 0.01}),
+                        ambient=0.0, backlight=0.9),
 }
 
 NOISE_PRESETS: dict[str, SensorConfig] = {
@@ -331,8 +344,14 @@ NOISE_PRESETS: dict[str, SensorConfig] = {
     # small pixels, high gain: much shot and read noise
     "noisy": SensorConfig(full_well=2500.0, read_noise=20.0, gain=1.6, prnu=0.01, dsnu=8.0,
                           vignetting=0.15, black_level=4.0),
-    # a 12-bit camera with a deep well
+    # a 10-bit camera (in 16-bit words)
+    "10bit": SensorConfig(bit_depth=10, full_well=15000.0, read_noise=6.0, prnu=0.004,
+                          dsnu=2.5, vignetting=0.05),
+    # a 12-bit camera with a deep well (in 16-bit words)
     "12bit": SensorConfig(bit_depth=12, full_well=30000.0, read_noise=5.0, prnu=0.003,
+                          dsnu=2.0, vignetting=0.05),
+    # a 14-bit camera with a deeper well (in 16-bit words)
+    "14bit": SensorConfig(bit_depth=14, full_well=60000.0, read_noise=4.0, prnu=0.003,
                           dsnu=2.0, vignetting=0.05),
     # underexposed: a quarter of the light
     "dark": SensorConfig(exposure=50e-6, full_well=10000.0, read_noise=8.0, prnu=0.005,
@@ -346,7 +365,7 @@ def lighting_preset(name: str) -> Lighting:
     Parameters
     ----------
     name : str
-        One of ``LIGHTING_PRESETS``: thesis, dim, harsh, uneven, flat.
+        One of ``LIGHTING_PRESETS``: thesis, dim, harsh, uneven, flat, backlit.
 
     Returns
     -------
@@ -370,7 +389,7 @@ def noise_preset(name: str) -> SensorConfig:
     Parameters
     ----------
     name : str
-        One of ``NOISE_PRESETS``: none, realistic, noisy, 12bit, dark.
+        One of ``NOISE_PRESETS``: none, realistic, noisy, 10bit, 12bit, 14bit, dark.
 
     Returns
     -------

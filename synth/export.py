@@ -1,6 +1,7 @@
 """Export a synthetic recording the way a lab camera export looks.
 
-``DIR/frames.tif`` (multi-page TIFF, one page a frame, 8 or 16 bit), ``DIR/background.png``,
+``DIR/frames.tif`` (multi-page TIFF, one page a frame, 8 or 16 bit; a 10-14 bit sensor's full
+scale in each page's ``MaxSampleValue`` tag), ``DIR/background.png``,
 ``DIR/setup.toml`` (the lab format, rollfric.setup.save_setup) and ``DIR/truth.csv``
 (``frame,t_s,x_px,y_px,theta_rad``; x_px, y_px: the projected sphere centre).
 """
@@ -49,9 +50,15 @@ def export_recording(recording, out_dir, *, progress: bool = False,
         frames = rec.frames
         n = len(frames)
         nbytes = n * int(np.prod(frames.shape[1:])) * frames.dtype.itemsize
+        # a sensor of 10-14 bits in 16-bit words: its full scale in the TIFF's MaxSampleValue
+        # tag (280), as a camera's export states it
+        bits = int(rec.attrs.get("sensor", {}).get("bit_depth", 16))
+        tags = [(281, "H", 1, 2 ** bits - 1, False)] if (
+            frames.dtype == np.uint16 and bits < 16) else []
         with tifffile.TiffWriter(tmp / "frames.tif", bigtiff=nbytes > 3.9e9) as tif:
             for i in tqdm(range(n), unit="frame", desc="export", disable=not progress):
-                tif.write(frames[i], contiguous=True, photometric="minisblack")
+                tif.write(frames[i], contiguous=True, photometric="minisblack",
+                          extratags=tags)
         if not cv2.imwrite(str(tmp / "background.png"), rec.background):
             raise SynthError(f"could not write {tmp / 'background.png'}")
         save_setup(setup_from_dict(rec.attrs["setup"], source="recording attrs"),

@@ -587,11 +587,15 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     from rollfric.setup import Setup
     base = traj.setup()
     cam = scene.camera
+    # the camera's effective bit depth (camera.bit_depth) where rollfric's setup knows the key
+    # and the words hold more bits than the sensor gives (10-14 bits in 16-bit words)
+    bits = {"bit_depth": sensor.bit_depth} if (
+        "bit_depth" in Setup.__dataclass_fields__ and sensor.dtype == "uint16") else {}
     setup = Setup(cylinder_radius=base.cylinder_radius, ball_diameter=base.ball_diameter,
                   ball_mass=base.ball_mass, fps=base.fps, pixel_size=cam.pixel_size,
                   center_px=cam.center_px, gravity=base.gravity,
                   calibration=None if cam.lens is None else
-                  Calibration(cam.lens.matrix, cam.lens.distortion))
+                  Calibration(cam.lens.matrix, cam.lens.distortion), **bits)
     r_ball, r_cyl = setup.ball_radius, setup.cylinder_radius
     # the bore as built: an out-of-round trough is drawn as its ellipse (sim.section)
     oval = (traj.scenario.ovality, traj.scenario.ovality_angle)

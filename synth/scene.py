@@ -229,8 +229,12 @@ class SceneRenderer:
             np.array([[-size, -size, zb], [size, -size, zb], [size, size, zb],
                       [-size, size, zb]]), np.array([[0, 1, 2], [0, 2, 3]]), process=False)
         br = light.backdrop_reflectance
-        paper = pyrender.MetallicRoughnessMaterial(baseColorFactor=[br, br, br, 1.0],
-                                                   metallicFactor=0.0, roughnessFactor=1.0)
+        # a backlight panel glows on its own (an emissive factor only then: the lit scenes'
+        # material and shader stay as they were)
+        bl = light.backlight
+        paper = pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=[br, br, br, 1.0], metallicFactor=0.0, roughnessFactor=1.0,
+            **({"emissiveFactor": [bl, bl, bl]} if bl > 0 else {}))
         self._backdrop_mesh = pyrender.Mesh.from_trimesh(quad, material=paper, smooth=False)
         scene.add(self._backdrop_mesh, name="backdrop")
         # lamps

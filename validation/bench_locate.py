@@ -1,8 +1,10 @@
 """Locator benchmark: centre error and speed of every ball locator on frames with known truth,
-beside OpenCV HoughCircles, scikit-image CircleModel + RANSAC, and the Cramer-Rao bound.
+beside OpenCV HoughCircles, scikit-image CircleModel + RANSAC, a plain edge-point circle fit
+(scikit-image ``find_contours`` at the half level + ``CircleModel``), and the Cramer-Rao bound.
 
 Frames are drawn analytically (validation.drawn_frames: exact area coverage, the thesis's
-1280 x 1024 geometry with the 85.3 mm trough at 0.1343 mm/px) and rendered by ``synth``
+1280 x 1024 geometry with the 85.3 mm trough at 0.1343 mm/px; validation.shadow_frames: a
+backlit ball as a shadowgraph rig records it) and rendered by ``synth``
 (the thesis scene with its lamps, specular spots and shadows; clean and with the realistic
 sensor model), each with its exact truth.
 
@@ -67,6 +69,24 @@ def mirror_case(n: int, *, noise: float = 2.0, seed: int = 0) -> Case:
     contrast = scene.backdrop * scene.full_scale / 2  # the upper rim's step, half the lower's
     return Case(f"10mm drawn steel mirror, noise {noise:g} DN", scene.r_px, bg, frames, truth,
                 noise, contrast, scene.center)
+
+
+def shadow_case(n: int, *, noise: float = 8.0, seed: int = 0) -> Case:
+    """``n`` drawn shadowgraph frames (:mod:`validation.shadow_frames`: a backlit ball, a dark
+    disc with a bright central spot and a limb shading into its inside, blurred, on a bright
+    field; about the real 12-bit clip's, r 63.6 px) at sub-pixel centres spread over a pixel,
+    with their exact centres."""
+    from validation.shadow_frames import ShadowScene, background, draw
+
+    scene = ShadowScene(noise=noise)
+    rng = np.random.default_rng(seed)
+    c0 = 0.5 * (scene.width - 1)
+    truth = c0 + rng.uniform(-0.5, 0.5, (n, 2))
+    frames = [draw(scene, x, y, seed=seed * 1000 + i) for i, (x, y) in enumerate(truth)]
+    # the silhouette's step: the backlight against the limb's level at the rim
+    contrast = scene.bright - scene.dark - scene.limb
+    return Case(f"{scene.r_px:g} px drawn shadowgraph (12 bit), noise {noise:g} DN", scene.r_px,
+                background(scene), frames, truth, noise, contrast, (c0, -500.0))
 
 
 def rendered_case(ball: str, n: int, *, noise: str = "none", lighting: str = "thesis",
@@ -187,6 +207,38 @@ def ransac_locator(frame, bg, r_px, guess, seed=0):
                            found=True)
 
 
+def edge_point_locator(frame, bg, r_px, guess):
+    """The plain edge-point circle fit: scikit-image ``find_contours`` of |frame - background|
+    at the half level between the ball's inside (the median over 0.6 r to r - 1.5 px from the
+    guess) and its outside (r + 1.5 to r + 4 px), then a least-squares ``CircleModel`` of the
+    contour that lies nearest the guessed circle (the longest of those whose median radius is
+    within 20 % of ``r_px``: a specular spot's or a bright central spot's contour is not)."""
+    from skimage.measure import CircleModel, find_contours
+
+    half = int(1.5 * r_px + 8)
+    diff, x0, y0 = _roi(frame, bg, guess[0], guess[1], half)
+    yy, xx = np.mgrid[0:diff.shape[0], 0:diff.shape[1]]
+    d = np.hypot(xx + x0 - guess[0], yy + y0 - guess[1])
+    inside = diff[(d >= 0.6 * r_px) & (d <= r_px - 1.5)]
+    outside = diff[(d >= r_px + 1.5) & (d <= r_px + 4.0)]
+    if inside.size == 0 or outside.size == 0:
+        return locate.Location.missing("ball outside the frame")
+    level = 0.5 * (float(np.median(inside)) + float(np.median(outside)))
+    best = None
+    for c in find_contours(diff, level):
+        rr = np.hypot(c[:, 1] + x0 - guess[0], c[:, 0] + y0 - guess[1])
+        if len(c) >= 8 and abs(np.median(rr) - r_px) < 0.2 * r_px and (
+                best is None or len(c) > len(best)):
+            best = c
+    if best is None:
+        return locate.Location.missing("no contour near the guessed circle")
+    model = CircleModel.from_estimate(best[:, ::-1] + [x0, y0])
+    if not model:
+        return locate.Location.missing("circle fit failed")
+    cx, cy = model.center
+    return locate.Location(x=float(cx), y=float(cy), r=float(model.radius), found=True)
+
+
 def _locators(case: Case):
     r = case.r_px
     out = {
@@ -201,6 +253,8 @@ def _locators(case: Case):
                                      int(g[0]) + int(2 * r + 21), int(g[1]) + int(2 * r + 21))),
         "OpenCV HoughCircles": lambda f, g: hough_locator(f, case.background, r, g),
         "skimage CircleModel+RANSAC": lambda f, g: ransac_locator(f, case.background, r, g),
+        "edge points (find_contours + CircleModel)": lambda f, g: edge_point_locator(
+            f, case.background, r, g),
     }
     return out
 
@@ -280,6 +334,7 @@ def bench_locators(quick: bool = False) -> list[dict]:
     cases += [drawn_case(b, n, noise=3.0, seed=10 + i) for i, b in enumerate(BALLS)]
     cases += [drawn_case("10mm", n, shadow=0.5, seed=20)]
     cases += [mirror_case(n, seed=25)]
+    cases += [shadow_case(n, seed=26)]
     balls = ("10mm",) if quick else tuple(BALLS)
     cases += [rendered_case(b, n, noise=nz, seed=30 + i) for i, b in enumerate(balls)
               for nz in ("none", "realistic")]

@@ -11,13 +11,13 @@ case of ``rollfric validate``)::
     engine = { name = "reference", surface = "tangent" }
 
     [render]                   # synth
-    lighting = "thesis"        # lighting preset: thesis, dim, harsh, uneven, flat
+    lighting = "thesis"        # lighting preset: thesis, dim, harsh, uneven, flat, backlit
     intensity_scale = 1.0      # multiplies every lamp's intensity
     lamp_spread = 1.0          # multiplies every lamp's x (sideways distance from the axis)
     lamp_dy_mm = 0.0           # moves every lamp up (+) or down
     lamp_dz_mm = 0.0           # moves every lamp towards (+) or away from the ball plane
     ambient = 0.03             # (optional) overrides the preset's ambient light
-    noise = "realistic"        # sensor preset: none, realistic, noisy, 12bit, dark
+    noise = "realistic"        # sensor preset: none, realistic, noisy, 10bit, 12bit, 14bit, dark
     motion_blur = 1            # sub-frames integrated over the exposure (1: none)
     supersample = 1            # ss x ss samples per pixel (plus 4x MSAA)
     shadows = true

@@ -42,6 +42,12 @@ class SubpixelOptions:
     ray_spacing: float = 1.0  # px between rays along the rim
     max_rays: int = 360
     pixel_fit: bool = True  # final Gauss-Newton fit on the edge pixels themselves
+    graded_spread: float = 0.75  # px: an edge whose rays' median spread exceeds this is
+    # graded, not a step (a backlit ball's dark limb shading into its inside: 0.79-0.81 px on
+    # a real shadowgraph; a sharp area-sampled step 0.55, blurred by a 0.5 px psf 0.70-0.73);
+    # its fine pass is redone with the edge window widened to graded_window x the spread and
+    # without the pixel fit, whose sharp-step model locks such an edge to the pixel grid
+    graded_window: float = 4.0
     level_smooth: int = 3  # levels averaged over 2 k + 1 neighbouring rays
     contrast_bands: tuple[float, ...] = (0.15, 0.3, 0.5)  # |contrast - median| / median kept
     min_contrast_rel: float = 0.3  # rays with a step below this x the strong rays' carry no edge
@@ -95,9 +101,10 @@ AUTO_MIRROR = SubpixelOptions(mirror_rim=None, local_contrast=None)
 signature and off elsewhere (a matt ball, pyrender's ball, a rim whose mirrored backdrop is
 too short an arc): docs/how/locator.md, "A steel ball's rim"."""
 
-NO_MIRROR = SubpixelOptions(mirror_rim=False, local_contrast=False)
+NO_MIRROR = SubpixelOptions(mirror_rim=False, local_contrast=False, graded_spread=math.inf)
 """The sub-pixel locator's options without the mirror-rim handling (the default before
-2026-11-23: one contrast band about the rays' median, no Fresnel correction)."""
+2026-11-23: one contrast band about the rays' median, no Fresnel correction) and without the
+graded-edge handling (``graded_spread``: a mirror rim that is not corrected is graded)."""
 
 MIRROR = SubpixelOptions(mirror_rim=True, local_contrast=True, mirror_relative=False)
 """The sub-pixel locator's options for a polished steel ball whose rim mirrors its surroundings:
@@ -367,7 +374,9 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
     bg_dtype = background.dtype
     raw = bg_dtype == frame.dtype and bg_dtype in (np.uint8, np.uint16)
     loc = Location.missing("no edge found")
-    for p in range(opts.passes + 1):
+    graded = False
+    # (one more pass than the coarse and fine ones: a graded edge's fine pass is redone)
+    for p in range(opts.passes + 2):
         n = n_fine if fine else n_coarse
         ds = opts.ds if w <= 3.0 else 2 * opts.ds  # coarse sampling while the search is wide
         ne = max(2, int(round(edge_half / ds)))
@@ -397,7 +406,7 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
                 mirror_rim, local, big, nz, opts.mirror_sector, inset, kappa,
                 opts.mirror_relative, opts.contrast_bands, opts.min_rays, floor,
                 int(round(opts.mirror_flank / 360.0 * n)), free, opts.free_min_frac, r_kn,
-                opts.tukey_c, opts.sigma_floor, fine and opts.pixel_fit)
+                opts.tukey_c, opts.sigma_floor, fine and opts.pixel_fit and not graded)
         if stretch is None and raw:
             out = _pass_raw(fr, bg, *args)
         else:
@@ -410,9 +419,17 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
                 bgr = _squeeze(bgr, (lcx, lcy), *stretch)
             out = _pass(rel, bgr, *args)
         status, fcx, fcy, fr_, free_p, n_in, med_res, rms, pcx, pcy, pr, psig, inl, rim, \
-            rim_shift = out
+            rim_shift, spread = out
         if status:
             return Location.missing(_SELECT_FAIL.get(status, "robust circle fit failed"))
+        wide = min(opts.graded_window * spread, 0.1 * r_px)
+        if fine and not graded and not rim and spread > opts.graded_spread and wide > edge_half:
+            # a graded edge (not a mirror rim's, corrected above; a ball big enough for a
+            # wider window): the fine pass again, its edge window wide enough to hold the
+            # whole transition (the integral is then exact for any profile), no pixel fit
+            graded = True
+            edge_half = wide
+            continue
         # the ball's radius as seen: the fitted one (free on most of the rim only: on a partial
         # arc the radius and the centre are confounded, and the known radius is what makes the
         # arc usable), or (known radius) the known one plus the median offset of the edge
@@ -422,7 +439,7 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
             return Location.missing(f"the ball's edge lies on a circle of {r_seen:.2f} px "
                                     f"radius, not {r_px:.2f} px")
         sigma = rms * math.sqrt(2.0 / n_in)
-        if fine and opts.pixel_fit:
+        if fine and opts.pixel_fit and not graded:
             if math.isfinite(pcx) and math.hypot(pcx - fcx, pcy - fcy) < 0.5:
                 if rim:
                     # the pixels' edge model has the same Fresnel rise: the circle moves by
@@ -437,7 +454,7 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
             fcx, fcy = fcx + along * ux, fcy + along * uy
         shift = math.hypot(fcx - lcx, fcy - lcy)
         cx, cy, r = fcx + x0c, fcy + y0c, float(r_seen)
-        last = fine or p == opts.passes
+        last = fine or p >= opts.passes
         if last:
             # (only the pass whose result is returned is judged)
             loc = _judge(cx, cy, r, sigma, n_in, n, free_p, partial, inl, rk, guess, w0, opts)
