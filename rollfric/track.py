@@ -43,6 +43,11 @@ TIMES = ("auto", "fps")
 TIMES_RATE_TOL = 1e-3  # relative: a median interval further from 1 / camera.fps is reported
 TIMES_JITTER_TOL = 0.01  # relative: an interval further from the median one is reported
 TIMES_FPS = "frame / camera.fps"  # TrackInfo.times when the times are not the recording's
+# timestamps whose median step is ~1000 or ~1e6 frame periods of the setup's rate are in ms or
+# us, not s (read as seconds they gave mu 0.297 for 0.02): within this factor of the unit's
+# ratio (a camera clock 10 % off, or a setup's rate that is, is still told from 1000x)
+TIMES_UNITS = (("ms", 1e-3), ("us", 1e-6))
+TIMES_UNIT_FACTOR = 1.5
 # the frame flags that do not depend on the frame times (the tracker's and the plausibility
 # checks' but jump and duplicate, which a timing error also raises): an irregular step at or
 # next to such a frame is the locator's (rollfric.timing.split_irregular)
@@ -1099,7 +1104,8 @@ def frame_times(source, setup_fps: float, times: str = "auto"):
     the nominal one shows), else frame / ``setup_fps``; ``"fps"``: always frame / ``setup_fps``.
     ``notes`` say where the timestamps disagree with the setup's rate (by more than
     TIMES_RATE_TOL) or are unevenly spaced (an interval more than TIMES_JITTER_TOL from the
-    median one).
+    median one). Timestamps whose steps are ~1000 or ~1e6 of the setup's frame periods
+    (within TIMES_UNIT_FACTOR) are read as ms or us, and a note names the unit.
 
     Parameters
     ----------
@@ -1138,6 +1144,15 @@ def frame_times(source, setup_fps: float, times: str = "auto"):
     t = t - t[0]
     notes = []
     if n > 1:
+        ratio = float(np.median(np.diff(t))) * setup_fps
+        for unit, scale in TIMES_UNITS:
+            if abs(math.log(ratio * scale)) <= math.log(TIMES_UNIT_FACTOR):
+                t = t * scale
+                notes.append(f"the recording's timestamps step by {ratio / setup_fps:.6g} a "
+                             f"frame, {ratio:.4g} x the setup's frame period (camera.fps = "
+                             f"{setup_fps:g} Hz): they are in {unit}, not seconds, and are "
+                             f"read as {unit}")
+                break
         d = np.diff(t)
         dt = float(np.median(d))
         if abs(dt * setup_fps - 1.0) > TIMES_RATE_TOL:
@@ -1368,8 +1383,12 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             coded.append((side.code, side.message))
         track_reasons = quality.check_track(df, setup, center, warnings=coded,
                                             flag_counts=info.flags)
-        result = dataclasses.replace(
-            result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
+        # a period off is judged again with the ball's path in the image: it tells a wrong
+        # radius from a camera clock that is off
+        seen = quality.track_radius_seen(df, setup, center)
+        fit_reasons = tuple(result.quality_reasons) if seen is None else tuple(
+            quality.period_with_image(r, setup, seen) for r in result.quality_reasons)
+        result = dataclasses.replace(result, quality_reasons=fit_reasons + tuple(track_reasons))
         lap("checks")
     return df, dataclasses.replace(info, seconds=seconds), result
 
