@@ -907,6 +907,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         r_ref=r_cal, r_rel_sigma=cal.rel_sigma if r_cal is not None else None, pos=pos,
         center=center, r_ball=r_cal if r_cal is not None else r_px)
     flags[~found] = np.where(lost[~found], "off_track", "not_found")
+    located = (rows[:, 0].copy(), rows[:, 1].copy(), found.copy())  # before any is rejected
     rejected = found & (flags != "")
     rows[rejected, :5] = np.nan
     rows[rejected, 5] = 0.0
@@ -915,8 +916,12 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     irregular, located_irregular = (), ()
     if gaps is not None and gaps.irregular:
         # steps among frames the locator lost or got wrong are its, not the camera's timing
+        # a rejected glitch (a repeated, swapped or flashed frame) a few frames away spoils
+        # the prediction of a clean step where the ball turns: judged again without them
+        again = timing.confirm_irregular(*located, flags != "", flags == "duplicate",
+                                         gaps.irregular)
         irregular, located_irregular = timing.split_irregular(
-            gaps.irregular, np.isin(flags, LOCATOR_FLAGS))
+            again, np.isin(flags, LOCATOR_FLAGS))
         for msg in ([irregular_message(irregular)] if irregular else []) + (
                 [located_irregular_message(located_irregular)] if located_irregular else []):
             logger.warning(msg)

@@ -104,3 +104,48 @@ def test_a_setups_gravity_far_from_the_local_one_is_named():
     r = fit_mu(T4 / 2, y, setup)
     (p,) = [q for q in r.quality_reasons if q.code == "period"]
     assert "500 Hz" in p.message and "gravity" not in p.message
+
+
+@pytest.mark.parametrize("seed", [3, 6])
+def test_removed_glitch_frames_raise_no_timing_reason(seed):
+    # issue 33: a recording with 1-2 % glitched frames, every one rejected, was suspect with
+    # "step(s) of the ball fit no whole number of frame periods" at clean frames where the ball
+    # turns, a repeated (seed 3: step 280, 1.09 x) or swapped frame (seed 6: step 90) up to 8
+    # frames away spoiling their prediction
+    from test_measure_roi import _Plain
+
+    from validation.glitches import glitch_frames
+
+    rec = make_recording(600, fps=300.0, mu=0.01, theta0=0.5, noise=2.0, ball_mm=16.0,
+                         with_center=True)
+    bad, _ = glitch_frames(np.stack(rec.frames), seed=seed, rate=0.015, centers=rec.centers,
+                           r_px=rec.scene.r_px)
+    _, info, fit = measure_track(_Plain(list(bad)), rec.setup, rec.background)
+    assert info.timing_irregular == ()
+    assert fit.quality == "ok", [r.message for r in fit.quality_reasons]
+    assert fit.mu == pytest.approx(0.01, rel=2e-3)
+
+
+def test_a_clock_slip_next_to_a_repeated_frame_is_still_irregular():
+    # the timing reason stays where the timing is off: the frames after 200 taken half a
+    # period late (a slipped clock) with a repeated frame 6-10 frames on (rejected). Measured
+    # before: the repeat at 206 hid the slip and made step 192 (1.06 x) irregular; the
+    # repeat's own zero step (0.00 x) was a timing reason too
+    from rollfric import timing
+
+    rng = np.random.default_rng(2)
+    n = 600
+    pos = np.arange(n, dtype=float)
+    pos[201:] += 0.5
+    x0 = 200 + 80 * np.sin(2 * np.pi * pos / 400) + rng.normal(0, 0.004, n)
+    y0 = 100 + 5 * np.cos(2 * np.pi * pos / 400) + rng.normal(0, 0.004, n)
+    found = np.ones(n, bool)
+    for j in (206, 208, 210):
+        x, y = x0.copy(), y0.copy()
+        x[j], y[j] = x[j - 1], y[j - 1]
+        gaps = timing.find_gaps(x, y, found)
+        rejected = np.zeros(n, bool)
+        rejected[j] = True
+        again = timing.confirm_irregular(x, y, found, rejected, rejected, gaps.irregular)
+        assert [k for k, _ in again] == [200], (j, gaps.irregular)
+        assert again[0][1] == pytest.approx(1.5, abs=0.01)
