@@ -152,7 +152,12 @@ def _run(args) -> int:
     from rollfric.fit import save_fit
     from rollfric.outputs import check_folder, check_not_input, named, staged_folder
     from rollfric.track import TRACK_COLUMNS, measure
-    from rollfric.uncertainty import check_arguments, measurement_from_track, run_budget
+    from rollfric.uncertainty import (
+        check_arguments,
+        measurement_from_track,
+        run_budget,
+        with_budget_reason,
+    )
 
     out = named(args.out)  # "." and "..": the folder by its name
     inputs = (args.recording, args.setup, args.background)
@@ -180,6 +185,7 @@ def _run(args) -> int:
                                   progress=not args.no_progress,
                                   median_frames=args.median_frames, times=args.times)
     keys, budget = run_budget(measurement_from_track(track, info), result, args)
+    result = with_budget_reason(result, budget)
     remove_legacy_leftovers(out)
     with staged_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure") as tmp:
         csv = track[TRACK_COLUMNS].copy()

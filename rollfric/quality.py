@@ -23,6 +23,8 @@ Reason codes:
   no whole number of frame periods), ``located_frames`` (such steps among frames the locator
   lost or got wrong: the located centres', not the timing's), ``swing_coverage`` (the located
   frames cover little of the outer half of the swing on one side of the bottom).
+- ``uncertainty`` (``fit``, ``measure``: :func:`rollfric.uncertainty.budget_reason`): the
+  budget's expanded uncertainty reaches mu.
 """
 
 from __future__ import annotations

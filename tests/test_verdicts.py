@@ -149,3 +149,36 @@ def test_a_clock_slip_next_to_a_repeated_frame_is_still_irregular():
         again = timing.confirm_irregular(x, y, found, rejected, rejected, gaps.irregular)
         assert [k for k, _ in again] == [200], (j, gaps.irregular)
         assert again[0][1] == pytest.approx(1.5, abs=0.01)
+
+
+def test_a_budget_whose_U_exceeds_mu_is_suspect_naming_its_key(tmp_path, capsys):
+    # issue 33: center_px_u = 1e12 exited 0 "ok" with U 7.6 x mu
+    import json
+
+    import tifffile
+
+    from rollfric.cli import main
+    from rollfric.setup import save_setup
+
+    rec = make_recording(160, noise=1.0)
+    tifffile.imwrite(tmp_path / "rec.tif", np.stack(rec.frames))
+    tifffile.imwrite(tmp_path / "bg.tif", rec.background)
+    for k, (u, status) in enumerate(((1e12, 3), (0.05, 0))):
+        setup = rec.setup.replace(center_px=(180.0, 20.0),
+                                  uncertainty=(("center_px", (u, u)),))
+        save_setup(setup, tmp_path / f"setup{k}.toml")
+        out = tmp_path / f"m{k}"
+        code = main(["measure", str(tmp_path / "rec.tif"), "--setup",
+                     str(tmp_path / f"setup{k}.toml"), "--background", str(tmp_path / "bg.tif"),
+                     "--out", str(out), "--no-progress"])
+        err = capsys.readouterr().err
+        fit = json.loads((out / "fit.json").read_text())
+        assert code == status, err
+        reasons = [r for r in fit["quality_reasons"] if r["code"] == "uncertainty"]
+        if status == 3:
+            assert fit["U_mu"] > fit["mu"]
+            (r,) = reasons
+            assert "cylinder.center_px" in r["message"] and "center_px_u" in r["message"]
+            assert "[uncertainty]" in err
+        else:
+            assert not reasons and fit["U_mu"] < fit["mu"]
