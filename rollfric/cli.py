@@ -159,8 +159,34 @@ class _Terminated(BaseException):
     removed, render processes shut down) as after Ctrl-C; without it Python ends at once."""
 
 
-def _terminate(signum, frame):
-    raise _Terminated
+_running: list[str] = []  # the commands main() runs (nested when one calls another)
+
+
+def _on_signal(signum, frame):
+    """SIGINT and SIGTERM while a command runs: noted (so that main() reports the signal
+    whatever exception it ends up as), then raised in the main thread."""
+    from rollfric.outputs import signals_received  # noted where the outputs can see it
+
+    signals_received.append(signum)
+    if signum == signal.SIGTERM:
+        raise _Terminated
+    raise KeyboardInterrupt
+
+
+def _interruption(exc: BaseException, received: list[int]) -> int | None:
+    """The signal that ended a command with ``exc``: SIGINT for a KeyboardInterrupt, SIGTERM
+    for _Terminated, anywhere in the exception's chain, else the last signal ``received``
+    while it ran; None when no signal did."""
+    seen = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, KeyboardInterrupt):
+            return signal.SIGINT
+        if isinstance(e, _Terminated):
+            return signal.SIGTERM
+        e = e.__cause__ or e.__context__
+    return received[-1] if received else None
 
 
 _freeze_registered: list[bool] = []  # gc.freeze registered with atexit (once a process)
@@ -200,15 +226,38 @@ def main(argv: list[str] | None = None) -> int:
         143 terminated (SIGTERM).
     """
     _freeze_at_exit()
+    previous = {}
     try:
-        previous = signal.signal(signal.SIGTERM, _terminate)
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            previous[signum] = signal.signal(signum, _on_signal)
     except ValueError:  # not the main thread: signals are the main thread's
-        previous = None
+        pass
+    from rollfric.outputs import signals_received
+
+    if not _running:  # a new command, not one that another runs: no signal has reached it
+        signals_received.clear()
+    mark, depth = len(signals_received), len(_running)
+    command = "command"
     try:
-        return _main(argv)
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        try:
+            return _main(argv)
+        finally:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
+            command = _running[-1] if len(_running) > depth else command
+            del _running[depth:]
+    except BaseException as exc:
+        # a signal raises where it lands: inside a numba kernel its exception comes back as
+        # numba's SystemError ("returned a result with an exception set"), in a clean-up as
+        # whatever that clean-up raised; the signal received is what ended the command
+        signum = _interruption(exc, signals_received[mark:])
+        if signum is None:
+            raise
+        if signum == signal.SIGINT:
+            print(f"rollfric {command}: interrupted", file=sys.stderr)
+            return 130
+        print(f"rollfric {command}: terminated", file=sys.stderr)
+        return 143
 
 
 def _name_outputs(args) -> None:
@@ -227,6 +276,7 @@ def _name_outputs(args) -> None:
 def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args, unknown = parser.parse_known_args(argv)
+    _running.append(args.command)
     if unknown and not getattr(args, "accepts_any", False):
         parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
@@ -242,12 +292,6 @@ def _main(argv: list[str] | None) -> int:
         print(f"rollfric {args.command}: error: not enough memory for this input",
               file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"rollfric {args.command}: interrupted", file=sys.stderr)
-        return 130
-    except _Terminated:
-        print(f"rollfric {args.command}: terminated", file=sys.stderr)
-        return 143
     return int(result or 0)
 
 

@@ -23,9 +23,12 @@ def register(sub) -> None:
             " contour with them. Take 10-20 views of the board filling different parts of the "
             "frame, tilted, with the recording's lens, focus and resolution (the table states the "
             "images' size, image_size_px, and measure refuses frames of another size). Exit "
-            "status 0: written; 2: bad input, nothing written; 3: written, but the rms "
-            "reprojection error is over 1 px (the corners or the model do not fit: blur, a "
-            "board that is not flat, a lens the model cannot take)."),
+            "status 0: written; 2: bad input, nothing written (images under 32 px, fewer than "
+            "3 boards found, or fewer than 3 distinct board orientations: copies of one view "
+            "calibrate nothing); 3: written, but the rms reprojection error is over 1 px (the "
+            "corners or the model do not fit: blur, a board that is not flat, a lens the model "
+            "cannot take) or a parameter is too uncertain (fx, fy over 2 %, cx, cy over 2 % of "
+            "the image, a distortion coefficient moving points by over 1 px)."),
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("images", nargs="+", metavar="IMAGE", help="chessboard images (any format "
                    "rollfric reads: PNG, TIFF, ...)")
@@ -53,7 +56,9 @@ def run(args) -> int:
     -------
     int
         Exit status 0, or 3 when the rms reprojection error is over
-        :data:`rollfric.calibrate.MAX_RMS_PX` (the table is written all the same).
+        :data:`rollfric.calibrate.MAX_RMS_PX` or a parameter's standard uncertainty is too
+        large (:data:`rollfric.calibrate.MAX_REL_U`,
+        :data:`rollfric.calibrate.MAX_DISTORTION_U_PX`); the table is written all the same.
 
     Raises
     ------
@@ -83,14 +88,18 @@ def run(args) -> int:
     res = calibrate_chessboard(images, (cols, rows), args.square_mm * 1e-3, names=args.images,
                                free_k3=args.free_k3)
     cal = res.calibration
-    suspect = res.rms_px > MAX_RMS_PX
-    reason = (f"rms reprojection error {res.rms_px:.3f} px is over {MAX_RMS_PX:g} px: the "
-              "corners or the model do not fit (motion blur, a board that is not flat, a lens "
-              "the model cannot take; --free-k3 for a wide-angle lens)")
+    reasons = []
+    if res.rms_px > MAX_RMS_PX:
+        reasons.append(f"rms reprojection error {res.rms_px:.3f} px is over {MAX_RMS_PX:g} px: "
+                       "the corners or the model do not fit (motion blur, a board that is not "
+                       "flat, a lens the model cannot take; --free-k3 for a wide-angle lens)")
+    if res.suspects:
+        reasons.append("the views do not pin the parameters down: " + "; ".join(res.suspects)
+                       + " (more views, tilted further, filling the frame's corners)")
     lines = [f"# rollfric calibrate: {cols} x {rows} inner corners, {args.square_mm:g} mm squares;"
              f" board found in {len(res.used)} of {len(args.images)} images; rms reprojection "
              f"error {res.rms_px:.3f} px; {res.image_size[0]} x {res.image_size[1]} px",
-             *([f"# suspect: {reason}"] if suspect else []),
+             *[f"# suspect: {reason}" for reason in reasons],
              "[camera]",
              "matrix = [" + ", ".join("[" + ", ".join(repr(float(v)) for v in r) + "]"
                                      for r in cal.matrix) + "]",
@@ -110,7 +119,7 @@ def run(args) -> int:
           f"({cal.matrix[0][2]:.1f}, {cal.matrix[1][2]:.1f}) px, k1 {cal.distortion[0]:+.4f}; "
           f"rms {res.rms_px:.3f} px over {len(res.used)} views -> {out} (copy its [camera] keys"
           " into the setup file)")
-    if suspect:
+    for reason in reasons:
         print(f"rollfric calibrate: suspect: {reason}", file=sys.stderr)
-        return 3
+    return 3 if reasons else 0
     return 0

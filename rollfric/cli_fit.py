@@ -280,7 +280,7 @@ def _run(args) -> int:
     from rollfric.fit import fit_mu, save_fit
     from rollfric.outputs import remove_stale
     from rollfric.setup import load_setup
-    from rollfric.uncertainty import Measurement, run_budget
+    from rollfric.uncertainty import Measurement, run_budget, with_budget_reason
 
     out, png, budget_png = check_outputs(args.out, plot=args.plot, overwrite=args.overwrite,
                                          inputs=(args.track, args.setup))
@@ -289,6 +289,7 @@ def _run(args) -> int:
     kw = {"model": args.model} if args.method == "lsq" else {}
     result = fit_mu(t, theta, setup, method=args.method, offset=args.offset, **kw)
     keys, budget = run_budget(Measurement(setup=setup, t=t, theta=theta), result, args)
+    result = with_budget_reason(result, budget)
     save_fit(result, out, **keys)
     if args.plot:
         from rollfric.plots import plot_budget, plot_fit

@@ -277,7 +277,12 @@ def _run(args) -> int:
     from rollfric.fit import save_fit
     from rollfric.outputs import staged_folder
     from rollfric.track import measure
-    from rollfric.uncertainty import check_arguments, measurement_from_track, run_budget
+    from rollfric.uncertainty import (
+        check_arguments,
+        measurement_from_track,
+        run_budget,
+        with_budget_reason,
+    )
 
     out = check_tracking_outputs(args, OUTPUTS, "measure")
     frames = None
@@ -298,6 +303,7 @@ def _run(args) -> int:
                                   median_frames=args.median_frames, times=args.times,
                                   background_from=args.background_from)
     keys, budget = run_budget(measurement_from_track(track, info), result, args)
+    result = with_budget_reason(result, budget)
     remove_legacy_leftovers(out)
     with staged_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure") as tmp:
         write_track_csv(track, tmp / "track.csv")

@@ -11,19 +11,24 @@ written when one is refused):
   hold other files: ``--overwrite`` replaces the command's own outputs (a known list of names)
   and removes those of its own outputs it did not write this time (an old ``fit.png`` does not
   stay beside a new ``track.csv``), and leaves every other file alone;
-- the outputs go to a hidden temporary folder first and are moved in only when all are written;
-  temporary paths of killed runs are removed by the next run (:mod:`rollfric.atomic`).
+- the outputs go to a hidden temporary folder first, which becomes the output folder in one
+  step when all are written (a run killed at any moment leaves the old folder or the new one);
+  temporary paths of killed runs are removed by the next run (:mod:`rollfric.atomic`);
+- while a run writes a folder it holds it (:mod:`rollfric.swap`): a second run into it is
+  refused.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
 from rollfric.atomic import _remove, install, is_leftover, remove_leftovers, temp_path
 from rollfric.errors import InputError
+from rollfric.swap import claim, exchange
 
 FILE = "file"
 FOLDER = "folder"
@@ -251,6 +256,17 @@ def remove_stale(folder: str | Path, names: Iterable[str]) -> list[Path]:
     return removed
 
 
+# the signals (SIGINT, SIGTERM) that reached the running command, noted by rollfric.cli: a
+# signal whose exception was swallowed where it landed (numba's compiler calls back through
+# ctypes, which prints such an exception and drops it) still keeps the outputs out of place
+signals_received: list[int] = []
+
+
+class Interrupted(BaseException):
+    """The command was interrupted while it ran (a signal in :data:`signals_received`): its
+    outputs are not put in place. A BaseException, as KeyboardInterrupt is."""
+
+
 @contextlib.contextmanager
 def staged_folder(out: str | Path, own: Mapping[str, str], *, overwrite: bool,
                   what: str = "--out", command: str = "the command") -> Iterator[Path]:
@@ -272,28 +288,107 @@ def staged_folder(out: str | Path, own: Mapping[str, str], *, overwrite: bool,
     ------
     pathlib.Path
         An empty hidden folder beside ``out`` to write the outputs in. When the block succeeds
-        they are moved into ``out``, each replacing the same name, and the ``own`` names not
-        written this time are removed; on an error nothing in ``out`` changes.
+        it becomes ``out`` in one step (renamed, or swapped with an existing ``out`` after
+        the user's other files there are hard-linked into it): the ``own`` names written
+        replace the old ones, those not written this time are gone, the user's files stay;
+        on an error nothing in ``out`` changes. While the block runs ``out`` is claimed
+        (:func:`rollfric.swap.claim`): another run into it is refused.
+
+    Raises
+    ------
+    OutputError
+        As :func:`check_folder`; or another run is writing ``out``, or wrote it meanwhile.
     """
     out = Path(out)
     check_folder(out, own, overwrite=overwrite, what=what, command=command)
     out.parent.mkdir(parents=True, exist_ok=True)
-    remove_leftovers(out.parent)
-    tmp = temp_path(out)
-    _remove(tmp)
-    tmp.mkdir()
-    try:
-        yield tmp
-        written = sorted(p.name for p in tmp.iterdir())
-        unknown = [n for n in written if n not in own]
-        if unknown:
-            raise RuntimeError(f"{command} wrote {unknown}, not among its own output names")
-        # again: the folder may have changed while the command ran
+    with claim(out, what):
+        # again, now that no other run of ours can: one may have written it meanwhile
         check_folder(out, own, overwrite=overwrite, what=what, command=command)
-        out.mkdir(exist_ok=True)
-        remove_leftovers(out)
-        for name in written:
-            install(tmp / name, out / name, folder_ok=True)
-        remove_stale(out, [n for n in own if n not in written])
-    finally:
+        remove_leftovers(out.parent)
+        tmp = temp_path(out)
         _remove(tmp)
+        tmp.mkdir()
+        try:
+            yield tmp
+            written = sorted(p.name for p in tmp.iterdir())
+            unknown = [n for n in written if n not in own]
+            if unknown:
+                raise RuntimeError(f"{command} wrote {unknown}, not among its own output names")
+            # again: the folder may have changed while the command ran
+            check_folder(out, own, overwrite=overwrite, what=what, command=command)
+            if signals_received:
+                raise Interrupted(signals_received[-1])
+            _put_in_place(tmp, out, own, written, what)
+        finally:
+            _remove(tmp)
+
+
+def _put_in_place(tmp: Path, out: Path, own: Mapping[str, str], written: list[str],
+                  what: str) -> None:
+    """Make the finished folder ``tmp`` the outputs of ``out`` in one step where it can be.
+
+    ``out`` absent: ``tmp`` renamed to it. ``out`` a folder whose other entries are files:
+    they are hard-linked into ``tmp``, which then swaps places with ``out`` at once
+    (:func:`rollfric.swap.exchange`). Otherwise (``out`` the folder this process runs in, a
+    link, holding folders of the user's, or no atomic swap here) the outputs are moved in one
+    at a time as before.
+    """
+    if not os.path.lexists(out):
+        try:
+            os.rename(tmp, out)
+        except OSError as exc:  # made, and filled, by someone else since the check
+            if exc.errno in (errno.EEXIST, errno.ENOTEMPTY, errno.EISDIR, errno.ENOTDIR):
+                raise OutputError(f"{what} {out} was written by another process while this "
+                                  "run worked: not replaced") from None
+            raise
+        return
+    if _swappable(out) and _link_others(tmp, out, own):
+        os.chmod(tmp, os.stat(out).st_mode & 0o7777)
+        if exchange(tmp, out):
+            # tmp now holds the old folder: anything there that is no output of ours and was
+            # not linked across (written by someone during the swap) is moved over, then the
+            # old folder goes
+            for e in os.scandir(tmp):
+                if e.name not in own and not os.path.lexists(out / e.name) \
+                        and not (e.name.startswith(".") and is_leftover(e.path)):
+                    os.rename(e.path, out / e.name)
+            return
+        for e in os.scandir(tmp):  # no swap here: the links go again
+            if e.name not in written:
+                _remove(Path(e.path))
+    out.mkdir(exist_ok=True)
+    remove_leftovers(out)
+    for name in written:
+        install(tmp / name, out / name, folder_ok=True)
+    remove_stale(out, [n for n in own if n not in written])
+
+
+def _swappable(out: Path) -> bool:
+    """Whether ``out`` may swap places with a new folder: a real folder, not the one this
+    process runs in (its working directory would stay with the old one)."""
+    if out.is_symlink() or not out.is_dir():
+        return False
+    with contextlib.suppress(OSError):
+        if os.path.samefile(out, os.getcwd()):
+            return False
+    return True
+
+
+def _link_others(tmp: Path, out: Path, own: Mapping[str, str]) -> bool:
+    """Hard-link ``out``'s entries that are not the command's into ``tmp``; False (and none
+    linked) when one is a folder or cannot be linked."""
+    others = [e for e in os.scandir(out) if e.name not in own
+              and not (e.name.startswith(".") and is_leftover(e.path))]
+    if any(e.is_dir(follow_symlinks=False) for e in others):
+        return False
+    done = []
+    try:
+        for e in others:
+            os.link(e.path, tmp / e.name, follow_symlinks=False)
+            done.append(tmp / e.name)
+    except OSError:
+        for p in done:
+            _remove(p)
+        return False
+    return True

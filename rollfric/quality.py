@@ -23,6 +23,8 @@ Reason codes:
   no whole number of frame periods), ``located_frames`` (such steps among frames the locator
   lost or got wrong: the located centres', not the timing's), ``swing_coverage`` (the located
   frames cover little of the outer half of the swing on one side of the bottom).
+- ``uncertainty`` (``fit``, ``measure``: :func:`rollfric.uncertainty.budget_reason`): the
+  budget's expanded uncertainty reaches mu.
 """
 
 from __future__ import annotations
@@ -58,6 +60,10 @@ MU_UPPER_NEAR = 0.9  # of the fitter's upper bound
 # (a frame in a half-period of ~0.35 s: 0.3 %, averaged over the swings); the period goes as
 # sqrt(L), so 3 % is a 6 % error in L = R - r (5 mm on the thesis trough) or in the fps
 PERIOD_TOL = 0.03
+# gravity: where labs are, g is 9.78 (equator) .. 9.83 m/s^2 (poles); a setup's g outside
+# GRAVITY_SANE is itself a suspect, and the period names it when the swings fit a local g
+GRAVITY_LOCAL = (9.78, 9.83)
+GRAVITY_SANE = (9.7, 9.9)
 # center: the ball's centres lie on a circle of radius L about the trough axis; a horizontal
 # offset of the centre used of 0.3 % of L (2 px on the thesis camera's 630 px) biased mu by
 # -0.24 % on drawn recordings (NOTES); radius 2 % (pixel size or trough radius 2 % off)
@@ -84,6 +90,8 @@ class Reason:
 
     code: str
     message: str
+    # what the reason was judged from, for a later look with more of the measurement
+    detail: dict | None = dataclasses.field(default=None, compare=False, repr=False)
 
     def to_dict(self) -> dict:
         """The reason as fit.json writes it.
@@ -199,25 +207,101 @@ def _period_reason(tp_t, tp_y, setup, unit_fps: float, t_data=None) -> Reason | 
         return None
     in_deg = sum(half_period_frictionless(math.radians(a), L, g) for a in amps)
     rho_deg = measured / in_deg
-    msg = (f"the swings take {1e3 * measured / len(amps):.1f} ms per half-swing, the equation of "
-           f"motion with L = R - r = {1e3 * L:.2f} mm gives {1e3 * expected / len(amps):.1f} ms "
-           f"({100 * (rho - 1):+.1f} %)")
+    head = (f"the swings take {1e3 * measured / len(amps):.1f} ms per half-swing, the equation "
+            f"of motion with L = R - r = {1e3 * L:.2f} mm gives "
+            f"{1e3 * expected / len(amps):.1f} ms ({100 * (rho - 1):+.1f} %)")
+    detail = {"head": head, "rho": rho, "rho_deg": rho_deg, "unit_fps": unit_fps}
+    return Reason("period", head + period_cause(rho, rho_deg, setup, unit_fps), detail)
+
+
+def period_cause(rho: float, rho_deg: float, setup, unit_fps: float,
+                 track_radius_seen: float | None = None) -> str:
+    """The cause a period off by ``rho`` (measured / expected) most likely has, as text.
+
+    The period fixes sqrt(L / g) in the frame clock's time, so one ratio cannot tell the frame
+    rate, L = R - r and gravity apart; what else is known can: angles in degrees fit the
+    swings; a setup's g outside GRAVITY_SANE whose swings fit a local g; a round frame rate
+    the swings fit; the ball's path in the image (``track_radius_seen``, m: its radius in px
+    times camera.pixel_size_mm) that agrees with the setup's L (then not the radius, but the
+    camera's clock) or with the L the swings fit (then the radius).
+
+    Parameters
+    ----------
+    rho, rho_deg : float
+        The measured over the expected half-periods, the angles read as radians and as
+        degrees.
+    setup : rollfric.setup.Setup
+        The setup the fit used.
+    unit_fps : float
+        The frame rate the times were made with (Hz).
+    track_radius_seen : float, optional
+        L as the image shows it (m); None when not known (a track without its pixels).
+
+    Returns
+    -------
+    str
+        "; ..." or ": ...", to follow the reason's first sentence.
+    """
+    L, g = setup.track_radius, setup.gravity
+    L_fit, g_fit, fps_fit = L * rho * rho, g / (rho * rho), unit_fps * rho
+    lo, hi = GRAVITY_LOCAL
     if abs(rho_deg - 1) <= PERIOD_TOL / 3 < abs(rho - 1):
-        msg += ("; the angles look like degrees (read as degrees, the swings fit within "
+        return ("; the angles look like degrees (read as degrees, the swings fit within "
                 f"{100 * abs(rho_deg - 1):.1f} %): give theta in radians")
-    elif _round_rate(unit_fps * rho):
-        msg += (f": most likely the frame rate is wrong (the swings fit {unit_fps * rho:.4g} Hz, "
+    g_odd = not GRAVITY_SANE[0] <= g <= GRAVITY_SANE[1]
+    tol = 2 * PERIOD_TOL  # g goes as the period squared
+    if g_odd and lo * (1 - tol) <= g_fit <= hi * (1 + tol):
+        return (f": environment.gravity_m_s2 = {g:g} m/s^2 is not the local gravity "
+                f"({lo:g}-{hi:g} m/s^2): the swings fit g = {g_fit:.3g} m/s^2")
+    gravity_too = (f"; environment.gravity_m_s2 = {g:g} m/s^2 is not a local gravity "
+                   f"({lo:g}-{hi:g}) either" if g_odd else "")
+    if _round_rate(fps_fit):
+        return (f": most likely the frame rate is wrong (the swings fit {fps_fit:.4g} Hz, "
                 f"the setup says {unit_fps:g} Hz: camera.fps); else L would have to be "
-                f"{1e3 * L * rho * rho:.1f} mm")
-    elif abs(rho * rho - 1) <= 0.25:
-        msg += (f": most likely cylinder.radius_mm or ball.diameter_mm is off (the swings fit "
-                f"L = {1e3 * L * rho * rho:.2f} mm), else camera.fps (they fit "
-                f"{unit_fps * rho:.4g} Hz)")
-    else:
-        msg += (f": check camera.fps (the swings fit {unit_fps * rho:.4g} Hz), the times' unit, "
-                f"and cylinder.radius_mm / ball.diameter_mm (they fit L = "
-                f"{1e3 * L * rho * rho:.1f} mm)")
-    return Reason("period", msg)
+                f"{1e3 * L_fit:.1f} mm" + gravity_too)
+    if track_radius_seen is not None and math.isfinite(track_radius_seen):
+        seen = track_radius_seen / L - 1
+        if abs(seen) <= TRACK_RADIUS_TOL < abs(rho * rho - 1) / 2:
+            return (f": the camera's frame rate or clock is off (camera.fps = {unit_fps:g} Hz;"
+                    f" the swings fit {fps_fit:.4g} Hz, a clock {100 * (rho - 1):+.1f} % off),"
+                    f" not the radius: the ball's path in the image has L = "
+                    f"{1e3 * track_radius_seen:.2f} mm as the setup says, the swings would "
+                    f"need {1e3 * L_fit:.2f} mm" + gravity_too)
+        if abs(track_radius_seen / L_fit - 1) <= TRACK_RADIUS_TOL:
+            return (f": cylinder.radius_mm or ball.diameter_mm is off: the swings fit L = "
+                    f"{1e3 * L_fit:.2f} mm and the ball's path in the image has "
+                    f"{1e3 * track_radius_seen:.2f} mm" + gravity_too)
+    if abs(rho * rho - 1) <= 0.25:
+        return (f": most likely cylinder.radius_mm or ball.diameter_mm is off (the swings fit "
+                f"L = {1e3 * L_fit:.2f} mm), else the camera's frame rate or clock "
+                f"(camera.fps: they fit {fps_fit:.4g} Hz)" + gravity_too)
+    return (f": check camera.fps (the swings fit {fps_fit:.4g} Hz), the times' unit, "
+            f"and cylinder.radius_mm / ball.diameter_mm (they fit L = {1e3 * L_fit:.1f} mm)"
+            + gravity_too)
+
+
+def period_with_image(reason: Reason, setup, track_radius_seen: float) -> Reason:
+    """A ``period`` reason judged again with the ball's path in the image (see
+    :func:`period_cause`); any other reason as it is.
+
+    Parameters
+    ----------
+    reason : Reason
+        A quality reason of :func:`check_fit`.
+    setup : rollfric.setup.Setup
+        The setup the fit used.
+    track_radius_seen : float
+        L = R - r as the image shows it (m).
+
+    Returns
+    -------
+    Reason
+    """
+    d = reason.detail
+    if reason.code != "period" or not d:
+        return reason
+    cause = period_cause(d["rho"], d["rho_deg"], setup, d["unit_fps"], track_radius_seen)
+    return Reason("period", d["head"] + cause, d)
 
 
 def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "coulomb",
@@ -440,6 +524,32 @@ def check_track(df, setup, center, *, warnings=(), flag_counts=None) -> list[Rea
     for code, text in warnings:
         reasons.append(Reason(code, text))
     return reasons
+
+
+def track_radius_seen(df, setup, center) -> float | None:
+    """L = R - r as the image shows it (m): the found centres' median distance from the
+    trough centre (px, undistorted where a lens calibration was applied) times
+    camera.pixel_size_mm; None with fewer than 10 found frames.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The track (columns found, x_px, y_px; xu_px, yu_px when undistorted).
+    setup : rollfric.setup.Setup
+        The setup used.
+    center : sequence of 2 floats
+        The trough centre (px) the angles were taken about.
+
+    Returns
+    -------
+    float or None
+    """
+    found = df["found"].to_numpy() == 1
+    cx_col, cy_col = ("xu_px", "yu_px") if "xu_px" in df.columns else ("x_px", "y_px")
+    x, y = df[cx_col].to_numpy()[found], df[cy_col].to_numpy()[found]
+    if x.size < 10:
+        return None
+    return float(np.median(np.hypot(x - center[0], y - center[1]))) * setup.pixel_size
 
 
 def swing_coverage(found, result, setup) -> dict:

@@ -230,6 +230,47 @@ def split_irregular(irregular, distrusted) -> tuple[tuple, tuple]:
     return tuple(timing), tuple(located)
 
 
+def confirm_irregular(x, y, found, rejected, repeated, irregular) -> tuple:
+    """The irregular steps found again without the frames the plausibility checks rejected.
+
+    :func:`find_gaps` judges every located centre. A glitched frame (repeated, swapped, a
+    flash) spoils the steps beside it, and through them the predictions of the steps up to
+    ``HALF_WINDOW`` away; where the ball turns its steps are a few hundredths of a px, and a
+    spoiled prediction there made clean steps "irregular" (1.1-1.4 x) next to a repeated
+    frame, or hid a real one. The steps are judged again with the rejected frames left out,
+    the two frames of each irregular step kept (a frame after a slipped clock may be rejected
+    as a jump: that step stays) unless repeated. A step into or out of a ``repeated`` frame
+    (the same pixels as the frame before: a recording's glitch, the time base intact) is the
+    repeat's, not the timing's.
+
+    Parameters
+    ----------
+    x, y : array_like
+        (T,) the located centres before any was rejected (px).
+    found : array_like of bool
+        (T,) frames the tracker located.
+    rejected : array_like of bool
+        (T,) frames the plausibility checks rejected (any flag).
+    repeated : array_like of bool
+        (T,) frames rejected as repeats of the frame before.
+    irregular : sequence of (int, float)
+        (k, ratio) of :attr:`Gaps.irregular` over every located frame.
+
+    Returns
+    -------
+    tuple of (int, float)
+        The irregular steps (k, ratio) of the track without its rejected frames.
+    """
+    found = np.asarray(found, dtype=bool)
+    repeated = np.asarray(repeated, dtype=bool)
+    keep = found & ~np.asarray(rejected, dtype=bool)
+    for k, _ in irregular:
+        keep[k:k + 2] = found[k:k + 2] & ~repeated[k:k + 2]
+    again = irregular if np.array_equal(keep, found) else find_gaps(x, y, keep).irregular
+    return tuple((int(k), float(r)) for k, r in again
+                 if not (repeated[k] or repeated[min(k + 1, len(repeated) - 1)]))
+
+
 def _whole_periods(step: np.ndarray, coef: np.ndarray) -> int | None:
     """The whole number m >= 2 of periods a step spans by its neighbours' fit, or None."""
     v = coef[0]

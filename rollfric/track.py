@@ -43,6 +43,11 @@ TIMES = ("auto", "fps")
 TIMES_RATE_TOL = 1e-3  # relative: a median interval further from 1 / camera.fps is reported
 TIMES_JITTER_TOL = 0.01  # relative: an interval further from the median one is reported
 TIMES_FPS = "frame / camera.fps"  # TrackInfo.times when the times are not the recording's
+# timestamps whose median step is ~1000 or ~1e6 frame periods of the setup's rate are in ms or
+# us, not s (read as seconds they gave mu 0.297 for 0.02): within this factor of the unit's
+# ratio (a camera clock 10 % off, or a setup's rate that is, is still told from 1000x)
+TIMES_UNITS = (("ms", 1e-3), ("us", 1e-6))
+TIMES_UNIT_FACTOR = 1.5
 # the frame flags that do not depend on the frame times (the tracker's and the plausibility
 # checks' but jump and duplicate, which a timing error also raises): an irregular step at or
 # next to such a frame is the locator's (rollfric.timing.split_irregular)
@@ -956,6 +961,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         r_ref=r_cal, r_rel_sigma=cal.rel_sigma if r_cal is not None else None, pos=pos,
         center=center, r_ball=r_cal if r_cal is not None else r_px)
     flags[~found] = np.where(lost[~found], "off_track", "not_found")
+    located = (rows[:, 0].copy(), rows[:, 1].copy(), found.copy())  # before any is rejected
     rejected = found & (flags != "")
     rows[rejected, :5] = np.nan
     rows[rejected, 5] = 0.0
@@ -964,8 +970,12 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     irregular, located_irregular = (), ()
     if gaps is not None and gaps.irregular:
         # steps among frames the locator lost or got wrong are its, not the camera's timing
+        # a rejected glitch (a repeated, swapped or flashed frame) a few frames away spoils
+        # the prediction of a clean step where the ball turns: judged again without them
+        again = timing.confirm_irregular(*located, flags != "", flags == "duplicate",
+                                         gaps.irregular)
         irregular, located_irregular = timing.split_irregular(
-            gaps.irregular, np.isin(flags, LOCATOR_FLAGS))
+            again, np.isin(flags, LOCATOR_FLAGS))
         for msg in ([irregular_message(irregular)] if irregular else []) + (
                 [located_irregular_message(located_irregular)] if located_irregular else []):
             logger.warning(msg)
@@ -1155,7 +1165,9 @@ def frame_times(source, setup_fps: float, times: str = "auto"):
     TIMES_RATE_TOL and the clock's step) or are unevenly spaced (an interval more than
     TIMES_JITTER_TOL from the median one, beyond the step of the camera's clock,
     ``attrs["timestamp_resolution_s"]``: times rounded to whole microseconds are 28 or 29 us
-    apart at 35087 Hz, no dropped frame).
+    apart at 35087 Hz, no dropped frame). Timestamps whose steps are ~1000 or ~1e6 of the
+    setup's frame periods (within TIMES_UNIT_FACTOR) are read as ms or us, and a note names
+    the unit.
 
     Parameters
     ----------
@@ -1194,6 +1206,15 @@ def frame_times(source, setup_fps: float, times: str = "auto"):
     t = t - t[0]
     notes = []
     if n > 1:
+        ratio = float(np.median(np.diff(t))) * setup_fps
+        for unit, scale in TIMES_UNITS:
+            if abs(math.log(ratio * scale)) <= math.log(TIMES_UNIT_FACTOR):
+                t = t * scale
+                notes.append(f"the recording's timestamps step by {ratio / setup_fps:.6g} a "
+                             f"frame, {ratio:.4g} x the setup's frame period (camera.fps = "
+                             f"{setup_fps:g} Hz): they are in {unit}, not seconds, and are "
+                             f"read as {unit}")
+                break
         d = np.diff(t)
         dt = float(np.median(d))
         # a clock that counts in steps (a cine's microseconds) makes intervals a step apart
@@ -1481,8 +1502,12 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             coded.append((side.code, side.message))
         track_reasons = quality.check_track(df, setup, center, warnings=coded,
                                             flag_counts=info.flags)
-        result = dataclasses.replace(
-            result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
+        # a period off is judged again with the ball's path in the image: it tells a wrong
+        # radius from a camera clock that is off
+        seen = quality.track_radius_seen(df, setup, center)
+        fit_reasons = tuple(result.quality_reasons) if seen is None else tuple(
+            quality.period_with_image(r, setup, seen) for r in result.quality_reasons)
+        result = dataclasses.replace(result, quality_reasons=fit_reasons + tuple(track_reasons))
         lap("checks")
     return df, dataclasses.replace(info, seconds=seconds), result
 

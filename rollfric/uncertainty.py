@@ -787,6 +787,65 @@ def check_arguments(args) -> None:
         raise InputError(f"--seed must be >= 0, got {args.seed}")
 
 
+# a budget whose expanded uncertainty reaches mu (mu within 2 u(mu) of 0, as quality's mu_bound
+# judges the statistical error alone) has not measured mu: suspect, naming what dominates
+BUDGET_MU_SIGMAS_MIN = 2.0
+
+
+def budget_reason(b: Budget | None):
+    """The quality reason of a budget that does not determine mu, or None.
+
+    Parameters
+    ----------
+    b : Budget or None
+        The budget of a result (None: no budget, no reason).
+
+    Returns
+    -------
+    rollfric.quality.Reason or None
+        ``uncertainty`` when mu < BUDGET_MU_SIGMAS_MIN u(mu) (U(mu) >= mu at k = 2), naming
+        the row that dominates u(mu)^2 and, for a setup key, its ``_u`` key.
+    """
+    from rollfric.quality import Reason
+
+    if b is None or not math.isfinite(b.u_mu) or not b.u_mu > 0:
+        return None
+    if math.isfinite(b.mu) and abs(b.mu) >= BUDGET_MU_SIGMAS_MIN * b.u_mu:
+        return None
+    top = max(b.rows, key=lambda r: r.u_mu)
+    share = 100.0 * (top.u_mu / b.u_mu) ** 2
+    key = top.source.split("[")[0]
+    if "." in key and key.split(".")[-1] != "":
+        what = (f"{top.source} (u = {top.u:.3g}: check {key}_u in the setup, a standard "
+                "uncertainty that large says the key is not known)")
+    else:
+        what = top.source
+    ratio = b.U_mu / abs(b.mu) if b.mu else math.inf
+    return Reason("uncertainty", f"the expanded uncertainty U(mu) = {b.U_mu:.3g} is "
+                  f"{ratio:.3g} x mu = {b.mu:.3g}: the measurement does not determine mu; "
+                  f"{what} makes {share:.0f} % of u(mu)^2")
+
+
+def with_budget_reason(result, b: Budget | None):
+    """``result`` with :func:`budget_reason`'s reason added to its quality reasons, if any.
+
+    Parameters
+    ----------
+    result : FitResult
+        The command's fit.
+    b : Budget or None
+        Its budget.
+
+    Returns
+    -------
+    FitResult
+    """
+    reason = budget_reason(b)
+    if reason is None:
+        return result
+    return dataclasses.replace(result, quality_reasons=tuple(result.quality_reasons) + (reason,))
+
+
 def run_budget(meas: Measurement, result, args):
     """The budget of a command's result as (fit.json keys, Budget or None), its table printed
     on stdout (the command's output); a fit method without a Jacobian gets no budget (said so,

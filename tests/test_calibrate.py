@@ -184,3 +184,58 @@ def test_a_square_size_no_board_has_is_bad_input(views, tmp_path, capsys, square
     err = capsys.readouterr().err
     assert "square size" in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_copies_of_one_view_are_refused(views, tmp_path, capsys):
+    # issue 33: three identical copies of one view gave fx 1.1e10 px at rms 0.000 px, four
+    # noisy copies fx 39214 px, k1 -1.27, both exit 0; parallel boards fix no camera matrix
+    rng = np.random.default_rng(0)
+    noisy = [np.clip(views[3] + rng.normal(0, 8, views[3].shape), 0, 255).astype(np.uint8)
+             for _ in range(4)]
+    for k, set_ in enumerate(([views[0]] * 3, noisy)):
+        folder = tmp_path / f"set{k}"
+        folder.mkdir()
+        paths = _write_boards(set_, folder)
+        out = folder / "camera.toml"
+        assert main(["calibrate", *paths, "--board", "7x5", "--square-mm", "20",
+                     "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "1 distinct orientation(s)" in err and "Traceback" not in err
+        assert not out.exists()
+    # the board slid and turned in its own plane is one orientation too (POSES 0 and 7)
+    from rollfric.calibrate import count_orientations
+
+    normals = [cv2.Rodrigues(np.asarray(r, float))[0][:, 2] for r, _ in POSES]
+    assert count_orientations(normals, 2.0) == len(POSES) - 1
+    assert count_orientations([normals[0], normals[7], normals[0]], 2.0) == 1
+
+
+@pytest.mark.parametrize("side", [8, 12, 13])
+def test_images_too_small_for_a_board_are_bad_input(views, tmp_path, capsys, side):
+    # issue 33: images of 12 px or less ended in OpenCV's assertion (cv2.error), a traceback
+    small = [cv2.resize(v, (side, side), interpolation=cv2.INTER_AREA) for v in views[:4]]
+    paths = _write_boards(small, tmp_path)
+    out = tmp_path / "camera.toml"
+    assert main(["calibrate", *paths, "--board", "7x5", "--square-mm", "20",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{side} x {side} px: too small" in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_views_that_barely_tilt_give_a_suspect_calibration(tmp_path, capsys):
+    # four orientations 3-5 deg apart: distinct, but they hardly constrain the focal length
+    # (measured: fx 1009 +- 104 px for the true 800 px) -> written, exit 3, naming fx
+    lens = Lens(K, D)
+    tilts = [(0.0, 0.0, 0.0), (0.05, 0.0, 0.0), (0.0, 0.05, 0.0), (-0.05, -0.05, 0.0)]
+    small = [_view(r, (-0.07, -0.05, 0.45), lens, ss=2) for r in tilts]
+    paths = _write_boards(small, tmp_path)
+    out = tmp_path / "camera.toml"
+    assert main(["calibrate", *paths, "--board", "7x5", "--square-mm", "20",
+                 "--out", str(out)]) == 3
+    err = capsys.readouterr().err
+    assert "suspect: the views do not pin the parameters down: fx" in err
+    text = out.read_text()
+    assert "# suspect: the views do not pin the parameters down: fx" in text
+    fx = calibrate_chessboard(small, BOARD, SQUARE).calibration
+    assert abs(fx.matrix[0][0] - 800.0) > 0.05 * 800.0  # the fit is indeed off

@@ -1,0 +1,136 @@
+"""Ctrl-C and SIGTERM end a command with 130 / 143 and one line, wherever they land: in
+Python code, in a GIL-free numba kernel (whose dispatcher turns the signal's exception into
+a SystemError), or in a `rollfric measure` subprocess while it tracks; nothing is written."""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tifffile
+from measure_data import make_recording
+
+from rollfric.setup import save_setup
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _kernel():
+    """A nogil kernel that sends ``sig`` to its own process from inside, then works on: the
+    signal's handler runs as the dispatcher returns, deterministically inside the kernel."""
+    import numba
+
+    libc = ctypes.CDLL(None)
+    kill = libc.kill
+    kill.argtypes = (ctypes.c_int, ctypes.c_int)
+    kill.restype = ctypes.c_int
+
+    @numba.njit(nogil=True)
+    def work(pid, sig, n):
+        kill(pid, sig)
+        out = np.zeros(n)
+        for k in range(n):
+            out[k] = np.sqrt(k + 0.5)
+        return out, out.sum()
+
+    return work
+
+
+@pytest.mark.parametrize("signum, status, word", [(signal.SIGINT, 130, "interrupted"),
+                                                  (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_inside_a_numba_kernel_exits_with_its_status(monkeypatch, capsys, signum,
+                                                              status, word):
+    # issue 33: Ctrl-C or SIGTERM landing in a kernel ended in exit 1 and "SystemError:
+    # CPUDispatcher(_pass_raw) returned a result with an exception set"
+    from rollfric import cli
+
+    kernel = _kernel()
+    cleaned = []
+
+    def work(args):
+        try:
+            kernel(os.getpid(), int(signum), 1000)
+            return 0
+        finally:
+            cleaned.append(True)
+
+    def parser():
+        p = argparse.ArgumentParser(prog="rollfric")
+        sub = p.add_subparsers(dest="command")
+        sub.add_parser("kernel").set_defaults(func=work)
+        return p
+
+    monkeypatch.setattr(cli, "build_parser", parser)
+    before = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]
+    assert cli.main(["kernel"]) == status
+    assert cleaned == [True]
+    err = capsys.readouterr().err
+    assert err == f"rollfric kernel: {word}\n"
+    assert [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)] == before
+
+
+def test_an_error_that_is_no_interruption_is_not_taken_for_one(monkeypatch):
+    # a SystemError (or any bug) with no signal behind it is still raised, not reported as 130
+    from rollfric import cli
+
+    def work(args):
+        raise SystemError("a real bug")
+
+    def parser():
+        p = argparse.ArgumentParser(prog="rollfric")
+        sub = p.add_subparsers(dest="command")
+        sub.add_parser("bug").set_defaults(func=work)
+        return p
+
+    monkeypatch.setattr(cli, "build_parser", parser)
+    with pytest.raises(SystemError, match="a real bug"):
+        cli.main(["bug"])
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("lab")
+    rec = make_recording(1200, noise=1.0, mu=0.002)
+    tifffile.imwrite(folder / "rec.tif", np.stack(rec.frames))
+    tifffile.imwrite(folder / "bg.tif", rec.background)
+    save_setup(rec.setup, folder / "setup.toml")
+    return folder
+
+
+@pytest.mark.parametrize("signum, status, word", [(signal.SIGINT, 130, "interrupted"),
+                                                  (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_while_measure_tracks_exits_with_its_status_writing_nothing(lab, tmp_path,
+                                                                             signum, status,
+                                                                             word):
+    # the signal sent at several moments after the progress bar appears (tracking begun): most
+    # of tracking is spent in GIL-free kernels; --out is neither created nor touched
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    for k, delay in enumerate((0.0, 0.05, 0.15, 0.3)):
+        out = tmp_path / f"out{k}"
+        p = subprocess.Popen(
+            [sys.executable, "-m", "rollfric.cli", "measure", str(lab / "rec.tif"),
+             "--setup", str(lab / "setup.toml"), "--background", str(lab / "bg.tif"),
+             "--out", str(out)],
+            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
+        seen = b""
+        while b"locating ball" not in seen:  # tqdm's first line: tracking has begun
+            chunk = p.stderr.read1(4096)
+            assert chunk, f"measure ended before tracking: {seen.decode()}"
+            seen += chunk
+        time.sleep(delay)
+        p.send_signal(signum)
+        _, rest = p.communicate(timeout=300)
+        err = (seen + rest).decode()
+        assert p.returncode == status, err
+        assert "Traceback" not in err and f"rollfric measure: {word}\n" in err
+        assert not out.exists()
+        assert not [n for n in os.listdir(tmp_path) if n.startswith(".")]  # no staging left
