@@ -18,13 +18,22 @@ average down). A row whose recorded input value differs between the runs (a trou
 found from each recording's own contour) is not certainly common: it is never taken below its
 value for independent errors, sqrt(sum_i (w_i u_mu,i,s)^2).
 
-The scatter is checked against the runs' own independent u with the Birge ratio
-R_B = sqrt(chi2 / (N - 1)), chi2 = sum_i (mu_i - mu)^2 / u_i^2, whose 95 % range at N follows
-from the chi2 distribution with N - 1 degrees of freedom. As the Particle Data Group does, the
-independent part is scaled by R_B when R_B > 1; a ratio above its range also makes the result
-suspect (a reason ``birge_ratio``: the releases scatter more than their budgets allow).
-The combined standard uncertainty is sqrt((S u_ind)^2 + u_shared^2), S = max(1, R_B), and
-U = k u with k = 2.
+The scatter is checked against the runs' own budgets with the Birge ratio
+R_B = sqrt(chi2 / (N - 1)) of the runs about the weighted mean. chi2 uses the residuals'
+covariance from the runs' budgets: a shared row that moves every run alike drops out of the
+residuals, and chi2 is then sum_i (mu_i - mu)^2 / u_i^2 exactly (the runs' independent u);
+a shared row that moves the runs differently (a trough centre's error on releases to either
+side) is scatter the budgets expect and enters chi2's covariance (``birge_ratio_independent``
+keeps the ratio with the independent parts alone). The ``second order`` row of a budget made
+with ``--second-order`` (the inputs' interactions, e.g. radius x centre, which act on releases
+to either side with opposite signs) enters the mean's u in full and chi2 as independent
+between runs: first-order budgets lack it, and releases whose statistical u is far below their
+setup part then scatter more than their budgets say. Its 95 % range at N follows from the chi2
+distribution with N - 1 degrees of freedom. As the Particle Data Group does, the independent
+part is scaled by R_B when R_B > 1; a ratio above its range also makes the result suspect (a
+reason ``birge_ratio``: the releases scatter more than their budgets allow). The combined
+standard uncertainty is sqrt((S u_ind)^2 + u_shared^2), S = max(1, R_B), and U = k u with
+k = 2.
 """
 
 from __future__ import annotations
@@ -43,6 +52,10 @@ COVERAGE_FACTOR = 2.0
 BIRGE_LEVEL = 0.95  # the probability of the Birge ratio's expected range
 INDEPENDENT_SOURCES = ("statistical",)  # budget rows independent between releases
 PARTS = ("shared", "independent")
+# shared rows whose effect differs in sign and size between releases even for one common
+# input error (the inputs' interactions: radius x centre): full in the mean's u, independent
+# in the Birge ratio's chi2
+UNLIKE_SOURCES = ("second order",)
 _FLOAT_REL = 1e-9  # setup values closer than this (relative) are the same value
 
 
@@ -80,6 +93,7 @@ class Combined:
     birge_range: tuple
     chi2: float
     scale: float
+    birge_ratio_independent: float  # with the runs' independent parts alone
     left_out: tuple  # ({"path", "reason"}, ...)
     quality_reasons: tuple  # ({"code", "message"}, ...)
 
@@ -107,6 +121,7 @@ class Combined:
                 "u_shared": self.u_shared, "shared_budget": [dict(r) for r in self.shared_rows],
                 "birge_ratio": self.birge_ratio,
                 "birge_range": list(self.birge_range), "birge_level": BIRGE_LEVEL,
+                "birge_ratio_independent": self.birge_ratio_independent,
                 "chi2": self.chi2, "scale": self.scale,
                 "runs": [dict(r) for r in self.runs],
                 "left_out": [dict(r) for r in self.left_out],
@@ -371,29 +386,39 @@ def combine(runs: list[Run], *, coverage_factor: float = COVERAGE_FACTOR,
         raise InputError(f"combine needs at least two runs, got {n}"
                          + (f" ({len(left_out)} suspect run(s) left out: --include-suspect "
                             "keeps them)" if left_out else ""))
+    import numpy as np
+
     inv = [1.0 / r.u_independent ** 2 for r in runs]
     total = sum(inv)
     w = [v / total for v in inv]
     mu = sum(wi * r.mu for wi, r in zip(w, runs, strict=True))
     u_ind = 1.0 / math.sqrt(total)
-    chi2 = sum((r.mu - mu) ** 2 * v for r, v in zip(runs, inv, strict=True))
-    rb = math.sqrt(chi2 / (n - 1))
-    lo, hi = birge_range(n, level)
-    scale = max(1.0, rb)
+    # the runs' covariance: the independent parts on the diagonal, each shared row's signed
+    # u_mu as a common error (an input found anew in each run: independent)
+    cov = np.diag([r.u_independent ** 2 for r in runs])
     rows = []
     for source in dict.fromkeys(s for r in runs for s in r.shared):
-        terms = [(wi, *r.shared[source]) for wi, r in zip(w, runs, strict=True)
-                 if source in r.shared]
-        common = abs(sum(wi * u for wi, u, _ in terms))
-        values = [v for _, _, v in terms]
+        c = np.array([r.shared[source][0] if source in r.shared else 0.0 for r in runs])
+        values = [r.shared[source][1] for r in runs if source in r.shared]
         agree = all(v is not None and _same(v, values[0]) for v in values) or \
             all(v is None for v in values)
+        common = abs(float(np.dot(w, c)))
         u = common
-        if not agree:  # an input found anew in each run: not certainly a common error
-            u = max(common, math.sqrt(sum((wi * uu) ** 2 for wi, uu, _ in terms)))
+        if agree and source in UNLIKE_SOURCES:  # a common error, its effect unlike per run
+            cov += np.diag(c * c)
+        elif agree:
+            cov += np.outer(c, c)
+        else:  # not certainly a common error: never below its value for independent errors
+            u = max(common, float(np.sqrt(np.sum((np.asarray(w) * c) ** 2))))
+            cov += np.diag(c * c)
         rows.append({"source": source, "u_mu": u,
                      "correlation": "full" if agree else "full, or none where larger"})
     rows.sort(key=lambda r: -r["u_mu"])
+    chi2, chi2_independent = _chi2(np.array([r.mu for r in runs]), mu, np.asarray(w), cov,
+                                   np.array(inv))
+    rb = math.sqrt(chi2 / (n - 1))
+    lo, hi = birge_range(n, level)
+    scale = max(1.0, rb)
     u_shared = math.sqrt(sum(r["u_mu"] ** 2 for r in rows))
     u = math.hypot(scale * u_ind, u_shared)
     reasons = []
@@ -415,7 +440,31 @@ def combine(runs: list[Run], *, coverage_factor: float = COVERAGE_FACTOR,
                     u_independent=scale * u_ind, u_independent_unscaled=u_ind,
                     u_shared=u_shared, shared_rows=tuple(rows), runs=run_rows,
                     birge_ratio=rb, birge_range=(lo, hi), chi2=chi2, scale=scale,
+                    birge_ratio_independent=math.sqrt(chi2_independent / (n - 1)),
                     left_out=tuple(left_out), quality_reasons=tuple(reasons))
+
+
+def _chi2(mus, mean: float, w, cov, inv) -> tuple[float, float]:
+    """chi2 of the runs about their weighted mean: with the residuals' covariance from the
+    runs' (``cov``), and with the independent parts alone (sum of r_i^2 / u_i^2).
+
+    The residuals r = (I - 1 w^T) mu have covariance P cov P^T (rank N - 1: the weighted sum
+    of the residuals is 0), so the first N - 1 of them, with their block of it, carry the
+    chi2. A shared row that acts alike on every run drops out of P cov P^T, and the chi2 is
+    then the independent one exactly; one that acts differently (a centre error on releases
+    to either side) is scatter the budgets expect.
+    """
+    import numpy as np
+
+    r = mus - mean
+    n = r.size
+    p = np.eye(n) - np.outer(np.ones(n), w)
+    c = (p @ cov @ p.T)[: n - 1, : n - 1]
+    try:
+        chi2 = float(r[: n - 1] @ np.linalg.solve(c, r[: n - 1]))
+    except np.linalg.LinAlgError:
+        chi2 = float(r[: n - 1] @ np.linalg.pinv(c) @ r[: n - 1])
+    return chi2, float(np.sum(r * r * inv))
 
 
 def combine_files(paths, *, include_suspect: bool = False,

@@ -17,7 +17,7 @@ SETUP = {"cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.5},
 
 
 def fit_json(path, mu, u_stat, *, radius=(5e-5, 1.0), fps=(3e-5, -1.0), center=None,
-             setup=SETUP, quality="ok"):
+             setup=SETUP, quality="ok", extra=()):
     """A fit.json with a statistical row u_stat and shared rows (u_mu, sign of sensitivity)."""
     rows = [{"source": "statistical", "value": None, "u": u_stat, "sensitivity": 1.0,
              "u_mu": u_stat},
@@ -28,6 +28,7 @@ def fit_json(path, mu, u_stat, *, radius=(5e-5, 1.0), fps=(3e-5, -1.0), center=N
     if center is not None:  # (u_mu, sign, value)
         rows.append({"source": "cylinder.center_px[x]", "value": center[2], "u": 0.3,
                      "sensitivity": center[1] * center[0] / 0.3, "u_mu": center[0]})
+    rows += list(extra)
     u = math.sqrt(sum(r["u_mu"] ** 2 for r in rows))
     data = {"mu": mu, "mu_stderr": u_stat, "method": "lsq", "n_samples": 4000, "u_mu": u,
             "U_mu": 2 * u, "coverage_factor": 2.0, "uncertainty_budget": rows,
@@ -209,3 +210,29 @@ def test_fit_records_its_setup_and_two_fits_combine(tmp_path, capsys):
     assert row["u_mu"] == pytest.approx(w[0] * radius[0]["u_mu"] + w[1] * radius[1]["u_mu"],
                                         rel=1e-12)
     assert abs(c.mu - 0.008) < c.U_mu
+
+
+def test_a_common_error_acting_differently_is_expected_scatter(tmp_path):
+    # two releases either side of a centre known to +-u: its error moves them apart by c1 - c2,
+    # so chi2 = (mu1 - mu2)^2 / (u1^2 + u2^2 + (c1 - c2)^2) (N = 2: one residual)
+    a = fit_json(tmp_path / "a.json", 0.0100, 1e-5, center=(4e-5, 1.0, 640.0))
+    b = fit_json(tmp_path / "b.json", 0.0101, 1e-5, center=(4e-5, -1.0, 640.0))
+    c, _ = combine_files([a, b])
+    assert c.chi2 == pytest.approx(1e-8 / (2e-10 + (8e-5) ** 2), rel=1e-9)
+    assert c.birge_ratio_independent == pytest.approx(math.sqrt(1e-8 / 2e-10), rel=1e-9)
+    assert c.birge_ratio < c.birge_range[1] and c.quality == "ok"
+    # R_B > 1 (within its range) scales the independent part (PDG); the centre's row cancels
+    assert c.scale == pytest.approx(c.birge_ratio, rel=1e-15) and c.scale > 1
+    assert c.mu_u == pytest.approx(math.sqrt(c.scale**2 * 0.5e-10 + 5e-5**2 + 3e-5**2),
+                                   rel=1e-12)
+
+
+def test_second_order_row_full_in_the_mean_independent_in_the_birge_ratio(tmp_path):
+    # the inputs' interactions (radius x centre) move releases to either side oppositely
+    row = {"source": "second order", "value": None, "u": 3e-5, "sensitivity": 1.0,
+           "u_mu": 3e-5}
+    a = fit_json(tmp_path / "a.json", 0.0100, 1e-5, extra=[row])
+    b = fit_json(tmp_path / "b.json", 0.0101, 1e-5, extra=[row])
+    c, _ = combine_files([a, b])
+    assert c.chi2 == pytest.approx(1e-8 / (2e-10 + 2 * (3e-5) ** 2), rel=1e-9)
+    assert c.u_shared == pytest.approx(math.sqrt(5e-5**2 + 3e-5**2 + 3e-5**2), rel=1e-12)
