@@ -78,7 +78,7 @@ def _run(args) -> int:
     combined, _ = combine_files(args.fits, include_suspect=args.include_suspect)
     if out is not None:
         write_text(out, json.dumps(json_safe(combined.to_json()), indent=2) + "\n")
-    print(format_summary(combined) + (f" -> {out}" if out is not None else ""))
+    print(format_summary(combined, out))
     if not combined.quality_reasons:
         return 0
     print(f"rollfric combine: result to be looked at ({len(combined.quality_reasons)} "

@@ -518,12 +518,14 @@ def combine_files(paths, *, include_suspect: bool = False,
     return combine(runs, coverage_factor=coverage_factor, left_out=tuple(left_out)), warnings
 
 
-def format_summary(c: Combined) -> str:
+def format_summary(c: Combined, out=None) -> str:
     """The combined result as a few lines of text (the command's printed summary).
 
     Parameters
     ----------
     c : Combined
+    out : str or os.PathLike, optional
+        Where it was written (named on the first line).
 
     Returns
     -------
@@ -532,13 +534,17 @@ def format_summary(c: Combined) -> str:
     """
     rel = (lambda v: f"{100 * v / c.mu:.3g} %") if c.mu > 0 else (lambda v: "-")
     lines = [f"combined {c.n} releases: mu = {c.mu:.6f} +- {c.mu_u:.2g} (u, {rel(c.mu_u)}), "
-             f"U = {c.U_mu:.2g} (k = {c.coverage_factor:g})",
+             f"U = {c.U_mu:.2g} (k = {c.coverage_factor:g})"
+             + (f" -> {out}" if out is not None else ""),
              f"  independent part {c.u_independent:.3g}"
              + (f" (scaled by the Birge ratio from {c.u_independent_unscaled:.3g})"
                 if c.scale > 1 else "")
              + f", shared part {c.u_shared:.3g} (setup: does not average down)",
              f"  Birge ratio {c.birge_ratio:.3g} (95 % range at N = {c.n}: "
-             f"[{c.birge_range[0]:.3g}, {c.birge_range[1]:.3g}])"]
+             f"[{c.birge_range[0]:.3g}, {c.birge_range[1]:.3g}]"
+             + ("; below it: the runs agree better than their budgets expect"
+                if c.birge_ratio < c.birge_range[0] else "")
+             + f"); with the independent parts alone {c.birge_ratio_independent:.3g}"]
     for r in c.runs:
         lines.append(f"  {r['path']}: mu = {r['mu']:.6f} +- {r['u_independent']:.2g} "
                      f"(independent), weight {r['weight']:.3f}")

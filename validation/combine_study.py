@@ -283,6 +283,9 @@ def run_study(setups: int, releases: int, out: Path | None = None, seed: int = 0
         rows.append(run_setup(draw_setup(seed + i, releases), order))
         if progress and (i + 1) % 10 == 0:
             print(f"{i + 1} setups: {json.dumps(summarize(pd.DataFrame(rows)))}", flush=True)
+            if out is not None:  # the table so far, kept if the run is stopped
+                out.mkdir(parents=True, exist_ok=True)
+                pd.DataFrame(rows).to_csv(out / "combine_study.csv", index=False)
     df = pd.DataFrame(rows)
     s = summarize(df)
     if out is not None:
