@@ -427,7 +427,10 @@ def combine(runs: list[Run], *, coverage_factor: float = COVERAGE_FACTOR,
             f"the releases scatter more than their budgets allow: Birge ratio {rb:.3g} above "
             f"its {100 * level:g} % range [{lo:.3g}, {hi:.3g}] for N = {n}; the independent "
             f"part is scaled by {rb:.3g}. Look for a release that differs (a setup moved, a "
-            "suspect track) or an error the budget lacks")})
+            "suspect track) or an error the budget lacks"
+            + ("" if any(UNLIKE_SOURCES[0] in r.shared for r in runs) else
+               "; the runs' budgets are first order: made with --second-order they hold the "
+               "setup inputs' interactions, which act differently on each release"))})
     suspect = [r.path for r in runs if r.quality != "ok"]
     if suspect:
         reasons.append({"code": "suspect_runs", "message": (
