@@ -175,6 +175,9 @@ def read_fit(path) -> dict:
                 and _number(r.get("u_mu"))):
             raise InputError(f"{path}: a row of uncertainty_budget is not "
                              "{\"source\", ..., \"u_mu\"}: not a rollfric fit.json")
+        if not 0.0 <= r["u_mu"] <= 1.0:
+            raise InputError(f"{path}: budget row {r['source']!r} has u_mu = {r['u_mu']!r}, "
+                             "not a standard uncertainty of mu (0 to 1)")
         if r.get("part", "shared") not in PARTS:
             raise InputError(f"{path}: budget row {r['source']!r} has part {r['part']!r}; "
                              f"it must be one of {', '.join(PARTS)}")
@@ -232,10 +235,11 @@ def run_from_fit(data: dict, path) -> Run:
         value = r.get("value")
         u_prev, _ = shared.get(r["source"], (0.0, None))
         shared[r["source"]] = (u_prev + sign * r["u_mu"], value if _number(value) else None)
-    if not u2 > 0.0:
+    if not u2 > 1e-300:  # 0 (or below what its inverse square can hold)
         raise InputError(f"{path}: its budget has no statistical row (u_mu of the independent "
                          "part 0): it cannot be weighted")
-    reasons = data.get("quality_reasons") or []
+    reasons = data.get("quality_reasons")
+    reasons = reasons if isinstance(reasons, list) else []
     codes = tuple(str(r.get("code", "?")) if isinstance(r, dict) else str(r) for r in reasons)
     setup = data.get("setup")
     return Run(path=str(path), mu=float(data["mu"]), u_independent=math.sqrt(u2),

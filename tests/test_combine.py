@@ -236,3 +236,14 @@ def test_second_order_row_full_in_the_mean_independent_in_the_birge_ratio(tmp_pa
     c, _ = combine_files([a, b])
     assert c.chi2 == pytest.approx(1e-8 / (2e-10 + 2 * (3e-5) ** 2), rel=1e-9)
     assert c.u_shared == pytest.approx(math.sqrt(5e-5**2 + 3e-5**2 + 3e-5**2), rel=1e-12)
+
+
+@pytest.mark.parametrize("u_mu", [1e308, -1e-5])
+def test_a_row_that_is_no_uncertainty_is_refused(tmp_path, capsys, u_mu):
+    a = fit_json(tmp_path / "a.json", 0.01, 1e-5)
+    data = json.loads((tmp_path / "a.json").read_text())
+    data["uncertainty_budget"][1]["u_mu"] = u_mu
+    (tmp_path / "b.json").write_text(json.dumps(data))
+    assert main(["combine", a, str(tmp_path / "b.json")]) == 2
+    err = capsys.readouterr().err
+    assert "b.json" in err and "cylinder.radius_mm" in err and "Traceback" not in err
