@@ -290,7 +290,8 @@ def _run(args) -> int:
     result = fit_mu(t, theta, setup, method=args.method, offset=args.offset, **kw)
     keys, budget = run_budget(Measurement(setup=setup, t=t, theta=theta), result, args)
     result = with_budget_reason(result, budget)
-    save_fit(result, out, **keys)
+    # the setup it was fitted with, so that runs can be compared (rollfric combine)
+    save_fit(result, out, **keys, setup=setup.to_toml_dict())
     if args.plot:
         from rollfric.plots import plot_budget, plot_fit
 

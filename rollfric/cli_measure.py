@@ -311,7 +311,9 @@ def _run(args) -> int:
                  "offset_fitted": bool(info.offset_fitted),
                  "offset_reason": info.offset_reason,
                  # the contour as an ellipse and the mu bias it implies (rollfric.ellipse)
-                 "contour_ellipse": info.contour_ellipse, **keys}
+                 "contour_ellipse": info.contour_ellipse, **keys,
+                 # the setup it was measured with (rollfric combine compares runs by it)
+                 "setup": info.setup.to_toml_dict()}
         save_fit(result, tmp / "fit.json", **extra)
         if args.plot:
             from rollfric.io import open_recording

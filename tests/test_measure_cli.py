@@ -74,6 +74,9 @@ def test_measure_cli_tiff(tmp_path, capsys):
     fit = json.loads((out / "fit.json").read_text())
     assert fit["n_frames"] == 160 and fit["n_found"] == 160
     assert fit["mu"] == pytest.approx(0.02, rel=0.05)
+    # the setup it was measured with, in the lab file's form (rollfric combine compares it)
+    from rollfric.setup import load_setup
+    assert fit["setup"] == load_setup(tmp_path / "setup.toml").to_toml_dict()
     assert (out / "fit.png").stat().st_size > 0 and (out / "overlays.png").stat().st_size > 0
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]  # no temp left
 
