@@ -19,7 +19,7 @@ import importlib.metadata
 import signal
 import sys
 
-from rollfric import cli_calibrate, cli_fit, cli_info, cli_measure, cli_track
+from rollfric import cli_calibrate, cli_fit, cli_info, cli_measure, cli_sample, cli_track
 from rollfric.errors import InputError
 
 COMMAND_GROUP = "rollfric.commands"
@@ -60,6 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
     cli_track.register(sub)
     cli_calibrate.register(sub)
     cli_info.register(sub)
+    cli_sample.register(sub)
     reasons = []
     for ep in command_entry_points():
         missing = missing_requirements(ep)
