@@ -7,6 +7,7 @@ from importlib.metadata import entry_points
 import numpy as np
 import pytest
 
+import rollfric.io
 import sim
 import synth
 from synth.camera import CameraModel
@@ -324,6 +325,17 @@ def test_export_like_a_lab_camera(rec_path, tmp_path):
     stack = tifffile.imread(d / "frames.tif")
     assert stack.shape == rec.frames.shape
     np.testing.assert_array_equal(stack[4], rec.frames[4])
+    # lossless deflate on horizontal differences, every frame the recording's, and rollfric
+    # reads it (decoded through imagecodecs) as the same frames
+    with tifffile.TiffFile(d / "frames.tif") as tif:
+        page = tif.pages[0]
+        assert page.compression == tifffile.COMPRESSION.ADOBE_DEFLATE
+        assert page.predictor == tifffile.PREDICTOR.HORIZONTAL
+    assert (d / "frames.tif").stat().st_size < 0.8 * stack.nbytes
+    src = rollfric.io.open_recording(d / "frames.tif")
+    for i in range(len(rec)):
+        np.testing.assert_array_equal(stack[i], rec.frames[i])
+        np.testing.assert_array_equal(src[i], rec.frames[i])
     np.testing.assert_array_equal(cv2.imread(str(d / "background.png"), cv2.IMREAD_UNCHANGED),
                                   rec.background)
     setup = load_setup(d / "setup.toml")
