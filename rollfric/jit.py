@@ -179,12 +179,17 @@ class CompileClock(event.Listener):
         bool
             Whether the clock was restarted.
         """
+        from tqdm.std import EMA
+
         with self._lock:
             if self.compiled == self._seen:
                 return False
             self._seen = self.compiled
-        n = bar.n
-        bar.reset()
-        bar.initial = bar.n = bar.last_print_n = n
-        bar.refresh()
+        if not bar.disable:
+            # tqdm.reset's clock without its count set to 0 (nor a line drawn at 0): the rate
+            # counts the frames from now (n - initial) over the time from now
+            bar.start_t = bar.last_print_t = bar._time()
+            bar.initial = bar.last_print_n = bar.n
+            bar._ema_dn, bar._ema_dt = EMA(bar.smoothing), EMA(bar.smoothing)
+            bar._ema_miniters = EMA(bar.smoothing)
         return True

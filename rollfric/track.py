@@ -851,8 +851,8 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                     lost[i] = bool(loc.found)
                 prev = frame
                 if keep:
+                    clock.restart(bar)  # before the count: no line with the compiler's rate
                     bar.update(1)
-                    clock.restart(bar)
         except BaseException:
             stop.set()
             raise

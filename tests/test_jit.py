@@ -119,4 +119,12 @@ def test_the_progress_bars_clock_restarts_after_a_compilation():
     # the count kept, the clock from now: no longer 100 s for 3 frames
     assert bar.n == 3 and bar.format_dict["elapsed"] < 50.0
     assert not clock.restart(bar)  # once per compilation
+    # the rate counts the frames after the restart only (none yet: no rate, no ETA of days)
+    assert bar.format_dict["initial"] == 3 and bar.format_dict["rate"] is None
+    bar.update(2)
+    assert bar.n == 5
     bar.close()
+    off = tqdm(total=10, disable=True)
+    with clock:
+        assert numba.njit(lambda a: a + 1.0)(1.0) == 2.0
+    assert clock.restart(off)  # a bar without display: nothing to restart, no error
