@@ -71,3 +71,32 @@ def test_sample_refuses_a_non_empty_folder_without_overwrite(tmp_path, capsys):
     assert (d / "notes.txt").read_text() == "mine"
     assert (d / "setup.toml").read_bytes() == sample_path("setup.toml").read_bytes()
     assert (d / "frames.tif").read_bytes() == sample_path("frames.tif").read_bytes()
+
+
+@pytest.mark.slow
+def test_a_first_measure_announces_the_compilation_and_a_second_does_not(tmp_path):
+    # a fresh numba cache folder is a fresh install's: the locator's kernels are compiled
+    # (a minute or two) on the first run and loaded on the second
+    import os
+    import subprocess
+    import sys
+
+    d = tmp_path / "s"
+    assert main(["sample", str(d)]) == 0
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+           "PYTHONPATH": os.pathsep.join(sys.path)}
+    cmd = [sys.executable, "-m", "rollfric.cli", "measure", str(d / "frames.tif"), "--setup",
+           str(d / "setup.toml"), "--out", str(d / "r"), "--overwrite"]
+
+    def run():
+        return subprocess.run(cmd, env=env, capture_output=True, text=True)
+
+    first = run()
+    assert first.returncode == 0, first.stderr
+    lines = first.stderr.splitlines()
+    said = [i for i, line in enumerate(lines)
+            if line.startswith("rollfric measure: compiling the locator's kernels")]
+    assert len(said) == 1 and "minutes" in lines[said[0]]
+    assert "ball found in 400 of 400 frames" in first.stdout
+    second = run()
+    assert second.returncode == 0 and "compiling" not in second.stderr
