@@ -30,7 +30,7 @@ import numpy as np
 
 DEFAULT_OUT = Path(__file__).resolve().parent.parent / "rollfric" / "data" / "sample"
 FRAMES = 400
-THETA0_DEG = 15.0  # released at rest: a 408 x 110 px band, 400 frames in ~9 MB
+THETA0_DEG = 15.0  # released at rest: a 392 x 112 px band, 400 frames in ~9 MB
 MARGIN_PX = 8  # around the ball's outline over the whole path
 CENTER_PX_U = 0.2  # px: a lab's centre found from the full-frame contour
 
