@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import shlex
 
 HELP = "write the shipped sample recording (400 frames) and its setup.toml to a folder"
@@ -23,8 +22,7 @@ def register(sub) -> None:
             "sensor noise; a lossless compressed TIFF stack) and DIR/setup.toml (what the lab "
             "knows: trough, ball, camera), then print the rollfric measure command to run on "
             "them. Exit status 0; 2 when DIR exists and is not empty (without --overwrite) or "
-            "cannot be written."),
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+            "cannot be written."))
     p.add_argument("dir", metavar="DIR", help="folder to write (created when absent)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace frames.tif and setup.toml in an existing DIR (its other files "
