@@ -126,7 +126,12 @@ def announce(modules, what: str, seconds: str, log: logging.Logger | None = None
     """
     names = (modules,) if isinstance(modules, str) else tuple(modules)
     todo = cold(kernels(*names))
-    if todo:
+    if todo and any(getattr(getattr(k, "_cache", None), "_cache_file", None) is None
+                    for k in todo):  # numba's NullCache: no writable cache directory
+        (log or logger).info(
+            f"compiling {what} ({len(todo)} numba kernels): {seconds}, in every run, as no "
+            "cache directory is writable (set NUMBA_CACHE_DIR to a writable folder)")
+    elif todo:
         (log or logger).info(
             f"compiling {what} ({len(todo)} numba kernels) on this first run: {seconds}; "
             "they are cached and load in about a second from the next run on")

@@ -49,6 +49,14 @@ def test_without_a_writable_cache_directory_the_kernel_is_compiled_in_the_proces
     msgs = [r.getMessage() for r in caplog.records if r.name == "rollfric.jit"]
     assert len(msgs) == 1 and "NUMBA_CACHE_DIR" in msgs[0]
     assert all(r.levelno == logging.DEBUG for r in caplog.records if r.name == "rollfric.jit")
+    # announced as compiled in every run, not as cached from the next one
+    h = jit.njit(_weighted_sum)
+    monkeypatch.setattr(jit, "_kernels", [h])
+    with caplog.at_level(logging.INFO, logger="rollfric.jit"):
+        caplog.clear()
+        assert jit.announce(__name__, "the test's kernel", "about a second")
+    msg = caplog.records[-1].getMessage()
+    assert "in every run" in msg and "NUMBA_CACHE_DIR" in msg and "first run" not in msg
 
 
 _COLD_SCRIPT = """
