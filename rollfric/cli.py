@@ -19,7 +19,15 @@ import importlib.metadata
 import signal
 import sys
 
-from rollfric import cli_calibrate, cli_combine, cli_fit, cli_info, cli_measure, cli_track
+from rollfric import (
+    cli_calibrate,
+    cli_combine,
+    cli_fit,
+    cli_info,
+    cli_measure,
+    cli_sample,
+    cli_track,
+)
 from rollfric.errors import InputError
 
 COMMAND_GROUP = "rollfric.commands"
@@ -61,6 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
     cli_calibrate.register(sub)
     cli_info.register(sub)
     cli_combine.register(sub)
+    cli_sample.register(sub)
     reasons = []
     for ep in command_entry_points():
         missing = missing_requirements(ep)

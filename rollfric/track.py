@@ -24,7 +24,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from rollfric import ballfree, bitdepth, cpus, io, locate, plausibility, quality, timing
+from rollfric import ballfree, bitdepth, cpus, io, jit, locate, plausibility, quality, timing
 from rollfric.background import repaired_median, sample
 from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
@@ -52,6 +52,8 @@ TIMES_UNIT_FACTOR = 1.5
 # checks' but jump and duplicate, which a timing error also raises): an irregular step at or
 # next to such a frame is the locator's (rollfric.timing.split_irregular)
 LOCATOR_FLAGS = tuple(f for f in plausibility.FLAGS if f not in ("jump", "duplicate"))
+# the locator's kernels compiled by numba on a fresh install (a 2-core machine; once, then cached)
+LOCATOR_COMPILE = "about 1-3 minutes"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -761,6 +763,10 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     rows = np.full((n, 7), np.nan)  # x, y, r, sigma, inlier_frac, found, ring gain
     lost = np.zeros(n, dtype=bool)  # a ball located, but off the trough's circle
     identical = np.zeros(n, dtype=bool)  # the ball's tile equals the previous frame's
+    # a fresh install compiles the locator's kernels on the first frames: said before, and
+    # the bar's clock restarted after it (else it shows an ETA of days for those minutes)
+    jit.announce("rollfric.locate.kernels", "the locator's kernels", LOCATOR_COMPILE, logger)
+    clock = jit.CompileClock()
     bar = tqdm(total=n, desc="locating ball", unit="frame", disable=not progress,
                file=sys.stderr, mininterval=0.5)
     gate = 0.25 * r_px + 2.0  # px: a tracked ball moves less than this from its prediction
@@ -890,6 +896,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
                     lost[i] = bool(loc.found)
                 prev = frame
                 if keep:
+                    clock.restart(bar)  # before the count: no line with the compiler's rate
                     bar.update(1)
         except BaseException:
             stop.set()
@@ -909,8 +916,9 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     workers = cpus.free_cpus(samples=5) if getattr(source, "concurrent_reads", False) else 1
     logger.debug(f"tracking {n} frames in {len(spans)} segment(s) on "
                  f"{min(workers, len(spans))} thread(s)")
-    done = cpus.map_ordered(lambda span: track_span(*span), spans, workers=workers,
-                            name="rollfric-track")
+    with clock:
+        done = cpus.map_ordered(lambda span: track_span(*span), spans, workers=workers,
+                                name="rollfric-track")
     bar.close()
     if len(done) == 1:
         cal, _, revisit = done[0]
