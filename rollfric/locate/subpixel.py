@@ -48,6 +48,9 @@ class SubpixelOptions:
     # its fine pass is redone with the edge window widened to graded_window x the spread and
     # without the pixel fit, whose sharp-step model locks such an edge to the pixel grid
     graded_window: float = 4.0
+    graded_min_cnr: float = 25.0  # the edge's contrast to the noise at least this for the
+    # spread to tell a graded edge: noise widens a step's measured spread (a 100 DN step under
+    # 15 DN of noise reads as graded), and a wide window without the pixel fit is then worse
     level_smooth: int = 3  # levels averaged over 2 k + 1 neighbouring rays
     contrast_bands: tuple[float, ...] = (0.15, 0.3, 0.5)  # |contrast - median| / median kept
     min_contrast_rel: float = 0.3  # rays with a step below this x the strong rays' carry no edge
@@ -218,6 +221,24 @@ _SELECT_FAIL = {
     2: "ball edge contrast below the noise",
     3: "too few clean edge points (shadows or occlusion)",
 }
+
+
+def _edge_cnr(fr, bg, cx: float, cy: float, r: float) -> float:
+    """The ball's contrast against the backdrop over the noise of the frame's difference from
+    the background: the medians of the difference just inside the rim (0.55-0.85 r) and just
+    outside it (r + 3 .. r + 8 px), over the outside ring's robust sd (MAD); inf without an
+    outside ring in the crop or without noise."""
+    rel = fr.astype(np.float32) - bg.astype(np.float32)
+    yy, xx = np.ogrid[0:rel.shape[0], 0:rel.shape[1]]
+    d = np.hypot(xx - cx, yy - cy)
+    inner = rel[(d > 0.55 * r) & (d < 0.85 * r)]
+    outer = rel[(d > r + 3.0) & (d < r + 8.0)]
+    if inner.size == 0 or outer.size < 16:
+        return math.inf
+    mo = float(np.median(outer))
+    noise = 1.4826 * float(np.median(np.abs(outer - mo)))
+    contrast = abs(float(np.median(inner)) - mo)
+    return contrast / noise if noise > 0 else math.inf
 
 
 def locate_subpixel(frame: np.ndarray, background: np.ndarray, r_px: float, *,
@@ -423,7 +444,8 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
         if status:
             return Location.missing(_SELECT_FAIL.get(status, "robust circle fit failed"))
         wide = min(opts.graded_window * spread, 0.1 * r_px)
-        if fine and not graded and not rim and spread > opts.graded_spread and wide > edge_half:
+        if fine and not graded and not rim and spread > opts.graded_spread and \
+                wide > edge_half and _edge_cnr(fr, bg, lcx, lcy, r) >= opts.graded_min_cnr:
             # a graded edge (not a mirror rim's, corrected above; a ball big enough for a
             # wider window): the fine pass again, its edge window wide enough to hold the
             # whole transition (the integral is then exact for any profile), no pixel fit
