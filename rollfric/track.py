@@ -134,6 +134,13 @@ class TrackInfo:
         that does not depend on the frame times rejected (:data:`LOCATOR_FLAGS`; a ball
         leaving a deep shadow): the located centres', not the timing's (a quality reason
         "located_frames").
+    path_ellipse : dict or None
+        The ball's path fitted as an ellipse about the centre used and what it means
+        (:mod:`rollfric.pathshape`: the verdict, mu read as a tilted camera and as an
+        out-of-round bore, the lengths the period and the path give); None without a fit.
+    angle_map : tuple or None
+        The 2 x 2 map about the centre applied to the centres before the angles (a tilted
+        camera's compression undone, :mod:`rollfric.pathshape`); None: none applied.
     seconds : dict of str to float
         Wall time of each stage of :func:`measure` (s): "open" (the recording, the setup, the
         frame times), "background", "trough centre", "tracking", "fit", "turning points"
@@ -170,6 +177,8 @@ class TrackInfo:
     timing_irregular: tuple = ()
     located_irregular: tuple = ()
     seconds: dict = dataclasses.field(default_factory=dict)
+    path_ellipse: dict | None = None
+    angle_map: tuple | None = None
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -1358,6 +1367,11 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                              fit_method, fit_kwargs)
             coded += ell_coded
             lap("ellipse check")
+        info, result, path_coded = _path_check(df, info, center, setup, result, use,
+                                               fit_method, fit_kwargs, angle)
+        coded += path_coded
+        th = df["theta_rad"].to_numpy()
+        lap("path check")
         coded += [("ball_radius", msg) for msg in info.warnings_radius]
         if info.timing_irregular:
             coded.append(("timing", irregular_message(info.timing_irregular)))
@@ -1406,6 +1420,51 @@ def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fi
             coded.append(("contour_ellipse", msg))
     return dataclasses.replace(info, contour_ellipse=out,
                                warnings=info.warnings + warns), coded
+
+
+def _path_check(df, info, center, setup, result, offset, fit_method, fit_kwargs, angle):
+    """The ball's path as an ellipse (:mod:`rollfric.pathshape`): into ``info.path_ellipse``;
+    a tilted camera the period singles out corrected (the angles in ``df`` and the fit
+    replaced, ``info.angle_map`` set), a reason ``camera_orientation`` when the readings
+    cannot be told apart and differ by more than BIAS_WARN of mu."""
+    from rollfric import ellipse as ell
+    from rollfric import fit as fitmod
+    from rollfric import pathshape
+
+    found = df["found"].to_numpy() == 1
+    cx_col, cy_col = ("xu_px", "yu_px") if "xu_px" in df.columns else ("x_px", "y_px")
+    x = np.where(found, df[cx_col].to_numpy(float), np.nan)
+    y = np.where(found, df[cy_col].to_numpy(float), np.nan)
+    t_s, th = df["t_s"].to_numpy(float), df["theta_rad"].to_numpy(float)
+    L_px = setup.track_radius / setup.pixel_size
+
+    def refit(t, theta, s):
+        return fitmod.fit_mu(t, theta, s, method=fit_method, offset=offset,
+                             **(fit_kwargs or {}))
+
+    def angle_of(xx, yy):
+        return angles(xx, yy, center, method=angle, track_radius_px=L_px)
+
+    try:
+        reading = pathshape.read_path(x, y, center, t_s, th, setup, result, offset=offset,
+                                      refit=refit, ball_radius_px=info.ball_radius_px,
+                                      angle_of=angle_of)
+    except (InputError, ValueError, np.linalg.LinAlgError) as exc:
+        logger.info(f"the ball's path was not fitted as an ellipse: {exc}")
+        return info, result, []
+    msg = reading.message()
+    coded, warns, amap = [], (), None
+    if reading.verdict == "camera":
+        df["theta_rad"] = np.where(found & np.isfinite(th), reading.theta_camera, th)
+        result = reading.result_camera
+        amap = tuple(map(tuple, reading.path.round_map(L_px)))
+    elif reading.verdict == "undecided" and reading.spread > ell.BIAS_WARN:
+        coded.append(("camera_orientation", msg))
+    if msg is not None and (reading.verdict != "undecided" or reading.spread > ell.BIAS_WARN):
+        logger.warning(msg)
+        warns = (msg,)
+    return dataclasses.replace(info, path_ellipse=reading.to_dict(), angle_map=amap,
+                               warnings=info.warnings + warns), result, coded
 
 
 def turning_gaps(t, theta, result, setup: Setup, offset: bool, fit_kwargs=None):
