@@ -141,6 +141,10 @@ class TrackInfo:
     angle_map : tuple or None
         The 2 x 2 map about the centre applied to the centres before the angles (a tilted
         camera's compression undone, :mod:`rollfric.pathshape`); None: none applied.
+    camera_motion : dict or None
+        The camera's motion found from the static scene (:mod:`rollfric.camera_motion`:
+        "still", a "bump" at a frame or a "drift", the shifts sampled); the centres in the
+        track are moved back into the background's frame by it. None: not looked for.
     seconds : dict of str to float
         Wall time of each stage of :func:`measure` (s): "open" (the recording, the setup, the
         frame times), "background", "trough centre", "tracking", "fit", "turning points"
@@ -179,6 +183,7 @@ class TrackInfo:
     seconds: dict = dataclasses.field(default_factory=dict)
     path_ellipse: dict | None = None
     angle_map: tuple | None = None
+    camera_motion: dict | None = None
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -1319,6 +1324,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                times=None if times_desc == TIMES_FPS else t, drops=drops,
                                read_ahead=read_ahead, segments=segments)
     check_track_fits(df, setup)
+    df, info = _camera_motion(source, bg, df, info, setup, angle)
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,
                                center_u_px=center_u,
@@ -1420,6 +1426,51 @@ def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fi
             coded.append(("contour_ellipse", msg))
     return dataclasses.replace(info, contour_ellipse=out,
                                warnings=info.warnings + warns), coded
+
+
+def _camera_motion(source, bg, df, info, setup, angle):
+    """The camera's motion from the static scene (:func:`rollfric.camera_motion.find_motion`):
+    the centres moved back into the background's frame and the angles taken again; the
+    steps the motion made are no timing's (left out of ``timing_irregular`` and
+    ``located_irregular``)."""
+    from rollfric import camera_motion as cm
+
+    found = df["found"].to_numpy() == 1
+    xy = np.column_stack([df["x_px"].to_numpy(float), df["y_px"].to_numpy(float)])
+    try:
+        motion = cm.find_motion(source, bg, xy, info.ball_radius_px)
+    except (io.RecordingError, ValueError) as exc:
+        logger.info(f"the camera's motion was not looked for: {exc}")
+        return df, info
+    if motion.kind == "still":
+        return df, dataclasses.replace(info, camera_motion=motion.to_dict())
+    per = motion.per_frame(len(df))
+    cols = [("x_px", "y_px")] + ([("xu_px", "yu_px")] if "xu_px" in df.columns else [])
+    for cx, cy in cols:
+        df[cx] = df[cx].to_numpy(float) - per[:, 0]
+        df[cy] = df[cy].to_numpy(float) - per[:, 1]
+    ax, ay = cols[-1]
+    th = np.full(len(df), np.nan)
+    th[found] = angles(df[ax].to_numpy(float)[found], df[ay].to_numpy(float)[found],
+                       info.center_px, method=angle,
+                       track_radius_px=setup.track_radius / setup.pixel_size)
+    df["theta_rad"] = th
+    warnings = list(info.warnings)
+    kept = {}
+    for name, text_of in (("timing_irregular", irregular_message),
+                          ("located_irregular", located_irregular_message)):
+        old = getattr(info, name)
+        new = tuple(e for e in old if motion.kind != "bump" or abs(e[0] - motion.frame) > 1)
+        if old and new != old and text_of(old) in warnings:
+            warnings.remove(text_of(old))
+            if new:
+                warnings.append(text_of(new))
+        kept[name] = new
+    msg = (f"{motion.message()}: the centres were moved back into the background's frame "
+           "and the angles taken again")
+    logger.warning(msg)
+    return df, dataclasses.replace(info, camera_motion=motion.to_dict(),
+                                   warnings=tuple(warnings) + (msg,), **kept)
 
 
 def _path_check(df, info, center, setup, result, offset, fit_method, fit_kwargs, angle):
