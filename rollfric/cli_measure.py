@@ -198,6 +198,8 @@ def _run(args) -> int:
                  "contour_ellipse": info.contour_ellipse,
                  # the ball's path as an ellipse and what it means (rollfric.pathshape)
                  "path_ellipse": info.path_ellipse,
+                 # the camera's motion from the static scene (rollfric.camera_motion)
+                 "camera_motion": info.camera_motion,
                  "background": info.background,
                  "times": info.times,
                  "ball_radius_px": info.ball_radius_px,
