@@ -1295,6 +1295,12 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             f"contour in the background ({contour.n_points} points over "
             f"{contour.arc_deg:.0f} deg, radius {contour.radius:.1f} px, u = "
             f"({contour.center_u[0]:.2g}, {contour.center_u[1]:.2g}) px)")
+        if ellipse is not None and ellipse.significant:
+            # an elliptic contour (a tilted camera, an out-of-round bore) has its axis at the
+            # ellipse's centre; a circle fitted to its arc sits off it (2 px low at 8 deg yaw)
+            center = ellipse.center
+            center_desc += (f", the centre of its ellipse ({center[0]:.2f}, {center[1]:.2f}) "
+                            "px: the contour is an ellipse")
         if setup.working_distance is not None:
             # the contour's edge is not in the ball's plane (rollfric.perspective)
             D = setup.working_distance
@@ -1376,6 +1382,12 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         info, result, path_coded = _path_check(df, info, center, setup, result, use,
                                                fit_method, fit_kwargs, angle)
         coded += path_coded
+        if info.path_ellipse is not None and info.path_ellipse["verdict"] in ("camera",
+                                                                              "trough"):
+            # the path's reading, decided by the period, replaces the contour's two readings
+            coded = [c for c in coded if c[0] != "contour_ellipse"]
+            info = dataclasses.replace(info, warnings=tuple(
+                w for w in info.warnings if not w.startswith(ELLIPSE_WARNING_START)))
         th = df["theta_rad"].to_numpy()
         lap("path check")
         coded += [("ball_radius", msg) for msg in info.warnings_radius]
@@ -1392,6 +1404,9 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             result, quality_reasons=tuple(result.quality_reasons) + tuple(track_reasons))
         lap("checks")
     return df, dataclasses.replace(info, seconds=seconds), result
+
+
+ELLIPSE_WARNING_START = "the trough's contour is an ellipse"
 
 
 def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fit_kwargs):

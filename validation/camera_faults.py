@@ -57,3 +57,15 @@ def moved_frames(frames, shift) -> list:
             g = np.clip(np.rint(g), 0, np.iinfo(f.dtype).max)
         out.append(g.astype(f.dtype))
     return out
+
+
+def turned_image(image, center, *, yaw_deg: float = 0.0, pitch_deg: float = 0.0):
+    """A float image of the scene (the trough's contour about ``center``) as the turned
+    camera of :func:`turned_centres` sees it: compressed about ``center`` by cos yaw across
+    x and cos pitch across y (area-resampled, the edges replicated; the contour's plane taken
+    as the ball's)."""
+    cx, cy = math.cos(math.radians(yaw_deg)), math.cos(math.radians(pitch_deg))
+    m = np.float32([[cx, 0, center[0] * (1 - cx)], [0, cy, center[1] * (1 - cy)]])
+    img = np.asarray(image, dtype=np.float32)
+    return cv2.warpAffine(img, m, (img.shape[1], img.shape[0]), flags=cv2.INTER_AREA,
+                          borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
