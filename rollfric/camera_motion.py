@@ -13,19 +13,27 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 
 import cv2
 import numpy as np
 
 logger = logging.getLogger(__name__)
 
-SAMPLES = 48  # frames compared with the background over the recording
+SAMPLES = 24  # frames compared with the background over the recording
 # a shift below this is not acted on: 0.1 px on the 200-600 px path radius of a lab's camera
 # moves the angles by 2e-4 to 5e-4 rad, below the locators' own systematic errors
 MOTION_MIN_PX = 0.1
 # a bump: the samples before and after it agree within this (px); otherwise a drift
 STEP_SCATTER_PX = 0.05
 BALL_MARGIN = 2.0  # the ball's disc and its shadow: this many ball radii masked
+ECC_STEPS = 30  # iterations of the ECC refinement at most
+# the phase correlation's sub-pixel bias is a few tenths of a pixel; an ECC result farther
+# from it than this has wandered off in a scene with too little structure
+PHASE_AGREE_PX = 0.5
+# the phase correlation's peak: 0.9-1.0 on drawn scenes with the trough in view, 0.2-0.3 on
+# a plain backdrop with noise, where no shift can be measured
+PHASE_MIN_RESPONSE = 0.5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -35,7 +43,8 @@ class CameraMotion:
     Attributes
     ----------
     kind : str
-        "still", "bump" (a step at ``frame``) or "drift".
+        "still", "bump" (a step at ``frame``), "drift", or "unknown" (the static scene
+        too plain to measure a shift in most sampled frames: nothing corrected).
     frames : numpy.ndarray
         The frames compared with the background.
     shifts : numpy.ndarray
@@ -58,7 +67,7 @@ class CameraMotion:
 
     def per_frame(self, n: int) -> np.ndarray:
         """(n, 2) px: the shift of every frame (a step for a bump, interpolated otherwise)."""
-        if self.kind == "still":
+        if self.kind in ("still", "unknown"):
             return np.zeros((n, 2))
         if self.kind == "bump":
             s = np.tile(np.asarray(self.before_px, dtype=float), (n, 1))
@@ -91,9 +100,12 @@ def _window(shape):
 
 def frame_shift(frame, background, ball=None, r_px: float = 0.0, window=None):
     """The scene's shift (dx, dy) px in ``frame`` against ``background``, the ball at
-    ``ball`` = (x, y) px masked: phase correlation (``cv2.phaseCorrelate``, whose sub-pixel
-    peak is biased by a few tenths of a pixel), refined by the enhanced correlation
-    coefficient's translation (``cv2.findTransformECC``) over the pixels outside the ball."""
+    ``ball`` = (x, y) px masked (NaN when the phase correlation's peak is below
+    PHASE_MIN_RESPONSE or the two estimates below disagree by more than PHASE_AGREE_PX: a
+    scene without the structure to measure it): phase correlation
+    (``cv2.phaseCorrelate``, whose sub-pixel peak is biased by a few tenths of a pixel),
+    refined by the enhanced correlation coefficient's translation (``cv2.findTransformECC``)
+    over the pixels outside the ball."""
     f = np.asarray(frame, dtype=np.float64)
     b = np.asarray(background, dtype=np.float64)
     if f.ndim == 3:
@@ -109,15 +121,24 @@ def frame_shift(frame, background, ball=None, r_px: float = 0.0, window=None):
         f = f.copy()
         f[y0:y1, x0:x1] = b[y0:y1, x0:x1]
         mask[y0:y1, x0:x1] = 0
-    (dx, dy), _ = cv2.phaseCorrelate(b, f, window if window is not None else _window(f.shape))
+    # copies: cv2.phaseCorrelate applies its window to its inputs in place
+    (dx, dy), response = cv2.phaseCorrelate(b.copy(), f.copy(),
+                                            window if window is not None else _window(f.shape))
+    if not response >= PHASE_MIN_RESPONSE:
+        return math.nan, math.nan
     warp = np.array([[1, 0, dx], [0, 1, dy]], dtype=np.float32)
-    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
+    # the rho increment ends it: from the phase estimate it is small at once, so a tiny one
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, ECC_STEPS, 1e-7)
     try:
         _, warp = cv2.findTransformECC(b.astype(np.float32), f.astype(np.float32), warp,
                                        cv2.MOTION_TRANSLATION, crit, mask, 1)
-    except cv2.error:  # a featureless scene: the phase correlation's estimate stands
-        pass
-    return float(warp[0, 2]), float(warp[1, 2])
+    except cv2.error as exc:  # a featureless scene
+        logger.debug(f"ECC failed: {exc}")
+        return math.nan, math.nan
+    ex, ey = float(warp[0, 2]), float(warp[1, 2])
+    if abs(ex - dx) > PHASE_AGREE_PX or abs(ey - dy) > PHASE_AGREE_PX:
+        return math.nan, math.nan  # the two disagree: a scene without the structure to tell
+    return ex, ey
 
 
 def find_motion(source, background, centres, r_px: float, *,
@@ -152,6 +173,10 @@ def find_motion(source, background, centres, r_px: float, *,
 
     idx = np.unique(np.linspace(0, n - 1, min(samples, n)).round().astype(int))
     s = np.array([shift(i) for i in idx])
+    ok = np.isfinite(s).all(axis=1)
+    if ok.sum() < max(3, 0.5 * len(idx)):
+        return CameraMotion("unknown", idx, s)
+    idx, s = idx[ok], s[ok]
     rel = s - s[0]
     if np.max(np.hypot(rel[:, 0], rel[:, 1])) < MOTION_MIN_PX:
         return CameraMotion("still", idx, s)
@@ -170,6 +195,8 @@ def find_motion(source, background, centres, r_px: float, *,
         while hi - lo > 1:
             mid = (lo + hi) // 2
             d = shift(mid)
+            if not np.isfinite(d).all():
+                break
             if np.hypot(*(d - before)) < np.hypot(*(d - after)):
                 lo = mid
             else:

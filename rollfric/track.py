@@ -1457,7 +1457,10 @@ def _camera_motion(source, bg, df, info, setup, angle):
     except (io.RecordingError, ValueError) as exc:
         logger.info(f"the camera's motion was not looked for: {exc}")
         return df, info
-    if motion.kind == "still":
+    if motion.kind in ("still", "unknown"):
+        if motion.kind == "unknown":
+            logger.info("the camera's motion could not be measured: the scene around the "
+                        "ball is too plain")
         return df, dataclasses.replace(info, camera_motion=motion.to_dict())
     per = motion.per_frame(len(df))
     cols = [("x_px", "y_px")] + ([("xu_px", "yu_px")] if "xu_px" in df.columns else [])
