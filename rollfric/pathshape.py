@@ -139,7 +139,7 @@ class PathEllipse:
                 "tilt_deg_if_camera": self.tilt_deg()}
 
 
-def fit_path(x, y, center) -> PathEllipse:
+def fit_path(x, y, center, center_u=None) -> PathEllipse:
     """The conic through the ball centres (x, y) px about the trough axis ``center``.
 
     Parameters
@@ -148,12 +148,16 @@ def fit_path(x, y, center) -> PathEllipse:
         Located centres (px), finite.
     center : tuple of float
         The trough axis (px).
+    center_u : tuple of float or None
+        The axis's standard uncertainty (px, x and y): a centre off the axis makes a round
+        path look elliptic about it (2 px sideways an oblique ellipse), so its share is added
+        to the covariance.
 
     Returns
     -------
     PathEllipse
         The conic (linear least squares on p' Q p = 1, polished on the distances) with its
-        covariance widened by the residuals' AR(1) long-run factor.
+        covariance widened by the residuals' AR(1) long-run factor, plus the centre's.
     """
     u = np.asarray(x, dtype=float) - center[0]
     v = np.asarray(y, dtype=float) - center[1]
@@ -177,6 +181,14 @@ def fit_path(x, y, center) -> PathEllipse:
         cov = cov * (1.0 + rho) / (1.0 - rho)
     except np.linalg.LinAlgError:
         cov = np.full((3, 3), np.inf)
+    if center_u is not None:
+        for k, uk in enumerate(np.ravel(center_u)[:2]):
+            if uk and np.isfinite(uk):
+                d = np.zeros(2)
+                d[k] = uk
+                moved = fit_path(x, y, (center[0] + d[0], center[1] + d[1]))
+                g = np.asarray(moved.q) - np.asarray(sol.x)  # q's change over one u
+                cov = cov + np.outer(g, g)
     return PathEllipse(q=tuple(float(v) for v in sol.x), cov=cov,
                        center=(float(center[0]), float(center[1])),
                        rms_px=float(np.sqrt(np.mean(sol.fun ** 2))), n_points=int(u.size))
@@ -328,7 +340,7 @@ def _finite(v):
 
 
 def read_path(x, y, center, t, theta, setup, result, *, offset: bool, refit,
-              ball_radius_px: float, angle_of) -> PathReading:
+              ball_radius_px: float, angle_of, center_u=None) -> PathReading:
     """The path's ellipse from the located centres and what it means for mu.
 
     Parameters
@@ -351,6 +363,8 @@ def read_path(x, y, center, t, theta, setup, result, *, offset: bool, refit,
         The ball's radius (px).
     angle_of : callable
         angle_of(x, y) -> theta, the measurement's angle formula about ``center``.
+    center_u : tuple of float or None
+        The centre's standard uncertainty (px): see :func:`fit_path`.
 
     Returns
     -------
@@ -359,7 +373,7 @@ def read_path(x, y, center, t, theta, setup, result, *, offset: bool, refit,
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(theta)
     if result.used is not None and result.used.shape == ok.shape:
         ok &= result.used
-    path = fit_path(x[ok], y[ok], center)
+    path = fit_path(x[ok], y[ok], center, center_u)
     mu = result.mu
     if not path.significant:
         return PathReading(path, "round", mu)

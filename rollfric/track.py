@@ -1210,7 +1210,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     offset : bool or "auto"
         Fit the angle of the trough's bottom.
     fit : bool
-        Fit mu; False returns the track only.
+        Fit mu; False returns the track only, its centres as located (the camera's motion
+        is not looked for).
     progress : bool
         Show a progress bar on stderr.
     median_frames : int
@@ -1330,7 +1331,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                times=None if times_desc == TIMES_FPS else t, drops=drops,
                                read_ahead=read_ahead, segments=segments)
     check_track_fits(df, setup)
-    df, info = _camera_motion(source, bg, df, info, setup, angle)
+    if fit:  # the measurement's; without a fit the track as located
+        df, info = _camera_motion(source, bg, df, info, setup, angle)
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,
                                center_u_px=center_u,
@@ -1514,10 +1516,12 @@ def _path_check(df, info, center, setup, result, offset, fit_method, fit_kwargs,
     def angle_of(xx, yy):
         return angles(xx, yy, center, method=angle, track_radius_px=L_px)
 
+    # the centre's uncertainty: the lab's center_px_u, else the contour's
+    u_c = setup.u("center_px") if setup.center_px is not None else info.center_u_px
     try:
         reading = pathshape.read_path(x, y, center, t_s, th, setup, result, offset=offset,
                                       refit=refit, ball_radius_px=info.ball_radius_px,
-                                      angle_of=angle_of)
+                                      angle_of=angle_of, center_u=u_c)
     except (InputError, ValueError, np.linalg.LinAlgError) as exc:
         logger.info(f"the ball's path was not fitted as an ellipse: {exc}")
         return info, result, []
