@@ -18,6 +18,8 @@ import math
 import cv2
 import numpy as np
 
+from rollfric.source import RecordingError
+
 logger = logging.getLogger(__name__)
 
 SAMPLES = 24  # frames compared with the background over the recording
@@ -141,8 +143,8 @@ def frame_shift(frame, background, ball=None, r_px: float = 0.0, window=None):
     return ex, ey
 
 
-def find_motion(source, background, centres, r_px: float, *,
-                samples: int = SAMPLES) -> CameraMotion:
+def find_motion(source, background, centres, r_px: float, *, samples: int = SAMPLES,
+                usable=None) -> CameraMotion:
     """The camera's motion over ``source`` (:class:`CameraMotion`).
 
     Parameters
@@ -157,6 +159,9 @@ def find_motion(source, background, centres, r_px: float, *,
         The ball's radius, px.
     samples : int, optional
         Frames compared over the recording.
+    usable : numpy.ndarray or None
+        (T,) bool: the frames to sample (not those the tracking's checks rejected: a flash,
+        a repeated or corrupt frame); None: all.
 
     Returns
     -------
@@ -168,12 +173,27 @@ def find_motion(source, background, centres, r_px: float, *,
 
     def shift(i):
         if i not in cache:
-            cache[i] = np.array(frame_shift(source[i], background, centres[i], r_px, win))
+            try:
+                frame = source[i]
+            except (RecordingError, OSError, ValueError):  # a corrupt frame: no sample
+                cache[i] = np.full(2, np.nan)
+            else:
+                cache[i] = np.array(frame_shift(frame, background, centres[i], r_px, win))
         return cache[i]
 
-    idx = np.unique(np.linspace(0, n - 1, min(samples, n)).round().astype(int))
+    pool = np.flatnonzero(usable) if usable is not None else np.arange(n)
+    if pool.size < 3:
+        pool = np.arange(n)
+    idx = np.unique(pool[np.linspace(0, pool.size - 1, min(samples, pool.size)).round()
+                         .astype(int)])
     s = np.array([shift(i) for i in idx])
     ok = np.isfinite(s).all(axis=1)
+    # a sample off both its neighbours (a glitched frame the checks missed) is no motion
+    for k in range(1, len(idx) - 1):
+        if ok[k - 1] and ok[k + 1] and min(np.hypot(*(s[k] - s[k - 1])),
+                                           np.hypot(*(s[k] - s[k + 1]))) > MOTION_MIN_PX \
+                and np.hypot(*(s[k - 1] - s[k + 1])) < MOTION_MIN_PX:
+            ok[k] = False
     if ok.sum() < max(3, 0.5 * len(idx)):
         return CameraMotion("unknown", idx, s)
     idx, s = idx[ok], s[ok]

@@ -1455,7 +1455,10 @@ def _camera_motion(source, bg, df, info, setup, angle):
     found = df["found"].to_numpy() == 1
     xy = np.column_stack([df["x_px"].to_numpy(float), df["y_px"].to_numpy(float)])
     try:
-        motion = cm.find_motion(source, bg, xy, info.ball_radius_px)
+        # frames the checks rejected (flash, repeated, ...) are not sampled
+        flags = df["flag"].astype(str).to_numpy()
+        motion = cm.find_motion(source, bg, xy, info.ball_radius_px,
+                                usable=flags == "")
     except (io.RecordingError, ValueError) as exc:
         logger.info(f"the camera's motion was not looked for: {exc}")
         return df, info
