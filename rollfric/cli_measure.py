@@ -311,7 +311,11 @@ def _run(args) -> int:
                  "offset_fitted": bool(info.offset_fitted),
                  "offset_reason": info.offset_reason,
                  # the contour as an ellipse and the mu bias it implies (rollfric.ellipse)
-                 "contour_ellipse": info.contour_ellipse, **keys,
+                 "contour_ellipse": info.contour_ellipse,
+                 # the ball's path as an ellipse and what it means (rollfric.pathshape)
+                 "path_ellipse": info.path_ellipse,
+                 # the camera's motion from the static scene (rollfric.camera_motion)
+                 "camera_motion": info.camera_motion, **keys,
                  # the setup it was measured with (rollfric combine compares runs by it)
                  "setup": info.setup.to_toml_dict()}
         save_fit(result, tmp / "fit.json", **extra)
@@ -336,4 +340,11 @@ def _run(args) -> int:
         print(f"contour ellipse: axis ratio {ce['axis_ratio']:.5f}, major axis at "
               f"{ce['angle_deg']:.1f} deg; implied mu bias {100 * ce['mu_bias_if_camera']:+.3f} % "
               f"(camera yaw/pitch) or {100 * ce['mu_bias_if_trough']:+.3f} % (trough out of round)")
+    pe = info.path_ellipse
+    if pe is not None and pe.get("verdict") not in (None, "round"):
+        cam, tr = (f"{v:.6g}" if v is not None else "?" for v in (pe["mu_if_camera"],
+                                                                    pe["mu_if_trough"]))
+        print(f"path ellipse: axis ratio {pe['axis_ratio']:.5f}, major axis at "
+              f"{pe['angle_deg']:.1f} deg, {pe['verdict']}: mu {cam} if the camera is "
+              f"tilted, {tr} if the trough is out of round")
     return report_quality("measure", result)

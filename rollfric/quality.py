@@ -22,7 +22,9 @@ Reason codes:
   (many frames rejected), ``background_repaired``, ``ball_radius``, ``timing`` (steps that fit
   no whole number of frame periods), ``located_frames`` (such steps among frames the locator
   lost or got wrong: the located centres', not the timing's), ``swing_coverage`` (the located
-  frames cover little of the outer half of the swing on one side of the bottom).
+  frames cover little of the outer half of the swing on one side of the bottom),
+  ``camera_orientation`` (the ball's path is an ellipse that a tilted camera and an
+  out-of-round bore explain alike, with mu readings apart: :mod:`rollfric.pathshape`).
 - ``uncertainty`` (``fit``, ``measure``: :func:`rollfric.uncertainty.budget_reason`): the
   budget's expanded uncertainty reaches mu.
 """

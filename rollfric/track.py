@@ -141,6 +141,17 @@ class TrackInfo:
         that does not depend on the frame times rejected (:data:`LOCATOR_FLAGS`; a ball
         leaving a deep shadow): the located centres', not the timing's (a quality reason
         "located_frames").
+    path_ellipse : dict or None
+        The ball's path fitted as an ellipse about the centre used and what it means
+        (:mod:`rollfric.pathshape`: the verdict, mu read as a tilted camera and as an
+        out-of-round bore, the lengths the period and the path give); None without a fit.
+    angle_map : tuple or None
+        The 2 x 2 map about the centre applied to the centres before the angles (a tilted
+        camera's compression undone, :mod:`rollfric.pathshape`); None: none applied.
+    camera_motion : dict or None
+        The camera's motion found from the static scene (:mod:`rollfric.camera_motion`:
+        "still", a "bump" at a frame or a "drift", the shifts sampled); the centres in the
+        track are moved back into the background's frame by it. None: not looked for.
     seconds : dict of str to float
         Wall time of each stage of :func:`measure` (s): "open" (the recording, the setup, the
         frame times), "background", "trough centre", "tracking", "fit", "turning points"
@@ -181,6 +192,9 @@ class TrackInfo:
     located_irregular: tuple = ()
     seconds: dict = dataclasses.field(default_factory=dict)
     background_from: str = "given"  # given, recording (its own), median, clip or max
+    path_ellipse: dict | None = None
+    angle_map: tuple | None = None
+    camera_motion: dict | None = None
 
 
 def ball_radius_px(setup: Setup) -> float:
@@ -1284,7 +1298,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     offset : bool or "auto"
         Fit the angle of the trough's bottom.
     fit : bool
-        Fit mu; False returns the track only.
+        Fit mu; False returns the track only, its centres as located (the camera's motion
+        is not looked for).
     progress : bool
         Show a progress bar on stderr.
     median_frames : int
@@ -1385,6 +1400,12 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
             f"contour in the background ({contour.n_points} points over "
             f"{contour.arc_deg:.0f} deg, radius {contour.radius:.1f} px, u = "
             f"({contour.center_u[0]:.2g}, {contour.center_u[1]:.2g}) px)")
+        if ellipse is not None and ellipse.significant:
+            # an elliptic contour (a tilted camera, an out-of-round bore) has its axis at the
+            # ellipse's centre; a circle fitted to its arc sits off it (2 px low at 8 deg yaw)
+            center = ellipse.center
+            center_desc += (f", the centre of its ellipse ({center[0]:.2f}, {center[1]:.2f}) "
+                            "px: the contour is an ellipse")
         if setup.working_distance is not None:
             # the contour's edge is not in the ball's plane (rollfric.perspective)
             D = setup.working_distance
@@ -1444,6 +1465,8 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                         f"{m} (the ball held or at rest there: tracked again with the median of "
                         f"the {k2} sampled frames without it)" for m in bg_notes]
             bg_coded = []
+    if fit:  # the measurement's; without a fit the track as located
+        df, info = _camera_motion(source, bg, df, info, setup, angle)
     n_found = int(df["found"].sum())
     info = dataclasses.replace(info, setup=setup, background=bg_desc, center_source=center_desc,
                                background_from="given" if background is not None else
@@ -1497,6 +1520,17 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                              fit_method, fit_kwargs)
             coded += ell_coded
             lap("ellipse check")
+        info, result, path_coded = _path_check(df, info, center, setup, result, use,
+                                               fit_method, fit_kwargs, angle)
+        coded += path_coded
+        if info.path_ellipse is not None and info.path_ellipse["verdict"] in ("camera",
+                                                                              "trough"):
+            # the path's reading, decided by the period, replaces the contour's two readings
+            coded = [c for c in coded if c[0] != "contour_ellipse"]
+            info = dataclasses.replace(info, warnings=tuple(
+                w for w in info.warnings if not w.startswith(ELLIPSE_WARNING_START)))
+        th = df["theta_rad"].to_numpy()
+        lap("path check")
         coded += [("ball_radius", msg) for msg in info.warnings_radius]
         if info.timing_irregular:
             coded.append(("timing", irregular_message(info.timing_irregular)))
@@ -1570,6 +1604,7 @@ def _mark_still(df, setup) -> list:
                      "left out of the fit")
         logger.warning(notes[-1])
     return notes
+ELLIPSE_WARNING_START = "the trough's contour is an ellipse"
 
 
 def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fit_kwargs):
@@ -1604,6 +1639,104 @@ def _ellipse_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fi
             coded.append(("contour_ellipse", msg))
     return dataclasses.replace(info, contour_ellipse=out,
                                warnings=info.warnings + warns), coded
+
+
+def _camera_motion(source, bg, df, info, setup, angle):
+    """The camera's motion from the static scene (:func:`rollfric.camera_motion.find_motion`):
+    the centres moved back into the background's frame and the angles taken again; the
+    steps the motion made are no timing's (left out of ``timing_irregular`` and
+    ``located_irregular``)."""
+    from rollfric import camera_motion as cm
+
+    found = df["found"].to_numpy() == 1
+    xy = np.column_stack([df["x_px"].to_numpy(float), df["y_px"].to_numpy(float)])
+    try:
+        # frames the checks rejected (flash, repeated, ...) are not sampled
+        flags = df["flag"].astype(str).to_numpy()
+        motion = cm.find_motion(source, bg, xy, info.ball_radius_px,
+                                usable=flags == "")
+    except (io.RecordingError, ValueError) as exc:
+        logger.info(f"the camera's motion was not looked for: {exc}")
+        return df, info
+    if motion.kind in ("still", "unknown"):
+        if motion.kind == "unknown":
+            logger.info("the camera's motion could not be measured: the scene around the "
+                        "ball is too plain")
+        return df, dataclasses.replace(info, camera_motion=motion.to_dict())
+    per = motion.per_frame(len(df))
+    cols = [("x_px", "y_px")] + ([("xu_px", "yu_px")] if "xu_px" in df.columns else [])
+    for cx, cy in cols:
+        df[cx] = df[cx].to_numpy(float) - per[:, 0]
+        df[cy] = df[cy].to_numpy(float) - per[:, 1]
+    ax, ay = cols[-1]
+    th = np.full(len(df), np.nan)
+    th[found] = angles(df[ax].to_numpy(float)[found], df[ay].to_numpy(float)[found],
+                       info.center_px, method=angle,
+                       track_radius_px=setup.track_radius / setup.pixel_size)
+    df["theta_rad"] = th
+    warnings = list(info.warnings)
+    kept = {}
+    for name, text_of in (("timing_irregular", irregular_message),
+                          ("located_irregular", located_irregular_message)):
+        old = getattr(info, name)
+        new = tuple(e for e in old if motion.kind != "bump" or abs(e[0] - motion.frame) > 1)
+        if old and new != old and text_of(old) in warnings:
+            warnings.remove(text_of(old))
+            if new:
+                warnings.append(text_of(new))
+        kept[name] = new
+    msg = (f"{motion.message()}: the centres were moved back into the background's frame "
+           "and the angles taken again")
+    logger.warning(msg)
+    return df, dataclasses.replace(info, camera_motion=motion.to_dict(),
+                                   warnings=tuple(warnings) + (msg,), **kept)
+
+
+def _path_check(df, info, center, setup, result, offset, fit_method, fit_kwargs, angle):
+    """The ball's path as an ellipse (:mod:`rollfric.pathshape`): into ``info.path_ellipse``;
+    a tilted camera the period singles out corrected (the angles in ``df`` and the fit
+    replaced, ``info.angle_map`` set), a reason ``camera_orientation`` when the readings
+    cannot be told apart and differ by more than BIAS_WARN of mu."""
+    from rollfric import ellipse as ell
+    from rollfric import fit as fitmod
+    from rollfric import pathshape
+
+    found = df["found"].to_numpy() == 1
+    cx_col, cy_col = ("xu_px", "yu_px") if "xu_px" in df.columns else ("x_px", "y_px")
+    x = np.where(found, df[cx_col].to_numpy(float), np.nan)
+    y = np.where(found, df[cy_col].to_numpy(float), np.nan)
+    t_s, th = df["t_s"].to_numpy(float), df["theta_rad"].to_numpy(float)
+    L_px = setup.track_radius / setup.pixel_size
+
+    def refit(t, theta, s):
+        return fitmod.fit_mu(t, theta, s, method=fit_method, offset=offset,
+                             **(fit_kwargs or {}))
+
+    def angle_of(xx, yy):
+        return angles(xx, yy, center, method=angle, track_radius_px=L_px)
+
+    # the centre's uncertainty: the lab's center_px_u, else the contour's
+    u_c = setup.u("center_px") if setup.center_px is not None else info.center_u_px
+    try:
+        reading = pathshape.read_path(x, y, center, t_s, th, setup, result, offset=offset,
+                                      refit=refit, ball_radius_px=info.ball_radius_px,
+                                      angle_of=angle_of, center_u=u_c)
+    except (InputError, ValueError, np.linalg.LinAlgError) as exc:
+        logger.info(f"the ball's path was not fitted as an ellipse: {exc}")
+        return info, result, []
+    msg = reading.message()
+    coded, warns, amap = [], (), None
+    if reading.verdict == "camera":
+        df["theta_rad"] = np.where(found & np.isfinite(th), reading.theta_camera, th)
+        result = reading.result_camera
+        amap = tuple(map(tuple, reading.path.round_map(L_px)))
+    elif reading.verdict == "undecided" and reading.spread > ell.BIAS_WARN:
+        coded.append(("camera_orientation", msg))
+    if msg is not None and (reading.verdict != "undecided" or reading.spread > ell.BIAS_WARN):
+        logger.warning(msg)
+        warns = (msg,)
+    return dataclasses.replace(info, path_ellipse=reading.to_dict(), angle_map=amap,
+                               warnings=info.warnings + warns), result, coded
 
 
 def turning_gaps(t, theta, result, setup: Setup, offset: bool, fit_kwargs=None):

@@ -149,6 +149,9 @@ class Measurement:
     theta: np.ndarray | None = None
     center_u: tuple[float, float] | None = None
     distorted: bool = False
+    # a tilted camera's compression undone about the centre before the angles
+    # (rollfric.pathshape; TrackInfo.angle_map); None: none
+    angle_map: tuple | None = None
 
     @property
     def from_centres(self) -> bool:
@@ -182,6 +185,10 @@ class Measurement:
                                                        setup.ball_radius / setup.pixel_size)
                 x, y = np.full_like(x, np.nan), np.full_like(y, np.nan)
                 x[ok], y[ok] = und[:, 0], und[:, 1]
+            if self.angle_map is not None:
+                from rollfric.pathshape import mapped_centres
+
+                x, y = mapped_centres(x, y, center, self.angle_map)
             th = angles(x, y, center, method=self.angle,
                         track_radius_px=setup.track_radius / setup.pixel_size)
             if self.t is not None:
@@ -226,7 +233,8 @@ def measurement_from_track(track, info) -> Measurement:
                        t=track["t_s"].to_numpy(float) if stamped else None,
                        center_u=None if center_u is None or info.setup.center_px is not None
                        else tuple(float(v) for v in center_u),
-                       distorted=bool(info.undistorted))
+                       distorted=bool(info.undistorted),
+                       angle_map=getattr(info, "angle_map", None))
 
 
 def _fitted_mask(t, theta, n_samples):
