@@ -42,6 +42,7 @@ import math
 
 import numpy as np
 
+from rollfric.air import Air, drag_accel
 from rollfric.eom import solve_segments
 
 AIR_VISCOSITY = 1.81e-5  # Pa s, air at 20 C (for the Reynolds number only)
@@ -61,16 +62,25 @@ class Losses:
         Density of the air around the ball (kg/m^3); 0: no drag.
     air_cd : float
         Drag coefficient of the ball (1).
+    law : bool
+        Use the fitter's air (:mod:`rollfric.air`: Cd from the instant's Reynolds number with
+        the wall factor, buoyancy, added mass) instead of the constant ``air_cd``.
     """
 
     mu_speed: float = 0.0
     air_density: float = 0.0
     air_cd: float = SPHERE_CD
+    law: bool = False  # True: rollfric.air's drag law, buoyancy and added mass (air_cd unused)
 
     @property
     def active(self) -> bool:
         """Whether any loss beyond the constant mu is on."""
-        return self.mu_speed != 0.0 or (self.air_density != 0.0 and self.air_cd != 0.0)
+        return self.mu_speed != 0.0 or (self.air_density != 0.0
+                                        and (self.air_cd != 0.0 or self.law))
+
+    def air(self) -> Air:
+        """The drag as :class:`rollfric.air.Air` (density 0 without air)."""
+        return Air(density=self.air_density, cd=None if self.law else self.air_cd)
 
     def drag_per_mass(self, ball_radius: float, ball_mass: float) -> float:
         """k = rho Cd pi r^2 / (2 m) (1/m): the drag's deceleration is k v^2.
@@ -103,7 +113,7 @@ def losses_of(scenario) -> Losses:
     Losses
     """
     return Losses(mu_speed=scenario.mu_speed, air_density=scenario.air_density,
-                  air_cd=scenario.air_cd)
+                  air_cd=scenario.air_cd, law=getattr(scenario, "air_drag", "") == "law")
 
 
 def reynolds(speed, ball_diameter: float, air_density: float = ROOM_AIR_DENSITY,
@@ -156,10 +166,35 @@ def theta_ddot(theta, theta_dot, mu, losses: Losses, *, track_radius, ball_radiu
     th = np.asarray(theta, dtype=float)
     om = np.asarray(theta_dot, dtype=float)
     L = track_radius
+    if losses.law:
+        accel = _law_accel(mu, losses, L, ball_radius, ball_mass, gravity)
+        out = np.vectorize(lambda a, w: accel(a, w, math.copysign(1.0, w)) if w != 0.0
+                           else accel(a, 0.0, 0.0))(th, om)
+        return np.asarray(out, dtype=float)
     k = losses.drag_per_mass(ball_radius, ball_mass)
     mu_v = mu + losses.mu_speed * L * np.abs(om)
     resist = mu_v * (gravity * np.cos(th) + L * om**2) + k * L**2 * om**2
     return -(5.0 / (7.0 * L)) * (gravity * np.sin(th) + np.sign(om) * resist)
+
+
+def _law_accel(mu, losses: Losses, L, ball_radius, ball_mass, gravity):
+    """theta''(theta, theta', s) with rollfric.air's drag law, buoyancy and added mass,
+    written out (not the fitter's compiled kernel): (7/5 m + C_a rho V) L theta'' =
+    -[(m - rho V) g sin + s (mu((m - rho V) g cos + (m + C_a rho V) L theta'^2) + D)]."""
+    from rollfric.air import ADDED_MASS_COEFFICIENT
+
+    a = losses.air().coefficients(ball_radius, ball_mass)
+    beta = a[0]
+    ca = ADDED_MASS_COEFFICIENT * beta
+    m1 = losses.mu_speed * L
+
+    def accel(th, w, s):
+        drag = drag_accel(L * abs(w), a[2], a[3], a[4], a[5])
+        gb = (1.0 - beta) * gravity
+        resist = (mu + m1 * abs(w)) * (gb * math.cos(th) + (1.0 + ca) * L * w * w) + drag
+        return -(gb * math.sin(th) + s * resist) / ((1.4 + ca) * L)
+
+    return accel
 
 
 def solve(theta0: float, omega0: float, mu: float, t, losses: Losses, *, track_radius: float,
@@ -214,6 +249,9 @@ def solve(theta0: float, omega0: float, mu: float, t, losses: Losses, *, track_r
         resist = (mu + m1 * abs(w)) * (gravity * math.cos(th) + L * w * w) + kq * w * w
         return -a * (gravity * math.sin(th) + s * resist)
 
+    if losses.law:
+        accel = _law_accel(mu, losses, L, ball_radius, ball_mass, gravity)
+
     return solve_segments(theta0, omega0, t, accel, mu_static=mu, rtol=rtol, atol=atol)
 
 
@@ -236,7 +274,13 @@ def applied_force(velocity, losses: Losses, ball_radius: float, ball_mass: float
         (3,) force, N.
     """
     v = np.asarray(velocity, dtype=float)
-    return -ball_mass * losses.drag_per_mass(ball_radius, ball_mass) * np.linalg.norm(v) * v
+    speed = float(np.linalg.norm(v))
+    if losses.law:  # rollfric.air's Cd at this speed's Reynolds number
+        a = losses.air().coefficients(ball_radius, ball_mass)
+        if speed == 0.0:
+            return np.zeros(3)
+        return -ball_mass * drag_accel(speed, a[2], a[3], a[4], a[5]) * v / speed
+    return -ball_mass * losses.drag_per_mass(ball_radius, ball_mass) * speed * v
 
 
 def mu_at(speed: float, mu: float, losses: Losses) -> float:

@@ -53,7 +53,7 @@ NOMINAL_KEYS = {
     "cylinder": ("radius_mm",),
     "ball": ("diameter_mm", "mass_g"),
     "camera": ("fps", "pixel_size_mm"),
-    "environment": ("gravity_m_s2",),
+    "environment": ("gravity_m_s2", "air_density_kg_m3"),
 }
 TOP_KEYS = ("draw", "seed", "center_error_px", "center_px_u", "lens_calibrated")
 CALIBRATION_KEYS = ("matrix", "distortion")
