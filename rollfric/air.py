@@ -44,8 +44,6 @@ import math
 
 import numpy as np
 
-from rollfric.jit import njit
-
 ROOM_AIR_DENSITY = 1.20  # kg/m^3, room air (20 C, 1013 hPa: 1.204)
 # a room's air density over 15 .. 30 C, 950 .. 1050 hPa and any humidity: 1.10 .. 1.26 kg/m^3
 ROOM_AIR_DENSITY_U = 0.03  # kg/m^3
@@ -57,36 +55,20 @@ ADDED_MASS_COEFFICIENT = 0.5 * (1.0 + 3.0 / 16.0)
 RE_MAX = 800.0  # the free-sphere correlation's range
 
 
-@njit
 def cd_sphere(re):
     """Drag coefficient of an unbounded sphere, Schiller and Naumann (1933), Re < 800.
 
     Parameters
     ----------
-    re : float
+    re : float or array_like
         Reynolds number rho v d / eta, > 0.
 
     Returns
     -------
-    float
+    float or numpy.ndarray
         Cd = 24/Re (1 + 0.15 Re^0.687).
     """
     return 24.0 / re * (1.0 + 0.15 * re ** 0.687)
-
-
-@njit
-def drag_accel(v, kd, re_per_speed, cd_fixed, wall):
-    """Drag deceleration per unit mass k Cd v^2 (m/s^2) at the centre's speed ``v`` >= 0.
-
-    ``cd_fixed`` > 0: that Cd; else ``wall`` x :func:`cd_sphere` at Re = ``re_per_speed`` v
-    (written so that v -> 0 gives 0: Cd v^2 = 24 v / re_per_speed (...)).
-    """
-    if kd == 0.0 or v <= 0.0:
-        return 0.0
-    if cd_fixed > 0.0:
-        return kd * cd_fixed * v * v
-    re = re_per_speed * v
-    return kd * wall * 24.0 / re_per_speed * v * (1.0 + 0.15 * re ** 0.687)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,7 +94,8 @@ class Air:
     wall_factor: float = WALL_FACTOR
 
     def coefficients(self, ball_radius: float, ball_mass: float) -> np.ndarray:
-        """The numbers the compiled equation of motion takes (:func:`rollfric.eom.solve`).
+        """The numbers the compiled equation of motion takes (:func:`rollfric.eom.solve`; its
+        drag is :func:`rollfric.eom.drag_accel`).
 
         Parameters
         ----------

@@ -12,6 +12,10 @@ N = m g cos(theta) + m L theta'^2 is the normal force::
 they stop at every turning point (theta' = 0), apply the sticking rule, and restart with the
 new sign, so there is no smoothed sign function and no chattering.
 
+Room air (:mod:`rollfric.air`: drag on the centre, buoyancy, added mass) enters through the
+``air`` coefficients of :func:`solve` and :func:`solve_reference`; without them (None) the
+equation is the one above.
+
 The velocity-dependent variant ``mu(theta') = mu0 + mu1 |theta'|`` (a model the thesis cites
 for ball bearings) is selected with ``mu1 != 0``; sticking then uses mu0.
 
@@ -32,7 +36,6 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from rollfric.air import drag_accel
 from rollfric.jit import njit
 
 STANDARD_GRAVITY = 9.81
@@ -311,6 +314,22 @@ def solve_segments(theta0: float, omega0: float, t, accel, *, mu_static: float,
         else:
             break
     return theta_out, omega_out, t_stop
+
+
+@njit
+def drag_accel(v, kd, re_per_speed, cd_fixed, wall):
+    """Drag deceleration per unit mass k Cd v^2 (m/s^2) at the centre's speed ``v`` >= 0
+    (:mod:`rollfric.air`; its coefficients k, rho d / eta, a given Cd, the wall factor).
+
+    ``cd_fixed`` > 0: that Cd; else ``wall`` x the Schiller-Naumann law at Re =
+    ``re_per_speed`` v, written so that v -> 0 gives 0 (Cd v^2 = 24 v / re_per_speed (...)).
+    """
+    if kd == 0.0 or v <= 0.0:
+        return 0.0
+    if cd_fixed > 0.0:
+        return kd * cd_fixed * v * v
+    re = re_per_speed * v
+    return kd * wall * 24.0 / re_per_speed * v * (1.0 + 0.15 * re ** 0.687)
 
 
 @njit

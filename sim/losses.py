@@ -42,8 +42,8 @@ import math
 
 import numpy as np
 
-from rollfric.air import Air, drag_accel
-from rollfric.eom import solve_segments
+from rollfric.air import Air
+from rollfric.eom import drag_accel, solve_segments
 
 AIR_VISCOSITY = 1.81e-5  # Pa s, air at 20 C (for the Reynolds number only)
 ROOM_AIR_DENSITY = 1.204  # kg/m^3, dry air at 20 C and 1013 hPa
