@@ -154,3 +154,22 @@ def test_budget_air_rows_match_finite_differences():
     assert rho_row.sensitivity < 0
     share = fit.fit_mu(t, y, setup.replace(air_density=0.0)).mu - res.mu
     assert 0.3 * share < -1.2 * rho_row.sensitivity < 1.0 * share
+
+
+def test_the_default_case_is_in_room_air_and_its_lab_states_only_the_density():
+    from sim import Scenario
+    from validation.case import case_from_dict, default_case_dict
+    from validation.track_level import oracle_setup
+
+    case = case_from_dict(default_case_dict())
+    assert case.scenario.air_density == pytest.approx(1.204)
+    assert case.scenario.air_drag == "law"
+    lab = setup_from_dict(case.lab_setup_dict())
+    assert lab.air_density == pytest.approx(1.204)
+    assert lab.air_cd is None  # the engine's drag is not the lab's to know
+    assert "air_cd" not in case.lab_setup_dict().get("environment", {})
+    assert oracle_setup(case).air_density == pytest.approx(1.204)
+    # an airless scenario's setup says so when written (a file without the key is room air)
+    written = Scenario().setup().to_toml_dict()
+    assert written["environment"]["air_density_kg_m3"] == 0.0
+    assert setup_from_dict(written).air_density == 0.0
