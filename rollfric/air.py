@@ -29,8 +29,8 @@ With all three the equation of motion of :mod:`rollfric.eom` reads::
         + s (mu ((1 - beta) g cos(theta) + (1 + C_a beta) L theta'^2) + k Cd v^2)]
 
 with s = sign(theta') and k = rho pi r^2 / (2 m). For steel (beta = 1.5e-4) buoyancy and added
-mass change the frequency by about 1e-4 and mu not at all to first order; they are kept
-because they cost nothing. The drag is the term that matters: for the thesis's 10 mm ball
+mass change the frequency by about 1e-4 and leave mu alone to first order, but a fit without
+them takes the period misfit partly into mu (0.01-0.1 %, measured): they are modelled. The drag is the term that matters: for the thesis's 10 mm ball
 at 20 deg it is a few per cent of the rolling resistance.
 
 Not modelled: the drag torque on the spinning ball, its Magnus force, the history (Basset)
