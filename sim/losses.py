@@ -13,9 +13,14 @@ rollfric fits a constant coefficient (M = mu r N). A real ball also loses energy
   (eta = 1.81e-5 Pa s, air at 20 C) stays below about 200 for the 10 mm ball (30 for the
   1.58 mm one): there a free sphere's Cd is 0.8-4 (Schiller-Naumann, 24/Re (1 + 0.15
   Re^0.687)), and the trough's wall next to the ball raises it further; ``air_cd`` is a single
-  number, so a study sweeps it over that range. Not modelled: buoyancy and the air's added mass
-  (both about rho_air / rho_steel = 1.5e-4 of the weight and the inertia), the drag torque on
-  the spinning ball and its Magnus force.
+  number, so a study sweeps it over that range. Not modelled with a constant Cd: buoyancy and
+  the air's added mass (both about rho_air / rho_steel = 1.5e-4 of the weight and the
+  inertia), the drag torque on the spinning ball and its Magnus force.
+- **the fitter's air** (scenario key ``environment.air_drag = "law"``): Cd at every instant's
+  Reynolds number by :mod:`rollfric.air`'s wall-corrected law, with buoyancy and added mass,
+  written out here (:func:`_law_accel`) as the truth of a recording whose lab states only the
+  air's density. MuJoCo and PyBullet apply that drag but neither buoyancy nor added mass (a
+  fit with them is then 0.01-0.1 % off, as :mod:`rollfric.air` measures).
 
 With both, the equation of motion of :mod:`rollfric.eom` becomes::
 
