@@ -173,3 +173,20 @@ def test_the_default_case_is_in_room_air_and_its_lab_states_only_the_density():
     written = Scenario().setup().to_toml_dict()
     assert written["environment"]["air_density_kg_m3"] == 0.0
     assert setup_from_dict(written).air_density == 0.0
+
+
+def test_a_given_cd_is_its_own_budget_row():
+    # the lab measured its ball's Cd: its u replaces the drag law's wall factor; the row is
+    # the drag's share of mu scaled by u(Cd)/Cd (the drag is linear in a constant Cd)
+    cd, u_cd = 1.3, 0.13
+    setup = thesis_setup("10mm", air_density=1.2, air_cd=cd,
+                         uncertainty=(("air_cd", u_cd),))
+    t, th = _truth(setup, 0.0079, 20.0, 2.0, cd=cd)
+    y = _noisy(th)
+    res = fit.fit_mu(t, y, setup)
+    assert res.extra["air"]["law"] == "given" and res.extra["air"]["cd"] == cd
+    rows = {r.source: r for r in uncertainty.budget(
+        uncertainty.Measurement(setup=setup, t=t, theta=y), res).rows}
+    assert uncertainty.AIR_LAW not in rows
+    share = fit.fit_mu(t, y, setup.replace(air_density=0.0)).mu - res.mu
+    assert rows["environment.air_cd"].u_mu == pytest.approx(share * u_cd / cd, rel=0.05)
