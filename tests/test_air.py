@@ -169,6 +169,12 @@ def test_the_default_case_is_in_room_air_and_its_lab_states_only_the_density():
     assert lab.air_cd is None  # the engine's drag is not the lab's to know
     assert "air_cd" not in case.lab_setup_dict().get("environment", {})
     assert oracle_setup(case).air_density == pytest.approx(1.204)
+    # a lab that states no air over a truth in air (its fit then leaves the drag out)
+    d = default_case_dict()
+    d["lab"] = {"environment": {"air_density_kg_m3": 0.0}}
+    blind = case_from_dict(d)
+    assert setup_from_dict(blind.lab_setup_dict()).air_density == 0.0
+    assert blind.scenario.air_density == pytest.approx(1.204)
     # an airless scenario's setup says so when written (a file without the key is room air)
     written = Scenario().setup().to_toml_dict()
     assert written["environment"]["air_density_kg_m3"] == 0.0
