@@ -12,6 +12,10 @@ N = m g cos(theta) + m L theta'^2 is the normal force::
 they stop at every turning point (theta' = 0), apply the sticking rule, and restart with the
 new sign, so there is no smoothed sign function and no chattering.
 
+Room air (:mod:`rollfric.air`: drag on the centre, buoyancy, added mass) enters through the
+``air`` coefficients of :func:`solve` and :func:`solve_reference`; without them (None) the
+equation is the one above.
+
 The velocity-dependent variant ``mu(theta') = mu0 + mu1 |theta'|`` (a model the thesis cites
 for ball bearings) is selected with ``mu1 != 0``; sticking then uses mu0.
 
@@ -163,7 +167,7 @@ def _check_inputs(t, track_radius, gravity, mu, mu1):
 
 def solve_reference(theta0: float, omega0: float, mu: float, t, *, track_radius: float,
                     gravity: float = STANDARD_GRAVITY, mu1: float = 0.0,
-                    rtol: float = 1e-10, atol: float = 1e-13):
+                    rtol: float = 1e-10, atol: float = 1e-13, air=None):
     """Integrate the equation of motion with DOP853 and turning-point events.
 
     The state at ``t[0]`` is (theta0, omega0). Returns ``(theta, theta_dot, t_stop)`` sampled at
@@ -188,6 +192,8 @@ def solve_reference(theta0: float, omega0: float, mu: float, t, *, track_radius:
         Velocity coefficient of mu(theta') = mu + mu1 |theta'|, s/rad.
     rtol, atol : float
         Tolerances passed to :func:`scipy.integrate.solve_ivp`.
+    air : array_like or None
+        The air's coefficients (:meth:`rollfric.air.Air.coefficients`); None: no air.
 
     Returns
     -------
@@ -207,12 +213,17 @@ def solve_reference(theta0: float, omega0: float, mu: float, t, *, track_radius:
         If the integrator fails.
     """
     t = _check_inputs(t, track_radius, gravity, mu, mu1)
-    k = 5.0 / (7.0 * track_radius)
+    a = _air_array(air)
+    if not np.any(a):
+        k = 5.0 / (7.0 * track_radius)
 
-    def accel(th, om, s):
-        mu_v = mu + mu1 * abs(om)
-        return -k * (gravity * math.sin(th) + s * mu_v * (gravity * math.cos(th)
-                                                          + track_radius * om**2))
+        def accel(th, om, s):
+            mu_v = mu + mu1 * abs(om)
+            return -k * (gravity * math.sin(th) + s * mu_v * (gravity * math.cos(th)
+                                                              + track_radius * om**2))
+    else:
+        def accel(th, om, s):
+            return float(_accel(th, om, s, mu, mu1, track_radius, gravity, a))
 
     return solve_segments(theta0, omega0, t, accel, mu_static=mu, rtol=rtol, atol=atol)
 
@@ -306,45 +317,67 @@ def solve_segments(theta0: float, omega0: float, t, accel, *, mu_static: float,
 
 
 @njit
-def _accel(th, om, s, mu0, mu1, L, g):
-    k = 5.0 / (7.0 * L)
-    return -k * (g * math.sin(th) + s * (mu0 + mu1 * abs(om)) * (g * math.cos(th) + L * om * om))
+def drag_accel(v, kd, re_per_speed, cd_fixed, wall):
+    """Drag deceleration per unit mass k Cd v^2 (m/s^2) at the centre's speed ``v`` >= 0
+    (:mod:`rollfric.air`; its coefficients k, rho d / eta, a given Cd, the wall factor).
+
+    ``cd_fixed`` > 0: that Cd; else ``wall`` x the Schiller-Naumann law at Re =
+    ``re_per_speed`` v, written so that v -> 0 gives 0 (Cd v^2 = 24 v / re_per_speed (...)).
+    """
+    if kd == 0.0 or v <= 0.0:
+        return 0.0
+    if cd_fixed > 0.0:
+        return kd * cd_fixed * v * v
+    re = re_per_speed * v
+    return kd * wall * 24.0 / re_per_speed * v * (1.0 + 0.15 * re ** 0.687)
 
 
 @njit
-def _rk4(th, om, h, s, mu0, mu1, L, g):
-    a1 = _accel(th, om, s, mu0, mu1, L, g)
+def _accel(th, om, s, mu0, mu1, L, g, air):
+    # air: rollfric.air.Air.coefficients (zeros: no air): buoyancy, added mass, drag
+    cab = air[1]
+    k = 5.0 / (7.0 * L) if cab == 0.0 else 1.0 / (L * (1.4 + cab))
+    gb = g * (1.0 - air[0])
+    drag = drag_accel(L * abs(om), air[2], air[3], air[4], air[5])
+    return -k * (gb * math.sin(th) + s * ((mu0 + mu1 * abs(om))
+                                          * (gb * math.cos(th) + (1.0 + cab) * L * om * om)
+                                          + drag))
+
+
+@njit
+def _rk4(th, om, h, s, mu0, mu1, L, g, air):
+    a1 = _accel(th, om, s, mu0, mu1, L, g, air)
     th2 = th + 0.5 * h * om
     om2 = om + 0.5 * h * a1
-    a2 = _accel(th2, om2, s, mu0, mu1, L, g)
+    a2 = _accel(th2, om2, s, mu0, mu1, L, g, air)
     th3 = th + 0.5 * h * om2
     om3 = om + 0.5 * h * a2
-    a3 = _accel(th3, om3, s, mu0, mu1, L, g)
+    a3 = _accel(th3, om3, s, mu0, mu1, L, g, air)
     th4 = th + h * om3
     om4 = om + h * a3
-    a4 = _accel(th4, om4, s, mu0, mu1, L, g)
+    a4 = _accel(th4, om4, s, mu0, mu1, L, g, air)
     th_n = th + h / 6.0 * (om + 2.0 * om2 + 2.0 * om3 + om4)
     om_n = om + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
     return th_n, om_n
 
 
 @njit
-def _advance(th, om, s, h, mu0, mu1, L, g):
+def _advance(th, om, s, h, mu0, mu1, L, g, air):
     """Advance by h with friction sign s, stopping at a turning point if one comes first.
 
     Returns (theta, omega, used_h, turned).
     """
-    th_n, om_n = _rk4(th, om, h, s, mu0, mu1, L, g)
+    th_n, om_n = _rk4(th, om, h, s, mu0, mu1, L, g, air)
     if om_n * s > 0.0:
         return th_n, om_n, h, False
     # theta' reached zero inside the step: Newton on tau for omega(tau) = 0
-    a0 = _accel(th, om, s, mu0, mu1, L, g)
+    a0 = _accel(th, om, s, mu0, mu1, L, g, air)
     tau = -om / a0 if a0 != 0.0 else 0.5 * h
     if tau <= 0.0 or tau > h:
         tau = 0.5 * h
     for _ in range(30):
-        th_t, om_t = _rk4(th, om, tau, s, mu0, mu1, L, g)
-        a_t = _accel(th_t, om_t, s, mu0, mu1, L, g)
+        th_t, om_t = _rk4(th, om, tau, s, mu0, mu1, L, g, air)
+        a_t = _accel(th_t, om_t, s, mu0, mu1, L, g, air)
         if a_t == 0.0:
             break
         step = om_t / a_t
@@ -357,7 +390,7 @@ def _advance(th, om, s, h, mu0, mu1, L, g):
             tau = tau_new
             break
         tau = tau_new
-    th_t, om_t = _rk4(th, om, tau, s, mu0, mu1, L, g)
+    th_t, om_t = _rk4(th, om, tau, s, mu0, mu1, L, g, air)
     return th_t, 0.0, tau, True
 
 
@@ -368,7 +401,7 @@ def _sticks(th, mu0):
 
 
 @njit(nogil=True)  # nogil: independent fits run on threads (rollfric.cpus)
-def _solve_rk4(t, theta0, omega0, mu0, mu1, L, g, h_max):
+def _solve_rk4(t, theta0, omega0, mu0, mu1, L, g, h_max, air):
     n = t.shape[0]
     theta = np.empty(n)
     omega = np.empty(n)
@@ -395,7 +428,7 @@ def _solve_rk4(t, theta0, omega0, mu0, mu1, L, g, h_max):
             if h > h_max:
                 nsub = math.ceil(remaining / h_max)
                 h = remaining / nsub
-            th, om, used, turned = _advance(th, om, s, h, mu0, mu1, L, g)
+            th, om, used, turned = _advance(th, om, s, h, mu0, mu1, L, g, air)
             remaining -= used
             if turned:
                 idle = idle + 1 if used <= 1e-15 * (1.0 + h) else 0
@@ -412,7 +445,8 @@ def _solve_rk4(t, theta0, omega0, mu0, mu1, L, g, h_max):
 
 
 def solve(theta0: float, omega0: float, mu: float, t, *, track_radius: float,
-          gravity: float = STANDARD_GRAVITY, mu1: float = 0.0, steps_per_radian: float = 200.0):
+          gravity: float = STANDARD_GRAVITY, mu1: float = 0.0, steps_per_radian: float = 200.0,
+          air=None):
     """Fast integration of the equation of motion (compiled RK4, exact turning points).
 
     Same arguments and results as :func:`solve_reference`. The step is at most
@@ -438,6 +472,9 @@ def solve(theta0: float, omega0: float, mu: float, t, *, track_radius: float,
         Velocity coefficient of mu(theta') = mu + mu1 |theta'|, s/rad.
     steps_per_radian : float
         Integration steps per radian of small-angle phase (sets the largest step).
+    air : array_like or None
+        The air's coefficients (:meth:`rollfric.air.Air.coefficients`: buoyancy, added mass,
+        drag); None: no air.
 
     Returns
     -------
@@ -458,4 +495,13 @@ def solve(theta0: float, omega0: float, mu: float, t, *, track_radius: float,
     w = math.sqrt(omega_squared(track_radius, gravity))
     h_max = 1.0 / (steps_per_radian * w)
     return _solve_rk4(t, float(theta0), float(omega0), float(mu), float(mu1),
-                      float(track_radius), float(gravity), h_max)
+                      float(track_radius), float(gravity), h_max, _air_array(air))
+
+
+def _air_array(air) -> np.ndarray:
+    if air is None:
+        return np.zeros(6)
+    a = np.asarray(air, dtype=float)
+    if a.shape != (6,) or not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise ValueError(f"air must be 6 finite numbers >= 0 (rollfric.air), got {air!r}")
+    return a

@@ -22,7 +22,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from scipy import optimize, signal
 
-from rollfric import cpus, eom, filtering
+from rollfric import air, cpus, eom, filtering
 from rollfric.errors import InputError
 from rollfric.filtering import on_grid
 from rollfric.registry import FIT_METHODS
@@ -98,7 +98,8 @@ def model_theta(t, mu, theta0, omega0, setup: Setup, *, offset=0.0, mu1=0.0):
     omega0 : float
         Angular velocity at ``t[0]``, rad/s.
     setup : Setup
-        The trough and ball (``track_radius``, ``gravity``).
+        The trough and ball (``track_radius``, ``gravity``) and the air around it
+        (:mod:`rollfric.air`: drag, buoyancy, added mass).
     offset : float
         Angle of the trough bottom in the data's frame, rad.
     mu1 : float
@@ -110,7 +111,7 @@ def model_theta(t, mu, theta0, omega0, setup: Setup, *, offset=0.0, mu1=0.0):
         Model angle at ``t``, rad.
     """
     th, _, _ = eom.solve(theta0 - offset, omega0, mu, t, track_radius=setup.track_radius,
-                         gravity=setup.gravity, mu1=mu1)
+                         gravity=setup.gravity, mu1=mu1, air=air.coefficients_of(setup))
     return th + offset
 
 
@@ -494,6 +495,10 @@ def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulo
     curve[good] = model_theta(t[good], mu, th0, om0, setup, offset=off, mu1=mu1)
     used = np.zeros(t.size, dtype=bool)
     used[np.nonzero(fitted)[0][keep]] = True
+    # the drag used: Re and Cd at the fitted motion's largest speed
+    _, om_fit, _ = eom.solve(th0 - off, om0, mu, tg, track_radius=setup.track_radius,
+                             gravity=setup.gravity, mu1=mu1, air=air.coefficients_of(setup))
+    v_max = setup.track_radius * float(np.max(np.abs(om_fit))) if om_fit.size else 0.0
     return FitResult(
         method="lsq",
         mu=float(mu),
@@ -513,7 +518,8 @@ def fit_lsq(t, theta, setup: Setup, *, offset: bool = False, model: str = "coulo
                "n_rest_excluded": int(good.sum() - fitted.sum()),
                "n_outliers": n_outliers, "robust": robust_used,
                "noise_rad": noise if math.isfinite(noise) else None,
-               "mu_initial": float(g0["mu"]), "start": best_start, "n_starts": len(starts)},
+               "mu_initial": float(g0["mu"]), "start": best_start, "n_starts": len(starts),
+               "air": air.air_of(setup).summary(v_max, setup.ball_diameter)},
         seconds=time.perf_counter() - start,
         used=used,
     )

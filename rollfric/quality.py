@@ -38,6 +38,7 @@ import numpy as np
 from scipy import optimize, special
 
 from rollfric import eom, filtering
+from rollfric.air import coefficients_of
 
 # --- thresholds -------------------------------------------------------------------------
 # residual_noise: a model that describes the data leaves the noise: rms / noise ~ 1 (1.0-1.3
@@ -590,7 +591,8 @@ def swing_coverage(found, result, setup) -> dict:
         # rollfric.fit.model_theta less its offset (quality may not import fit)
         model, _, _ = eom.solve(result.theta0 - result.offset, result.omega0, result.mu,
                                 t[after], track_radius=setup.track_radius,
-                                gravity=setup.gravity, mu1=result.mu1)
+                                gravity=setup.gravity, mu1=result.mu1,
+                                air=coefficients_of(setup))
     except (ValueError, FloatingPointError):
         return {}
     got = found[after]

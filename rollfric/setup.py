@@ -15,6 +15,17 @@ write down at the bench (mm, g, Hz)::
 
 Optional keys: ``[cylinder] center_px``, ``[environment] gravity_m_s2`` (default 9.81).
 
+The air around the ball (:mod:`rollfric.air`; drag, buoyancy, added mass in the fit)::
+
+    [environment]
+    air_density_kg_m3 = 1.20      # default: room air, 1.20 +- 0.03; 0: no air (a vacuum)
+    air_viscosity_pa_s = 1.81e-5  # default: 1.81e-5 +- 0.03e-5
+    air_cd = 1.2                  # optional: the ball's drag coefficient as measured; absent:
+                                  # the wall-corrected Schiller-Naumann law of rollfric.air
+
+A file without ``air_density_kg_m3`` is in room air; a :class:`Setup` built in Python has no
+air unless given (``air_density=0.0``), so code states the air it means.
+
 Uncertain inputs: every numeric key ``K`` may have a companion ``K_u``, its standard
 uncertainty in the same units and of the same shape (``radius_mm_u = 0.5``,
 ``center_px_u = [2.0, 2.0]``, ``fps_u = 0.05``, ...). A key without ``K_u`` is taken as exact.
@@ -55,6 +66,13 @@ import dataclasses
 import math
 from pathlib import Path
 
+from rollfric.air import (
+    AIR_VISCOSITY,
+    AIR_VISCOSITY_U,
+    ROOM_AIR_DENSITY,
+    ROOM_AIR_DENSITY_U,
+    WALL_FACTOR,
+)
 from rollfric.errors import InputError
 from rollfric.lens import Calibration, CalibrationError, calibration_from_dict
 from rollfric.tomlfile import read_toml
@@ -76,6 +94,9 @@ PLAUSIBLE = {  # name -> (lowest, highest, SI unit)
     "fps": (1e-3, 1e8, "Hz"),
     "pixel_size": (1e-9, 1.0, "m"),
     "gravity": (0.01, 1000.0, "m/s^2"),  # the Moon's 1.62, Jupiter's 24.8
+    "air_density": (0.0, 10.0, "kg/m^3"),  # a vacuum .. pressurised air; not a liquid
+    "air_viscosity": (1e-6, 1e-3, "Pa s"),
+    "air_cd": (1e-3, 100.0, "1"),
 }
 
 
@@ -130,6 +151,14 @@ class Setup:
         top-left pixel), or None when it is to be found from the background.
     gravity : float
         Gravitational acceleration (m/s^2).
+    air_density : float
+        Density of the air around the ball (kg/m^3); 0: no air (:mod:`rollfric.air`).
+    air_viscosity : float
+        Its dynamic viscosity (Pa s).
+    air_cd : float or None
+        The ball's drag coefficient as the lab measured it; None: the wall-corrected law.
+    air_wall_factor : float
+        The wall's factor on the free sphere's drag law (:data:`rollfric.air.WALL_FACTOR`).
     uncertainty : tuple
         Standard uncertainties of the fields above, SI (center_px: px, a pair), as
         ((field name, u), ...); a field not listed is exact.
@@ -157,6 +186,10 @@ class Setup:
     # plane; None: not stated (from the contour's radius when working_distance is given)
     bit_depth: int | None = None  # the camera's effective bit depth (camera.bit_depth); None:
     # the recording's file states it, or the data tell (rollfric.bitdepth)
+    air_density: float = 0.0  # kg/m^3; 0: no air (rollfric.air)
+    air_viscosity: float = AIR_VISCOSITY  # Pa s
+    air_cd: float | None = None  # None: the wall-corrected drag law
+    air_wall_factor: float = WALL_FACTOR
 
     def __post_init__(self) -> None:
         for name in ("cylinder_radius", "ball_diameter", "ball_mass", "fps", "pixel_size",
@@ -165,6 +198,18 @@ class Setup:
             if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
                 raise SetupError(f"{name} must be a positive number, got {value!r}")
             check_plausible(name, value, SetupError)
+        for name in ("air_density", "air_viscosity", "air_cd", "air_wall_factor"):
+            value = getattr(self, name)
+            if value is None and name == "air_cd":
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value < 0 \
+                    or (value == 0 and name != "air_density"):
+                raise SetupError(f"{name} must be a finite number > 0 (air_density >= 0), "
+                                 f"got {value!r}")
+            if name in PLAUSIBLE:
+                check_plausible(name, float(value), SetupError)
+            object.__setattr__(self, name, float(value))
         if self.ball_diameter >= 2 * self.cylinder_radius:
             raise SetupError(
                 f"ball_diameter ({self.ball_diameter * 1e3:g} mm) must be smaller than the "
@@ -250,13 +295,23 @@ class Setup:
             out["camera"]["bit_depth"] = int(self.bit_depth)
         if self.contour_depth is not None:
             cyl["contour_depth_mm"] = self.contour_depth * 1e3
+        env: dict = {}
         if self.gravity != STANDARD_GRAVITY:
-            out["environment"] = {"gravity_m_s2": self.gravity}
+            env["gravity_m_s2"] = self.gravity
+        # always written: a file without it means room air
+        env["air_density_kg_m3"] = self.air_density
+        if self.air_viscosity != AIR_VISCOSITY or self.u("air_viscosity") is not None:
+            env["air_viscosity_pa_s"] = self.air_viscosity
+        if self.air_cd is not None:
+            env["air_cd"] = self.air_cd
+        out["environment"] = env
         for name, u in self.uncertainty:
             section, key, scale = LAB_KEYS[name]
             table = out.setdefault(section, {})
             if name == "gravity" and key not in table:
                 table[key] = self.gravity
+            if name == "air_cd" and self.air_cd is None:
+                continue
             table[key + "_u"] = [float(v) for v in u] if isinstance(u, tuple) else u * scale
         return out
 
@@ -270,6 +325,9 @@ LAB_KEYS = {
     "fps": ("camera", "fps", 1.0),
     "pixel_size": ("camera", "pixel_size_mm", 1e3),
     "gravity": ("environment", "gravity_m_s2", 1.0),
+    "air_density": ("environment", "air_density_kg_m3", 1.0),
+    "air_viscosity": ("environment", "air_viscosity_pa_s", 1.0),
+    "air_cd": ("environment", "air_cd", 1.0),
 }
 
 
@@ -304,7 +362,8 @@ _SCHEMA = {
     "ball": {"diameter_mm": True, "mass_g": True},
     "camera": {"fps": True, "pixel_size_mm": True, "matrix": False, "distortion": False,
                "image_size_px": False, "working_distance_mm": False, "bit_depth": False},
-    "environment": {"gravity_m_s2": False},
+    "environment": {"gravity_m_s2": False, "air_density_kg_m3": False,
+                    "air_viscosity_pa_s": False, "air_cd": False},
 }
 _REQUIRED_SECTIONS = ("cylinder", "ball", "camera")
 
@@ -369,13 +428,15 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
     fields = {"radius_mm": ("cylinder_radius", 1e-3, "mm"),
               "diameter_mm": ("ball_diameter", 1e-3, "mm"), "mass_g": ("ball_mass", 1e-3, "g"),
               "fps": ("fps", 1.0, "Hz"), "pixel_size_mm": ("pixel_size", 1e-3, "mm"),
-              "gravity_m_s2": ("gravity", 1.0, "m/s^2")}
+              "gravity_m_s2": ("gravity", 1.0, "m/s^2"),
+              "air_density_kg_m3": ("air_density", 1.0, "kg/m^3"),
+              "air_viscosity_pa_s": ("air_viscosity", 1.0, "Pa s"), "air_cd": ("air_cd", 1.0, "1")}
 
     def number(section: str, key: str) -> float:
         value = data[section][key]
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise SetupError(f"{source}: {section}.{key} must be a number, got {value!r}")
-        if not math.isfinite(value) or value <= 0:
+        if not math.isfinite(value) or value < 0 or (value == 0 and key != "air_density_kg_m3"):
             raise SetupError(f"{source}: {section}.{key} must be positive, got {value!r}")
         if key in fields:
             field, factor, unit = fields[key]
@@ -420,6 +481,20 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
             raise SetupError(f"{where} (a standard uncertainty) must be finite and >= 0, "
                              f"got {value!r}")
         uncertainty.append((name, tuple(vals) if name == "center_px" else vals[0] / scale))
+    env = data.get("environment", {})
+    air = {}
+    for key, field, default, default_u in (
+            ("air_density_kg_m3", "air_density", ROOM_AIR_DENSITY, ROOM_AIR_DENSITY_U),
+            ("air_viscosity_pa_s", "air_viscosity", AIR_VISCOSITY, AIR_VISCOSITY_U)):
+        if key in env:
+            air[field] = number("environment", key)
+        else:  # room air, with the spread of a room's
+            air[field] = default
+            uncertainty.append((field, default_u))
+    if "air_cd" in env:
+        air["air_cd"] = number("environment", "air_cd")
+    if air["air_density"] == 0.0:  # no air: its viscosity acts on nothing
+        uncertainty = [(n, u) for n, u in uncertainty if n != "air_viscosity"]
     wd = (number("camera", "working_distance_mm") * 1e-3
           if "working_distance_mm" in data["camera"] else None)
     zc = data["cylinder"].get("contour_depth_mm")
@@ -456,6 +531,7 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
         working_distance=wd,
         contour_depth=None if zc is None else float(zc) * 1e-3,
         bit_depth=bits,
+        **air,
     )
 
 

@@ -23,6 +23,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from rollfric import analytic, eom, filtering
+from rollfric.air import coefficients_of
 from rollfric.errors import InputError
 from rollfric.fit import (
     FitResult,
@@ -206,7 +207,8 @@ def fit_paper2_grid(t, theta, setup: Setup, *, first: dict | None = None, grid: 
             for th0 in th0s:
                 for om0 in om0s:
                     th, _, _ = eom.solve(th0, om0, mu, tg, track_radius=setup.track_radius,
-                                         gravity=setup.gravity)
+                                         gravity=setup.gravity,
+                                         air=coefficients_of(setup))
                     cost = float(np.sum((th - yg) ** 2))
                     if cost < best[0]:
                         best = (cost, (mu, th0, om0))

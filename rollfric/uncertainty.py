@@ -49,6 +49,7 @@ import numpy as np
 from scipy import optimize
 
 from rollfric import cpus, eom
+from rollfric.air import WALL_FACTOR_U, coefficients_of
 from rollfric.errors import InputError
 from rollfric.hac import autocorrelation, hac_covariance  # noqa: F401 (re-exported)
 from rollfric.setup import LAB_KEYS, Setup, SetupError
@@ -295,11 +296,12 @@ class _Refitter:
     def _key(self, setup: Setup, jacobian: bool, augmented: bool):
         t, th = self.meas.series(setup)
         t, th = t[self.mask], th[self.mask]
-        return (t.tobytes(), th.tobytes(), setup.track_radius, setup.gravity, jacobian,
-                augmented), t, th
+        return (t.tobytes(), th.tobytes(), setup.track_radius, setup.gravity,
+                coefficients_of(setup).tobytes(), jacobian, augmented), t, th
 
     def _solve(self, t, th, setup: Setup, jacobian: bool, augmented: bool):
         L0, g = setup.track_radius, setup.gravity
+        air = coefficients_of(setup)
         names = list(self.names) + (["length"] if self.fit_length else [])
         start = dict(self.start, length=L0)
         if augmented:
@@ -319,7 +321,7 @@ class _Refitter:
             off = p.get("offset", 0.0)
             m, _, _ = eom.solve(p["theta0"] - off, p["omega0"], p["mu"], t,
                                 track_radius=p.get("length", L0), gravity=g,
-                                mu1=p.get("mu1", 0.0))
+                                mu1=p.get("mu1", 0.0), air=air)
             if augmented:
                 basis = np.stack([np.ones_like(m), m, m * m, m * m * m], axis=1)
                 coef, *_ = np.linalg.lstsq(basis, th, rcond=None)
@@ -334,6 +336,10 @@ class _Refitter:
 
     def mu(self, setup: Setup) -> float:
         return self.fit(setup)[0]["mu"]
+
+
+# the budget row of the drag law's wall factor (rollfric.air), when no air_cd is given
+AIR_LAW = "environment.air_cd (drag law: wall factor)"
 
 
 # -- the inputs -----------------------------------------------------------------------------
@@ -351,6 +357,13 @@ def _inputs(setup: Setup):
             for i, axis in enumerate("xy"):
                 out.append((f"{section}.{key}[{axis}]", name, i, float(value[i]),
                             0.0 if u is None else float(u[i]), 1.0))
+            continue
+        if name in ("air_viscosity", "air_cd") and setup.air_density == 0.0:
+            continue  # no air: nothing for them to act on
+        if name == "air_cd" and value is None:
+            if setup.air_density > 0:  # the drag law's own uncertainty: its wall factor
+                out.append((AIR_LAW, "air_wall_factor", None, setup.air_wall_factor,
+                            WALL_FACTOR_U, 1.0))
             continue
         out.append((f"{section}.{key}", name, None, float(value) * scale,
                     0.0 if u is None else float(u) * scale, 1.0 / scale))
@@ -387,6 +400,9 @@ def _moved(setup: Setup, field: str, component, delta_lab: float, factor: float)
 
 def _acts(meas: Measurement, field: str) -> str:
     """'' when ``field`` can change mu in this measurement, else why not."""
+    if field in ("air_viscosity", "air_cd", "air_wall_factor") \
+            and meas.setup.air_density == 0.0:
+        return "no air (environment.air_density_kg_m3 = 0)"
     if field == "ball_mass":
         return "enters no step of the measurement (mu is defined by M = mu r N)"
     if field in ("center_px", "pixel_size", "calibration") and not meas.from_centres:
@@ -631,7 +647,8 @@ def _method_row(refit: _Refitter, setup: Setup, aug: dict, angle_inputs: list,
     t, th = t[refit.mask], th[refit.mask]
     m, _, _ = eom.solve(aug["theta0"], aug["omega0"], aug["mu"], t,
                         track_radius=aug.get("length", setup.track_radius),
-                        gravity=setup.gravity, mu1=aug.get("mu1", 0.0))
+                        gravity=setup.gravity, mu1=aug.get("mu1", 0.0),
+                        air=coefficients_of(setup))
     basis = np.stack([np.ones_like(m), m, m * m, m * m * m], axis=1)
     pinv = np.linalg.pinv(basis)
     high = basis[:, 2:]

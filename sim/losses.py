@@ -13,9 +13,14 @@ rollfric fits a constant coefficient (M = mu r N). A real ball also loses energy
   (eta = 1.81e-5 Pa s, air at 20 C) stays below about 200 for the 10 mm ball (30 for the
   1.58 mm one): there a free sphere's Cd is 0.8-4 (Schiller-Naumann, 24/Re (1 + 0.15
   Re^0.687)), and the trough's wall next to the ball raises it further; ``air_cd`` is a single
-  number, so a study sweeps it over that range. Not modelled: buoyancy and the air's added mass
-  (both about rho_air / rho_steel = 1.5e-4 of the weight and the inertia), the drag torque on
-  the spinning ball and its Magnus force.
+  number, so a study sweeps it over that range. Not modelled with a constant Cd: buoyancy and
+  the air's added mass (both about rho_air / rho_steel = 1.5e-4 of the weight and the
+  inertia), the drag torque on the spinning ball and its Magnus force.
+- **the fitter's air** (scenario key ``environment.air_drag = "law"``): Cd at every instant's
+  Reynolds number by :mod:`rollfric.air`'s wall-corrected law, with buoyancy and added mass,
+  written out here (:func:`_law_accel`) as the truth of a recording whose lab states only the
+  air's density. MuJoCo and PyBullet apply that drag but neither buoyancy nor added mass (a
+  fit with them is then 0.01-0.1 % off, as :mod:`rollfric.air` measures).
 
 With both, the equation of motion of :mod:`rollfric.eom` becomes::
 
@@ -42,7 +47,8 @@ import math
 
 import numpy as np
 
-from rollfric.eom import solve_segments
+from rollfric.air import Air
+from rollfric.eom import drag_accel, solve_segments
 
 AIR_VISCOSITY = 1.81e-5  # Pa s, air at 20 C (for the Reynolds number only)
 ROOM_AIR_DENSITY = 1.204  # kg/m^3, dry air at 20 C and 1013 hPa
@@ -61,16 +67,25 @@ class Losses:
         Density of the air around the ball (kg/m^3); 0: no drag.
     air_cd : float
         Drag coefficient of the ball (1).
+    law : bool
+        Use the fitter's air (:mod:`rollfric.air`: Cd from the instant's Reynolds number with
+        the wall factor, buoyancy, added mass) instead of the constant ``air_cd``.
     """
 
     mu_speed: float = 0.0
     air_density: float = 0.0
     air_cd: float = SPHERE_CD
+    law: bool = False  # True: rollfric.air's drag law, buoyancy and added mass (air_cd unused)
 
     @property
     def active(self) -> bool:
         """Whether any loss beyond the constant mu is on."""
-        return self.mu_speed != 0.0 or (self.air_density != 0.0 and self.air_cd != 0.0)
+        return self.mu_speed != 0.0 or (self.air_density != 0.0
+                                        and (self.air_cd != 0.0 or self.law))
+
+    def air(self) -> Air:
+        """The drag as :class:`rollfric.air.Air` (density 0 without air)."""
+        return Air(density=self.air_density, cd=None if self.law else self.air_cd)
 
     def drag_per_mass(self, ball_radius: float, ball_mass: float) -> float:
         """k = rho Cd pi r^2 / (2 m) (1/m): the drag's deceleration is k v^2.
@@ -103,7 +118,7 @@ def losses_of(scenario) -> Losses:
     Losses
     """
     return Losses(mu_speed=scenario.mu_speed, air_density=scenario.air_density,
-                  air_cd=scenario.air_cd)
+                  air_cd=scenario.air_cd, law=getattr(scenario, "air_drag", "") == "law")
 
 
 def reynolds(speed, ball_diameter: float, air_density: float = ROOM_AIR_DENSITY,
@@ -156,10 +171,35 @@ def theta_ddot(theta, theta_dot, mu, losses: Losses, *, track_radius, ball_radiu
     th = np.asarray(theta, dtype=float)
     om = np.asarray(theta_dot, dtype=float)
     L = track_radius
+    if losses.law:
+        accel = _law_accel(mu, losses, L, ball_radius, ball_mass, gravity)
+        out = np.vectorize(lambda a, w: accel(a, w, math.copysign(1.0, w)) if w != 0.0
+                           else accel(a, 0.0, 0.0))(th, om)
+        return np.asarray(out, dtype=float)
     k = losses.drag_per_mass(ball_radius, ball_mass)
     mu_v = mu + losses.mu_speed * L * np.abs(om)
     resist = mu_v * (gravity * np.cos(th) + L * om**2) + k * L**2 * om**2
     return -(5.0 / (7.0 * L)) * (gravity * np.sin(th) + np.sign(om) * resist)
+
+
+def _law_accel(mu, losses: Losses, L, ball_radius, ball_mass, gravity):
+    """theta''(theta, theta', s) with rollfric.air's drag law, buoyancy and added mass,
+    written out (not the fitter's compiled kernel): (7/5 m + C_a rho V) L theta'' =
+    -[(m - rho V) g sin + s (mu((m - rho V) g cos + (m + C_a rho V) L theta'^2) + D)]."""
+    from rollfric.air import ADDED_MASS_COEFFICIENT
+
+    a = losses.air().coefficients(ball_radius, ball_mass)
+    beta = a[0]
+    ca = ADDED_MASS_COEFFICIENT * beta
+    m1 = losses.mu_speed * L
+
+    def accel(th, w, s):
+        drag = drag_accel(L * abs(w), a[2], a[3], a[4], a[5])
+        gb = (1.0 - beta) * gravity
+        resist = (mu + m1 * abs(w)) * (gb * math.cos(th) + (1.0 + ca) * L * w * w) + drag
+        return -(gb * math.sin(th) + s * resist) / ((1.4 + ca) * L)
+
+    return accel
 
 
 def solve(theta0: float, omega0: float, mu: float, t, losses: Losses, *, track_radius: float,
@@ -214,6 +254,9 @@ def solve(theta0: float, omega0: float, mu: float, t, losses: Losses, *, track_r
         resist = (mu + m1 * abs(w)) * (gravity * math.cos(th) + L * w * w) + kq * w * w
         return -a * (gravity * math.sin(th) + s * resist)
 
+    if losses.law:
+        accel = _law_accel(mu, losses, L, ball_radius, ball_mass, gravity)
+
     return solve_segments(theta0, omega0, t, accel, mu_static=mu, rtol=rtol, atol=atol)
 
 
@@ -236,7 +279,13 @@ def applied_force(velocity, losses: Losses, ball_radius: float, ball_mass: float
         (3,) force, N.
     """
     v = np.asarray(velocity, dtype=float)
-    return -ball_mass * losses.drag_per_mass(ball_radius, ball_mass) * np.linalg.norm(v) * v
+    speed = float(np.linalg.norm(v))
+    if losses.law:  # rollfric.air's Cd at this speed's Reynolds number
+        a = losses.air().coefficients(ball_radius, ball_mass)
+        if speed == 0.0:
+            return np.zeros(3)
+        return -ball_mass * drag_accel(speed, a[2], a[3], a[4], a[5]) * v / speed
+    return -ball_mass * losses.drag_per_mass(ball_radius, ball_mass) * speed * v
 
 
 def mu_at(speed: float, mu: float, losses: Losses) -> float:

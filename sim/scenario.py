@@ -19,6 +19,8 @@ A scenario file is TOML in bench units (mm, g, Hz, degrees), a superset of the l
     gravity_m_s2 = 9.81
     air_density_kg_m3 = 0.0 # air drag on the ball, off; room air 1.2 (sim.losses)
     air_cd = 0.47           # the ball's drag coefficient
+    air_drag = "constant"   # "constant": air_cd; "law": rollfric.air's drag law (Cd at the
+                            # instant's Re, wall factor) with buoyancy and added mass
     [motion]
     mu = 0.0079
     theta0_deg = 20.0
@@ -54,6 +56,7 @@ SURFACES = {
 MAX_THETA0_DEG = 80.0
 MAX_OVALITY = 0.1  # of the mean radius
 MAX_TILT_DEG = 10.0
+AIR_DRAGS = ("constant", "law")
 
 
 # fields written only when not zero (sim.section's out-of-round and tilted trough)
@@ -90,6 +93,7 @@ class Scenario:
     mu_speed: float = 0.0
     air_density: float = 0.0  # kg/m^3; 0: no drag
     air_cd: float = 0.47
+    air_drag: str = "constant"  # "constant" (air_cd) or "law" (rollfric.air, the fitter's)
     ovality: float = 0.0  # m, D_max - D_min of an elliptic bore (sim.section.Section)
     ovality_angle: float = 0.0  # rad, its major axis from world x, counter-clockwise
     tilt: float = 0.0  # rad, the trough axis tilted along its length, the far end up for
@@ -119,6 +123,9 @@ class Scenario:
                     or v < 0:
                 raise ScenarioError(f"{name} must be a finite number >= 0, got {v!r}")
             object.__setattr__(self, name, float(v))
+        if self.air_drag not in AIR_DRAGS:
+            raise ScenarioError(f"air_drag must be one of {', '.join(AIR_DRAGS)}, "
+                                f"got {self.air_drag!r}")
         for name in ("ovality", "ovality_angle", "tilt"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -238,7 +245,7 @@ class Scenario:
         return Setup(cylinder_radius=self.cylinder_radius, ball_diameter=self.ball_diameter,
                      ball_mass=self.ball_mass, fps=self.fps,
                      pixel_size=self.pixel_size if pixel_size is None else pixel_size,
-                     gravity=self.gravity)
+                     gravity=self.gravity, air_density=self.air_density)
 
     def replace(self, **changes) -> Scenario:
         return dataclasses.replace(self, **changes)
@@ -279,7 +286,9 @@ class Scenario:
             "ball": {"diameter_mm": self.ball_diameter * 1e3, "mass_g": self.ball_mass * 1e3},
             "camera": {"fps": self.fps, "pixel_size_mm": self.pixel_size * 1e3},
             "environment": {"gravity_m_s2": self.gravity,
-                            "air_density_kg_m3": self.air_density, "air_cd": self.air_cd},
+                            "air_density_kg_m3": self.air_density, "air_cd": self.air_cd,
+                            **({"air_drag": self.air_drag}
+                               if self.air_drag != "constant" else {})},
             "motion": {"mu": self.mu, "theta0_deg": math.degrees(self.theta0),
                        "theta_dot0_deg_s": math.degrees(self.theta_dot0),
                        "seconds": self.duration, "mu_speed_s_m": self.mu_speed},
@@ -313,7 +322,8 @@ _SCHEMA: dict[str, dict[str, tuple[str, str]]] = {
     "ball": {"diameter_mm": ("ball_diameter", "mm"), "mass_g": ("ball_mass", "g")},
     "camera": {"fps": ("fps", ""), "pixel_size_mm": ("pixel_size", "mm")},
     "environment": {"gravity_m_s2": ("gravity", ""),
-                    "air_density_kg_m3": ("air_density", ""), "air_cd": ("air_cd", "")},
+                    "air_density_kg_m3": ("air_density", ""), "air_cd": ("air_cd", ""),
+                    "air_drag": ("air_drag", "text")},
     "motion": {"mu": ("mu", ""), "theta0_deg": ("theta0", "deg"),
                "theta_dot0_deg_s": ("theta_dot0", "deg"),
                "seconds": ("duration", ""), "mu_speed_s_m": ("mu_speed", "")},
@@ -344,9 +354,15 @@ def scenario_from_dict(data: dict, source: str = "scenario") -> Scenario:
             if key not in _SCHEMA[section]:
                 raise ScenarioError(f"{source}: unknown key {section}.{key} "
                                     f"(known: {', '.join(_SCHEMA[section])})")
+            field, unit = _SCHEMA[section][key]
+            if unit == "text":
+                if not isinstance(value, str):
+                    raise ScenarioError(f"{source}: {section}.{key} must be a string, got "
+                                        f"{value!r}")
+                kwargs[field] = value
+                continue
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ScenarioError(f"{source}: {section}.{key} must be a number, got {value!r}")
-            field, unit = _SCHEMA[section][key]
             kwargs[field] = to_si(value, unit)
     try:
         return Scenario(**kwargs)

@@ -593,7 +593,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         "bit_depth" in Setup.__dataclass_fields__ and sensor.dtype == "uint16") else {}
     setup = Setup(cylinder_radius=base.cylinder_radius, ball_diameter=base.ball_diameter,
                   ball_mass=base.ball_mass, fps=base.fps, pixel_size=cam.pixel_size,
-                  center_px=cam.center_px, gravity=base.gravity,
+                  center_px=cam.center_px, gravity=base.gravity, air_density=base.air_density,
                   calibration=None if cam.lens is None else
                   Calibration(cam.lens.matrix, cam.lens.distortion), **bits)
     r_ball, r_cyl = setup.ball_radius, setup.cylinder_radius

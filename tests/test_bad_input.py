@@ -59,7 +59,7 @@ def test_toml_files_that_are_not_utf8(lab, capsys):
 def test_setup_values_beyond_any_lab(lab, capsys, section, key, value):
     text = dumps_setup(thesis_setup("10mm"))
     if section == "environment":
-        text += f"\n[environment]\n{key} = {value!r}\n"
+        text = text.replace("[environment]", f"[environment]\n{key} = {value!r}")
     else:
         text = "\n".join(f"{key} = {value!r}" if line.startswith(f"{key} =") else line
                          for line in text.splitlines())

@@ -13,6 +13,7 @@ from validation.redraw import redraw_case, redrawn_lab, redrawn_setup, refit, su
 
 def _case(seed=7, **over):
     d = small_case_dict(seconds=1.0)
+    d["scenario"]["environment"] = {"air_density_kg_m3": 0.0}  # airless, as the study was made
     d["lab"] = {"draw": True, "seed": seed, "center_px_u": [2.0, 2.0],
                 "cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.5},
                 "ball": {"diameter_mm_u": 0.005},

@@ -30,6 +30,8 @@ fps = 1000
 fps_u = 0.05
 pixel_size_mm = 0.1343
 pixel_size_mm_u = 0.0003
+[environment]
+air_density_kg_m3 = 0.0   # the tracks here are airless (eom.solve_reference)
 """
 
 
@@ -57,7 +59,7 @@ def test_setup_reads_and_writes_standard_uncertainties(tmp_path):
     (("fps_u = 0.05", "fps_u = \"small\""), "camera.fps_u"),
     (("center_px_u = [2.0, 2.0]", "center_px_u = [2.0]"), "cylinder.center_px_u"),
     (("center_px = [642.0, 380.0]\n", ""), "center_px_u .*without cylinder.center_px"),
-    (("[camera]", "[environment]\ngravity_m_s2_u = 0.01\n[camera]"),
+    (("air_density_kg_m3 = 0.0", "air_density_kg_m3 = 0.0\ngravity_m_s2_u = 0.01"),
      "gravity_m_s2_u .*without environment.gravity_m_s2"),
     (("fps_u = 0.05", "shutter_u = 0.05"), "camera.shutter_u"),
 ])
@@ -118,7 +120,8 @@ def test_budget_rows_follow_the_geometry(tmp_path):
     assert set(rows) == {"statistical", "cylinder.radius_mm", "cylinder.center_px[x]",
                          "cylinder.center_px[y]", "ball.diameter_mm", "camera.fps",
                          "camera.pixel_size_mm", "method (angle map)"}
-    assert b.exact == ("ball.mass_g", "environment.gravity_m_s2")
+    assert b.exact == ("ball.mass_g", "environment.gravity_m_s2",
+                       "environment.air_density_kg_m3")
     assert b.mu == pytest.approx(result.mu, rel=1e-7)  # the local re-fit is the fit
     # radius and diameter act only through L = R - d/2: their sensitivities are -2 : 1 (the
     # secants over +-0.5 mm and +-0.0025 mm of L differ by the curvature, ~0.2 %)

@@ -53,7 +53,7 @@ NOMINAL_KEYS = {
     "cylinder": ("radius_mm",),
     "ball": ("diameter_mm", "mass_g"),
     "camera": ("fps", "pixel_size_mm"),
-    "environment": ("gravity_m_s2",),
+    "environment": ("gravity_m_s2", "air_density_kg_m3"),
 }
 TOP_KEYS = ("draw", "seed", "center_error_px", "center_px_u", "lens_calibrated")
 CALIBRATION_KEYS = ("matrix", "distortion")
@@ -214,7 +214,9 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
         for k in keys:
             dotted = f"{sec}.{k}"
             truth = float(scenario_toml[sec][k])
-            nom = _number(t[k], f"{source}: lab.{dotted}") if k in t else truth
+            # a lab may state no air (0) over a truth in air: its fit then leaves the drag out
+            nom = _number(t[k], f"{source}: lab.{dotted}",
+                          positive=k != "air_density_kg_m3") if k in t else truth
             nominal[dotted] = nom
             if f"{k}_u" in t:
                 tol[dotted] = _number(t[f"{k}_u"], f"{source}: lab.{dotted}_u", positive=False)

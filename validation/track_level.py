@@ -98,7 +98,7 @@ def oracle_setup(case: Case):
     cam = case.scene.camera
     return Setup(cylinder_radius=base.cylinder_radius, ball_diameter=base.ball_diameter,
                  ball_mass=base.ball_mass, fps=base.fps, pixel_size=cam.pixel_size,
-                 center_px=cam.center_px, gravity=base.gravity,
+                 center_px=cam.center_px, gravity=base.gravity, air_density=base.air_density,
                  calibration=None if cam.lens is None else
                  Calibration(cam.lens.matrix, cam.lens.distortion))
 

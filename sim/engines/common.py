@@ -54,6 +54,7 @@ def losses_meta(scenario, theta_dot) -> dict:
         else 0.0
     return {"losses": {"mu_speed_s_m": losses.mu_speed,
                        "air_density_kg_m3": losses.air_density, "air_cd": losses.air_cd,
+                       **({"air_drag": "law"} if losses.law else {}),
                        "max_speed_m_s": vmax,
                        "max_reynolds": float(reynolds(vmax, scenario.ball_diameter,
                                                       losses.air_density or ROOM_AIR_DENSITY))}}
