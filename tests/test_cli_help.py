@@ -4,6 +4,7 @@ when it says something, no path to a source file, an example command line, and t
 
 import argparse
 import re
+from pathlib import Path
 
 import pytest
 
@@ -89,3 +90,12 @@ def test_first_order_is_hidden_and_still_accepted():
     args = PARSER.parse_args(["fit", "t.csv", "--setup", "s.toml", "--out", "f.json",
                               "--first-order"])
     assert args.first_order is True
+
+
+@pytest.mark.parametrize("name", ["rollfric", *REAL])
+def test_the_docs_pages_named_in_help_exist(name):
+    root = Path(__file__).resolve().parents[1]
+    parser = PARSER if name == "rollfric" else REAL[name]
+    pages = re.findall(r"docs/[\w/.-]+?\.md\b", parser.format_help())
+    for page in pages:
+        assert (root / page).is_file(), f"rollfric {name} --help names {page}, which is absent"
