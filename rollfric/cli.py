@@ -29,6 +29,7 @@ from rollfric import (
     cli_track,
 )
 from rollfric.errors import InputError
+from rollfric.helpformat import HelpFormatter, example
 
 COMMAND_GROUP = "rollfric.commands"
 
@@ -60,6 +61,11 @@ def build_parser() -> argparse.ArgumentParser:
             "Measure rolling friction of a ball in a cylindrical trough from high-speed camera "
             "recordings, and validate the measurement end to end against simulated and "
             "rendered ground truth. mu is defined by M = mu * r * N throughout."),
+        formatter_class=HelpFormatter,
+        epilog=example("rollfric sample demo",
+                       "rollfric measure demo/frames.tif --setup demo/setup.toml "
+                       "--out demo/result --plot",
+                       "rollfric COMMAND --help", docs="docs/guide/measure.md"),
     )
     parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
@@ -135,7 +141,8 @@ def missing_requirements(ep: importlib.metadata.EntryPoint) -> list[str]:
 
 def _add_unavailable(sub, name: str, summary: str, reason: str) -> None:
     p = sub.add_parser(name, add_help=False, help=f"{summary} (needs: {SUITE_INSTALL})",
-                       description=f"{summary}. Needs the validation suite: {SUITE_INSTALL}")
+                       description=f"{summary}. Needs the validation suite: {SUITE_INSTALL}",
+                       formatter_class=HelpFormatter)
     p.set_defaults(func=functools.partial(_suite_missing, reason=reason), accepts_any=True)
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import argparse
+from rollfric.helpformat import HelpFormatter, example
 
 HELP = "the lens calibration (camera matrix, distortion) from chessboard images"
 
@@ -29,7 +29,10 @@ def register(sub) -> None:
             "corners or the model do not fit: blur, a board that is not flat, a lens the model "
             "cannot take) or a parameter is too uncertain (fx, fy over 2 %, cx, cy over 2 % of "
             "the image, a distortion coefficient moving points by over 1 px)."),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter,
+        epilog=example("rollfric calibrate board/*.png --board 9x6 --square-mm 10 "
+                       "--out camera.toml",
+                       docs="docs/formats/setup.md"))
     p.add_argument("images", nargs="+", metavar="IMAGE", help="chessboard images (any format "
                    "rollfric reads: PNG, TIFF, ...)")
     p.add_argument("--board", required=True, metavar="COLSxROWS",

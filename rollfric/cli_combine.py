@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import argparse
+from rollfric.helpformat import HelpFormatter, example
 
 HELP = "combine repeated releases of one setup (fit.json files) into one mu"
 
@@ -25,7 +25,10 @@ def register(sub) -> None:
             "widened and suspect. Exit status 0: ok; 2: bad input (files of different setups, "
             "not a fit.json, fewer than two runs; nothing written); 3: a result to be looked "
             "at (written, the reasons on stderr)."),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter,
+        epilog=example("rollfric combine run1/fit.json run2/fit.json run3/fit.json "
+                       "--out combined.json",
+                       docs="docs/guide/combine.md"))
     p.add_argument("fits", nargs="+", metavar="FIT.json", help="the releases' fit.json files")
     p.add_argument("--out", default=None, metavar="COMBINED.json",
                    help="where to write the result (default: printed only)")

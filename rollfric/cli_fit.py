@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from rollfric.helpformat import HelpFormatter, example
 from rollfric.registry import FIT_METHODS
 
 HELP = "fit mu to a track (t_s, theta_rad) with the equation of motion"
@@ -27,7 +28,9 @@ def register(sub) -> None:
             "and the quality checks' verdict (quality: ok or suspect, quality_reasons). Exit "
             "status 0: ok; 2: bad input (nothing written); 3: a suspect fit (written, the "
             "reasons on stderr)."),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter,
+        epilog=example("rollfric fit result/track.csv --setup setup.toml --out fit.json --plot",
+                       docs="docs/guide/fit.md"))
     p.add_argument("track", metavar="TRACK.csv", help="CSV with columns t_s,theta_rad")
     p.add_argument("--setup", required=True, metavar="SETUP.toml",
                    help="lab setup file (cylinder radius, ball diameter and mass, camera)")
@@ -73,9 +76,9 @@ def add_budget_arguments(parser) -> None:
                         help="add the second-order row to the budget (GUM 5.1.2: the inputs' "
                              "interactions and curvature; 4 re-fits per pair of uncertain "
                              "inputs and 2 per input)")
-    parser.add_argument("--first-order", action="store_true",
-                        help="deprecated, no effect: the budget is first order unless "
-                             "--second-order is given")
+    # deprecated, no effect (the budget is first order unless --second-order is given):
+    # accepted for old scripts, hidden from --help
+    parser.add_argument("--first-order", action="store_true", help=argparse.SUPPRESS)
 
 
 def read_track(path):

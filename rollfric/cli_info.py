@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import argparse
+from rollfric.helpformat import HelpFormatter, example
 
 HELP = "what a recording holds (frames, size, bit depth, rates, shutter, trigger), unmeasured"
 
@@ -25,7 +25,9 @@ def register(sub) -> None:
             "anything measure reads (TIFF stack, image folder, video, .cine, .cih/.cihx + "
             ".mraw, Zarr store). Exit status 0; 2 when it cannot be read (the reason on "
             "stderr)."),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter,
+        epilog=example("rollfric info clip.cine",
+                       docs="docs/guide/info-track.md"))
     p.add_argument("recording", metavar="RECORDING", help="TIFF stack, image folder, video, "
                    ".cine, .cih/.cihx (+ .mraw), or Zarr store")
     p.add_argument("--setup", metavar="SETUP.toml", default=None,

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import argparse
-
 from rollfric.cli_fit import add_budget_arguments
+from rollfric.helpformat import HelpFormatter, example
 from rollfric.registry import FIT_METHODS, LOCATORS
 
 HELP = "locate the ball in a recording, write its track and fit mu"
@@ -32,7 +31,11 @@ def register(sub) -> None:
             "OUT/overlays.png. Nothing is written when the input is bad (exit status 2); a "
             "measurement that fails a quality check is written with quality = suspect and its "
             "reasons in fit.json, the reasons on stderr, and exit status 3."),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter,
+        epilog=example("rollfric sample demo",
+                       "rollfric measure demo/frames.tif --setup demo/setup.toml "
+                       "--out demo/result --plot",
+                       docs="docs/guide/measure.md"))
     add_tracking_arguments(p)
     p.add_argument("--fit-method", default="lsq", choices=list(FIT_METHODS),
                    help="how mu is fitted (see rollfric fit)")

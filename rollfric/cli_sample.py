@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import shlex
 
+from rollfric.helpformat import HelpFormatter, example
+
 HELP = "write the shipped sample recording (400 frames) and its setup.toml to a folder"
 
 
@@ -22,7 +24,12 @@ def register(sub) -> None:
             "sensor noise; a lossless compressed TIFF stack) and DIR/setup.toml (what the lab "
             "knows: trough, ball, camera), then print the rollfric measure command to run on "
             "them. Exit status 0; 2 when DIR exists and is not empty (without --overwrite) or "
-            "cannot be written."))
+            "cannot be written."),
+        formatter_class=HelpFormatter,
+        epilog=example("rollfric sample demo",
+                       "rollfric measure demo/frames.tif --setup demo/setup.toml "
+                       "--out demo/result --plot",
+                       docs="docs/guide/measure.md"))
     p.add_argument("dir", metavar="DIR", help="folder to write (created when absent)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace frames.tif and setup.toml in an existing DIR (its other files "

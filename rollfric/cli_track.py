@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import argparse
+from rollfric.helpformat import HelpFormatter, example
 
 HELP = "locate the ball in a recording and write its track only (any number of frames)"
 
@@ -29,7 +29,9 @@ def register(sub) -> None:
             "OUT/overlays.png. No fit, so no minimum length: a 15-frame clip is tracked. "
             "'rollfric fit OUT/track.csv' fits mu later. Exit status 0; 2 for bad input "
             "(nothing written)."),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter,
+        epilog=example("rollfric track clip.cine --setup setup.toml --out tracked --plot",
+                       docs="docs/guide/info-track.md"))
     add_tracking_arguments(p)
     p.add_argument("--plot", action="store_true", help="also write overlays.png")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")

@@ -276,6 +276,21 @@ def read_image(path: str | Path) -> np.ndarray:
     ------
     RecordingError
         The file is missing or unreadable.
+
+    Examples
+    --------
+    A colour PNG, read as one grayscale image:
+
+    >>> import tempfile, cv2, numpy as np, rollfric
+    >>> from pathlib import Path
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = str(Path(tmp.name) / "background.png")
+    >>> cv2.imwrite(path, np.full((48, 64, 3), 200, np.uint8))
+    True
+    >>> image = rollfric.read_image(path)
+    >>> image.shape, image.dtype, int(image[0, 0])
+    ((48, 64), dtype('uint8'), 200)
+    >>> tmp.cleanup()
     """
     path = Path(path)
     if not path.exists():
@@ -489,6 +504,23 @@ def open_recording(path: str | Path):
     ------
     RecordingError
         The file is missing, of an unknown format, or unreadable (the message names it).
+
+    Examples
+    --------
+    A TIFF stack of five 48 x 64 frames:
+
+    >>> import tempfile, numpy as np, tifffile, rollfric
+    >>> from pathlib import Path
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = Path(tmp.name) / "frames.tif"
+    >>> frames = np.arange(5, dtype=np.uint8)[:, None, None] * np.ones((48, 64), np.uint8)
+    >>> tifffile.imwrite(path, frames, photometric="minisblack")
+    >>> source = rollfric.open_recording(path)
+    >>> len(source), source.shape, source.dtype
+    (5, (5, 48, 64), dtype('uint8'))
+    >>> int(source[3][0, 0])
+    3
+    >>> tmp.cleanup()
     """
     path = Path(path)
     if not path.exists():

@@ -45,7 +45,39 @@ class Calibration:
     ``distortion_u`` (one per coefficient), as ``cv2.calibrateCameraExtended``'s
     stdDeviationsIntrinsics give them (None: exact). ``image_size`` is (width, height) px of
     the images it was made from (None: not stated): a calibration holds only for that size and
-    crop, and a recording of another size is refused (:func:`check_image_size`)."""
+    crop, and a recording of another size is refused (:func:`check_image_size`).
+
+    Parameters
+    ----------
+    matrix : tuple
+        ((fx, 0, cx), (0, fy, cy), (0, 0, 1)), px.
+    distortion : tuple of float
+        OpenCV's coefficients (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1..s4[, tx, ty]]]]).
+    matrix_u, distortion_u : tuple or None, optional
+        Their standard uncertainties (None: exact).
+    image_size : tuple of int or None, optional
+        (width, height) px of the calibration's images.
+
+    Raises
+    ------
+    CalibrationError
+        A matrix that is not [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0, a
+        distortion of another length or not finite, a bad uncertainty or image size.
+
+    Examples
+    --------
+    A barrel distortion (k1 = -0.1) on a 1000 px focal length: the point imaged 500 px right
+    of the principal point lies 513.5 px out in the undistorted image.
+
+    >>> from rollfric import Calibration
+    >>> lens = Calibration(matrix=((1000.0, 0.0, 640.0), (0.0, 1000.0, 512.0), (0.0, 0.0, 1.0)),
+    ...                    distortion=(-0.1, 0.0, 0.0, 0.0, 0.0))
+    >>> lens.undistort([[640.0, 512.0], [1140.0, 512.0]]).round(2)
+    array([[ 640.  ,  512.  ],
+           [1153.54,  512.  ]])
+    >>> lens.distort(lens.undistort([[1140.0, 512.0]])).round(6)
+    array([[1140.,  512.]])
+    """
 
     matrix: tuple
     distortion: tuple

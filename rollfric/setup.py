@@ -168,6 +168,16 @@ class Setup:
     SetupError
         A non-positive or non-finite value, a ball not smaller than the cylinder, a bad
         ``center_px`` or uncertainty.
+
+    Examples
+    --------
+    >>> from rollfric import Setup
+    >>> setup = Setup(cylinder_radius=85.3e-3, ball_diameter=10e-3, ball_mass=4.07612e-3,
+    ...               fps=1000.0, pixel_size=0.1343e-3)
+    >>> round(setup.track_radius * 1e3, 2)  # L = R - r, mm
+    80.3
+    >>> round(setup.ball_radius / setup.pixel_size, 2)  # the ball's radius, px
+    37.23
     """
 
     cylinder_radius: float  # m
@@ -388,6 +398,18 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
     ------
     SetupError
         An unknown, missing or bad key, named in the message.
+
+    Examples
+    --------
+    >>> from rollfric import setup_from_dict
+    >>> setup = setup_from_dict({
+    ...     "cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.05},
+    ...     "ball": {"diameter_mm": 10.0, "mass_g": 4.07612},
+    ...     "camera": {"fps": 1000, "pixel_size_mm": 0.1343}})
+    >>> setup.cylinder_radius, round(setup.ball_mass * 1e3, 5), setup.fps  # m, g, Hz
+    (0.0853, 4.07612, 1000.0)
+    >>> [(name, round(u * 1e3, 6)) for name, u in setup.uncertainty]  # mm
+    [('cylinder_radius', 0.05)]
     """
     for section in data:
         if section not in _SCHEMA:
@@ -552,6 +574,28 @@ def load_setup(path: str | Path) -> Setup:
     ------
     SetupError
         The file is missing, not TOML, or has an unknown, missing or bad key.
+
+    Examples
+    --------
+    >>> import tempfile, rollfric
+    >>> from pathlib import Path
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = Path(tmp.name) / "setup.toml"
+    >>> _ = path.write_text('''
+    ... [cylinder]
+    ... radius_mm = 85.3
+    ... center_px = [640.0, 380.0]
+    ... [ball]
+    ... diameter_mm = 10.0
+    ... mass_g = 4.07612
+    ... [camera]
+    ... fps = 1000
+    ... pixel_size_mm = 0.1343
+    ... ''')
+    >>> setup = rollfric.load_setup(path)
+    >>> setup.cylinder_radius, setup.center_px, setup.fps
+    (0.0853, (640.0, 380.0), 1000.0)
+    >>> tmp.cleanup()
     """
     return setup_from_dict(read_toml(path, "setup", SetupError), source=str(path))
 
@@ -622,6 +666,15 @@ def thesis_setup(ball: str = "10mm", **changes) -> Setup:
     ------
     SetupError
         An unknown ball.
+
+    Examples
+    --------
+    >>> from rollfric import thesis_setup
+    >>> setup = thesis_setup("12.69mm")
+    >>> setup.ball_diameter, setup.ball_mass, setup.fps
+    (0.01269, 0.00835894, 1000.0)
+    >>> thesis_setup("10mm", fps=2000.0).fps
+    2000.0
     """
     try:
         diameter, mass = THESIS_BALLS[ball]

@@ -115,7 +115,20 @@ def check_roi(roi, frame_shape) -> tuple[int, int, int, int]:
 
 
 class RecordingError(InputError):
-    """A recording (or background image) that cannot be read as a sequence of frames."""
+    """A recording (or background image) that cannot be read as a sequence of frames.
+
+    An :class:`~rollfric.errors.InputError`: the message names the file (and the frame at
+    fault, where one is); the command line prints it and exits with status 2.
+
+    Examples
+    --------
+    >>> import rollfric
+    >>> try:
+    ...     rollfric.open_recording("no-such-recording.tif")
+    ... except rollfric.RecordingError as exc:
+    ...     print(exc)
+    no-such-recording.tif: no such file or folder
+    """
 
 
 def _to_gray(img: np.ndarray, what: str) -> np.ndarray:

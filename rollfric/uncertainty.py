@@ -91,7 +91,39 @@ class Row:
 
 @dataclasses.dataclass(frozen=True)
 class Budget:
-    """The uncertainty of one mu: rows largest first, combined and expanded uncertainty."""
+    """The uncertainty of one mu: rows largest first, combined and expanded uncertainty.
+
+    Attributes
+    ----------
+    mu, u_mu, U_mu : float
+        mu, its combined standard uncertainty and its expanded uncertainty U = k u.
+    coverage_factor : float
+        k.
+    rows : tuple of Row
+        One per source (``source``, ``value``, ``u``, ``sensitivity``, ``u_mu``, ``note``).
+    statistical : dict
+        The ordinary and corrected standard error, lag window, n.
+    exact : tuple of str
+        The setup's keys taken as exact (no ``_u``).
+
+    Examples
+    --------
+    >>> import numpy as np, rollfric
+    >>> from rollfric.eom import solve_reference
+    >>> setup = rollfric.setup_from_dict({
+    ...     "cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.05},
+    ...     "ball": {"diameter_mm": 10.0, "mass_g": 4.07612},
+    ...     "camera": {"fps": 1000, "pixel_size_mm": 0.1343}})
+    >>> t = np.arange(2000) / 1000.0
+    >>> theta, _, _ = solve_reference(np.radians(20.0), 0.0, 0.0079, t,
+    ...                               track_radius=setup.track_radius)
+    >>> result = rollfric.fit_mu(t, theta, setup)
+    >>> b = rollfric.budget(rollfric.Measurement(setup=setup, t=t, theta=theta), result)
+    >>> b.rows[0].source, f"{b.rows[0].u_mu:.1e}"
+    ('cylinder.radius_mm', '2.5e-06')
+    >>> sorted(b.to_json())  # the keys it adds to fit.json
+    ['U_mu', 'coverage_factor', 'u_mu', 'uncertainty', 'uncertainty_budget']
+    """
 
     mu: float
     u_mu: float
@@ -138,7 +170,40 @@ class Measurement:
     from the background's contour (the setup then has no center_px); it makes the centre a
     source of the budget as a setup's ``center_px_u`` does. ``distorted``: ``x``, ``y`` are
     positions in the recorded image, undistorted with the setup's lens calibration before the
-    angles (so a moved calibration moves them); ``center`` is in the undistorted image."""
+    angles (so a moved calibration moves them); ``center`` is in the undistorted image.
+
+    Parameters
+    ----------
+    setup : Setup
+        The nominal setup.
+    frames, x, y : numpy.ndarray, optional
+        Frame numbers and located centres (px).
+    center : tuple of float, optional
+        The cylinder axis the angles are taken about (px).
+    angle : {"atan2", "arcsin"}, optional
+        The angle formula (:func:`rollfric.track.angles`).
+    t, theta : numpy.ndarray, optional
+        Times (s) and given angles (rad).
+    center_u : tuple of float, optional
+        Standard uncertainty of a contour-found ``center`` (px).
+    distorted : bool, optional
+        ``x``, ``y`` are in the recorded (distorted) image.
+
+    Examples
+    --------
+    Two located centres, re-evaluated with the trough's centre 1 px to the right:
+
+    >>> import numpy as np, rollfric
+    >>> setup = rollfric.thesis_setup("10mm")
+    >>> meas = rollfric.Measurement(setup=setup, frames=np.array([0.0, 1.0]),
+    ...                             x=np.array([100.0, 110.0]), y=np.array([700.0, 700.0]),
+    ...                             center=(100.0, 100.0))
+    >>> t, theta = meas.series(setup)
+    >>> t, theta.round(5)
+    (array([0.   , 0.001]), array([0.     , 0.01667]))
+    >>> meas.series(setup.replace(center_px=(101.0, 100.0)))[1].round(5)
+    array([-0.00167,  0.015  ])
+    """
 
     setup: Setup
     frames: np.ndarray | None = None
@@ -216,6 +281,24 @@ def measurement_from_track(track, info) -> Measurement:
         Centres (NaN where the ball was not found), with the track's times when they are the
         recording's own timestamps, and the contour-found centre's uncertainty
         (``info.center_u_px``) when the setup gave no centre.
+
+    Examples
+    --------
+    The shipped sample recording, measured, then its uncertainty budget:
+
+    >>> import tempfile, rollfric
+    >>> from pathlib import Path
+    >>> from rollfric.sample import write_sample
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> folder = write_sample(Path(tmp.name) / "sample")
+    >>> track, info, result = rollfric.measure(folder / "frames.tif", folder / "setup.toml")
+    >>> meas = rollfric.measurement_from_track(track, info)
+    >>> meas.from_centres, meas.center, len(meas.x)
+    (True, (191.0, -532.0), 400)
+    >>> b = rollfric.budget(meas, result)
+    >>> b.rows[0].source, abs(b.mu - 0.0079) < b.U_mu
+    ('cylinder.center_px[x]', True)
+    >>> tmp.cleanup()
     """
     center = tuple(info.center_px)
     center_u = getattr(info, "center_u_px", None)
@@ -526,6 +609,28 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     ------
     rollfric.errors.InputError
         If ``result`` is not a least-squares ("lsq") fit.
+
+    Examples
+    --------
+    The exact motion of a 10 mm ball (mu = 0.0079) in a trough whose radius the lab knows to
+    0.05 mm: that uncertainty is the budget's largest row.
+
+    >>> import numpy as np, rollfric
+    >>> from rollfric.eom import solve_reference
+    >>> setup = rollfric.setup_from_dict({
+    ...     "cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.05},
+    ...     "ball": {"diameter_mm": 10.0, "mass_g": 4.07612},
+    ...     "camera": {"fps": 1000, "pixel_size_mm": 0.1343}})
+    >>> t = np.arange(2000) / 1000.0
+    >>> theta, _, _ = solve_reference(np.radians(20.0), 0.0, 0.0079, t,
+    ...                               track_radius=setup.track_radius)
+    >>> result = rollfric.fit_mu(t, theta, setup)
+    >>> b = rollfric.budget(rollfric.Measurement(setup=setup, t=t, theta=theta), result)
+    >>> print(f"mu = {b.mu:.5f}, u_mu = {b.u_mu:.1e}, U_mu = {b.U_mu:.1e} "
+    ...       f"(k = {b.coverage_factor:g})")
+    mu = 0.00790, u_mu = 2.5e-06, U_mu = 5.1e-06 (k = 2)
+    >>> b.rows[0].source
+    'cylinder.radius_mm'
     """
     if result.method != "lsq":
         raise InputError(f"the uncertainty budget needs the lsq fit, not {result.method!r}")

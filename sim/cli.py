@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import argparse
-
+from rollfric.helpformat import HelpFormatter, example
 from sim.engines import ENGINES
 
 _HELP = """\
@@ -15,7 +14,7 @@ value) plus a JSON sidecar with the full scenario, engine version and settings.
 Engines: reference (equation of motion, DOP853 to 1e-10: the truth), mujoco, pybullet.
 Surfaces (mujoco/pybullet): tangent (default: one exact contact with the cylinder, unbiased),
 mesh and heightfield (the naive faceted troughs; they bias mu, which is why they are offered).
-A scenario TOML file (see sim/scenario.py) may be given instead of, or as well as, flags;
+A scenario TOML file (docs/formats/trajectory.md) may be given instead of, or as well as, flags;
 flags override the file. mu is defined by M = mu * r * N.
 """
 
@@ -23,21 +22,28 @@ flags override the file. mu is defined by M = mu * r * N.
 def register(subparsers) -> None:
     p = subparsers.add_parser("simulate", help="ground-truth trajectory from an engine",
                               description=_HELP,
-                              formatter_class=argparse.RawDescriptionHelpFormatter)
+                              formatter_class=HelpFormatter,
+                              epilog=example("rollfric simulate --ball 10mm --mu 0.0079 "
+                                             "--theta0-deg 20 --seconds 2 --out traj.csv",
+                                             docs="docs/guide/simulate.md"))
     p.add_argument("scenario", nargs="?", help="scenario TOML file (optional)")
-    p.add_argument("--engine", choices=list(ENGINES))
-    p.add_argument("--surface", choices=["tangent", "mesh", "heightfield"])
+    p.add_argument("--engine", choices=list(ENGINES),
+                   help="physics engine (default: the scenario's, reference)")
+    p.add_argument("--surface", choices=["tangent", "mesh", "heightfield"],
+                   help="the trough's contact surface, mujoco/pybullet (default: tangent)")
     p.add_argument("--ball", choices=["1.58mm", "10mm", "12.69mm"],
                    help="a thesis ball (sets diameter and mass)")
     p.add_argument("--mu", type=float, help="rolling friction coefficient (M = mu r N)")
-    p.add_argument("--ball-diameter-mm", type=float)
-    p.add_argument("--ball-mass-g", type=float)
-    p.add_argument("--cylinder-radius-mm", type=float)
+    p.add_argument("--ball-diameter-mm", type=float,
+                   help="ball diameter (mm; default: the thesis's 10 mm ball)")
+    p.add_argument("--ball-mass-g", type=float, help="ball mass (g)")
+    p.add_argument("--cylinder-radius-mm", type=float,
+                   help="the trough's inner radius (mm; default: the thesis's 85.3 mm)")
     p.add_argument("--theta0-deg", type=float, help="release angle (deg, + = right)")
     p.add_argument("--theta-dot0-deg-s", type=float, help="initial angular speed (deg/s)")
     p.add_argument("--seconds", type=float, help="duration (s)")
     p.add_argument("--fps", type=float, help="sample (camera) rate (Hz)")
-    p.add_argument("--seed", type=int)
+    p.add_argument("--seed", type=int, help="seed of the engine's random draws (default 0)")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="engine option, e.g. timestep_s=1e-4 (repeatable)")
     p.add_argument("--progress", action="store_true", help="show a progress bar")

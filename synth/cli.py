@@ -3,7 +3,7 @@ heavy imports happen in the handler)."""
 
 from __future__ import annotations
 
-import argparse
+from rollfric.helpformat import HelpFormatter, example
 
 HELP = "render a trajectory as a synthetic camera recording (Zarr) with exact ground truth"
 
@@ -19,7 +19,9 @@ def register(sub) -> None:
             "`rollfric simulate` (with its .json sidecar) or a scenario TOML (simulated "
             "first). Lighting presets: thesis, dim, harsh, uneven, flat. Noise presets: none, "
             "realistic, noisy, 12bit, dark."),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter,
+        epilog=example("rollfric render traj.csv --out rec.zarr --export lab",
+                       docs="docs/guide/render.md"))
     p.add_argument("trajectory", metavar="TRAJ", help="trajectory CSV or scenario TOML")
     p.add_argument("--out", required=True, metavar="REC.zarr", help="recording to write")
     p.add_argument("--lighting", default="thesis", help="lighting preset")

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
+from rollfric.helpformat import HelpFormatter, example
 from sim.engines import ENGINES
 
 _VALIDATE_HELP = """\
@@ -67,7 +67,10 @@ SWEEP.toml:
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "validate", help="the main job: one case end to end against the truth, with a report",
-        description=_VALIDATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+        description=_VALIDATE_HELP, formatter_class=HelpFormatter,
+        epilog=example("rollfric validate --out report",
+                       "rollfric validate --lighting harsh --seed 3 --out report-harsh",
+                       docs="docs/guide/validate.md"))
     p.add_argument("case", nargs="?", metavar="CASE.toml",
                    help="case (or plain scenario) TOML file; default: the built-in case")
     p.add_argument("--engine", choices=list(ENGINES),
@@ -94,7 +97,9 @@ def register(subparsers) -> None:
 
     s = subparsers.add_parser(
         "sweep", help="many validation cases on Dask, one table row per case, with plots",
-        description=_SWEEP_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+        description=_SWEEP_HELP, formatter_class=HelpFormatter,
+        epilog=example("rollfric sweep --list", "rollfric sweep blur --out blur-study",
+                       docs="docs/guide/sweep.md"))
     s.add_argument("sweep", nargs="?", metavar="SWEEP.toml",
                    help="sweep file, or the name of a shipped study (see --list)")
     s.add_argument("--out", metavar="DIR", help="results directory (required to run)")

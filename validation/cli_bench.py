@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import argparse
+from rollfric.helpformat import HelpFormatter, example
 
 SECTION_NAMES = ("fitting", "simulation", "rendering", "recognition", "end-to-end",
                  "sweeps")
@@ -20,7 +20,9 @@ def register(sub) -> None:
             "validate case end to end; and a sweep's cases/hour on a local 2-worker cluster and "
             "on a dask scheduler with workers started apart. Writes OUT/bench.md (a Markdown "
             "table) and OUT/bench.json. Times are medians of repeats; ratios are the headline."),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter,
+        epilog=example("rollfric bench --quick --out bench-out",
+                       docs="docs/guide/bench.md"))
     p.add_argument("--out", default="bench-out", metavar="DIR", help="output directory")
     p.add_argument("--quick", action="store_true",
                    help="smaller inputs and fewer repeats (under 2 minutes, for CI smoke runs)")
