@@ -224,6 +224,88 @@ def trough(out):
     plt.close(fig)
 
 
+def engines(out):
+    """The engines against the reference: the angle's difference over 4 s and the mu the
+    fitter recovers from each, on the exact cylinder (tangent) and on a faceted mesh."""
+    import tempfile
+
+    import pandas as pd
+
+    from rollfric.cli import main as rollfric
+    from rollfric.fit import fit_mu
+    from rollfric.setup import thesis_setup
+
+    setup = thesis_setup("10mm")
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True, constrained_layout=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        ref = None
+        for engine, surface, c, ls in (("reference", "tangent", "k", "-"),
+                                       ("mujoco", "tangent", "C0", "-"),
+                                       ("pybullet", "tangent", "C1", "-"),
+                                       ("mujoco", "mesh", "C0", ":"),
+                                       ("pybullet", "mesh", "C1", ":")):
+            path = Path(tmp) / f"{engine}_{surface}.csv"
+            assert rollfric(["simulate", "--engine", engine, "--surface", surface,
+                             "--seconds", "4", "--out", str(path)]) == 0
+            df = pd.read_csv(path)
+            t, th = df["t_s"].to_numpy(), df["theta_rad"].to_numpy()
+            mu = fit_mu(t, th, setup).mu
+            label = f"{engine}, {surface}: mu {100 * (mu / 0.0079 - 1):+.2f} %"
+            if ref is None:
+                ref = th
+                a1.plot(t, np.degrees(th), color=c, lw=0.8, label=label)
+                continue
+            a2.plot(t, np.degrees(th - ref), color=c, ls=ls, lw=1.0, label=label)
+    a1.set_ylabel("theta (deg)")
+    a1.set_title("4 s from 20 deg, 10 mm ball, mu = 0.0079: the reference (the equation of "
+                 "motion)", fontsize=9)
+    a1.legend(fontsize=7)
+    a2.axhline(0, color="0.6", lw=0.6)
+    a2.set_ylabel("engine - reference (deg)")
+    a2.set_xlabel("t (s)")
+    a2.set_title("the engines' difference, and the mu the fitter recovers from each "
+                 "(legend: against the configured 0.0079)", fontsize=9)
+    a2.legend(fontsize=7, ncol=2)
+    fig.savefig(out, dpi=DPI)
+    plt.close(fig)
+
+
+def bench_locators(out):
+    """The centre error of the default locator and of the alternatives a user might pick, on
+    the bench's drawn frames (docs/data/bench.json)."""
+    data = json.loads((ROOT / "docs" / "data" / "bench.json").read_text())
+    others = ["thesis large-ball", "thesis small-ball", "OpenCV HoughCircles",
+              "skimage CircleModel+RANSAC"]
+    scenes, table = [], {}
+    for r in data["rows"]:
+        if r["section"] != "recognition" or ": subpixel vs " not in r["item"]:
+            continue
+        scene, other = r["item"].split(": subpixel vs ")
+        if scene not in scenes:
+            scenes.append(scene)
+        table[(scene, "subpixel (default)")] = r["value"]
+        if other in others:
+            table[(scene, other)] = r["baseline_value"]
+    methods = ["subpixel (default)"] + others
+    fig, ax = plt.subplots(figsize=(9, 8), constrained_layout=True)
+    h = 0.8 / len(methods)
+    y = np.arange(len(scenes))
+    for k, m in enumerate(methods):
+        v = np.array([table.get((sc, m)) or np.nan for sc in scenes], dtype=float)
+        ax.barh(y + (k - (len(methods) - 1) / 2) * h, v, h, label=m)
+    ax.set_xscale("log")
+    ax.set_yticks(y, [sc.replace("thesis lighting, ", "") for sc in scenes], fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlabel("centre error, rms (px)")
+    ax.set_title("each locator's centre error on the bench's frames (drawn or rendered, exact "
+                 "centres;\ndocs/data/bench.json; a missing bar: the method found no ball)",
+                 fontsize=9)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.4, -0.07), ncol=3)
+    ax.grid(axis="x", which="both", alpha=0.3)
+    fig.savefig(out, dpi=DPI)
+    plt.close(fig)
+
+
 def main() -> int:
     t0 = time.perf_counter()
     IMG.mkdir(parents=True, exist_ok=True)
@@ -234,7 +316,9 @@ def main() -> int:
     record_length(df, setup, truth, IMG / "record_length.png")
     systematics(IMG / "systematics.png")
     trough(IMG / "trough.png")
-    print(f"wrote 6 figures to {IMG.relative_to(ROOT)} in {time.perf_counter() - t0:.0f} s")
+    engines(IMG / "engines.png")
+    bench_locators(IMG / "bench_locators.png")
+    print(f"wrote 8 figures to {IMG.relative_to(ROOT)} in {time.perf_counter() - t0:.0f} s")
     return 0
 
 
