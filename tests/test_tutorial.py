@@ -29,4 +29,5 @@ def test_the_comparison_finds_a_changed_number_and_ignores_timings():
 
 @pytest.mark.slow
 def test_the_committed_tutorial_outputs_match_what_its_commands_print(capsys):
+    pytest.importorskip("synth")  # validate and sweep render: the suite's extra
     assert _script().main(["--check"]) == 0, capsys.readouterr().out
