@@ -408,8 +408,10 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
     ...     "camera": {"fps": 1000, "pixel_size_mm": 0.1343}})
     >>> setup.cylinder_radius, round(setup.ball_mass * 1e3, 5), setup.fps  # m, g, Hz
     (0.0853, 4.07612, 1000.0)
-    >>> [(name, round(u * 1e3, 6)) for name, u in setup.uncertainty]  # mm
-    [('cylinder_radius', 0.05)]
+    >>> round(dict(setup.uncertainty)["cylinder_radius"] * 1e3, 6)  # mm
+    0.05
+    >>> sorted(dict(setup.uncertainty))  # room air by default, with its uncertainties
+    ['air_density', 'air_viscosity', 'cylinder_radius']
     """
     for section in data:
         if section not in _SCHEMA:

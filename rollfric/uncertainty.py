@@ -110,10 +110,11 @@ class Budget:
     --------
     >>> import numpy as np, rollfric
     >>> from rollfric.eom import solve_reference
-    >>> setup = rollfric.setup_from_dict({
+    >>> setup = rollfric.setup_from_dict({  # the exact motion below is airless
     ...     "cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.05},
     ...     "ball": {"diameter_mm": 10.0, "mass_g": 4.07612},
-    ...     "camera": {"fps": 1000, "pixel_size_mm": 0.1343}})
+    ...     "camera": {"fps": 1000, "pixel_size_mm": 0.1343},
+    ...     "environment": {"air_density_kg_m3": 0}})
     >>> t = np.arange(2000) / 1000.0
     >>> theta, _, _ = solve_reference(np.radians(20.0), 0.0, 0.0079, t,
     ...                               track_radius=setup.track_radius)
@@ -612,15 +613,16 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
 
     Examples
     --------
-    The exact motion of a 10 mm ball (mu = 0.0079) in a trough whose radius the lab knows to
-    0.05 mm: that uncertainty is the budget's largest row.
+    The exact motion of a 10 mm ball (mu = 0.0079) in a vacuum, in a trough whose radius the
+    lab knows to 0.05 mm: that uncertainty is the budget's largest row.
 
     >>> import numpy as np, rollfric
     >>> from rollfric.eom import solve_reference
-    >>> setup = rollfric.setup_from_dict({
+    >>> setup = rollfric.setup_from_dict({  # the exact motion below is airless
     ...     "cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.05},
     ...     "ball": {"diameter_mm": 10.0, "mass_g": 4.07612},
-    ...     "camera": {"fps": 1000, "pixel_size_mm": 0.1343}})
+    ...     "camera": {"fps": 1000, "pixel_size_mm": 0.1343},
+    ...     "environment": {"air_density_kg_m3": 0}})
     >>> t = np.arange(2000) / 1000.0
     >>> theta, _, _ = solve_reference(np.radians(20.0), 0.0, 0.0079, t,
     ...                               track_radius=setup.track_radius)

@@ -25,7 +25,8 @@ def test_the_shipped_sample_is_a_small_lossless_recording_with_a_lab_setup():
     truth = sample_truth()
     setup = tomllib.loads(sample_path("setup.toml").read_text())
     # the lab's keys only: no mu, no angles, and the trough's centre with its uncertainty
-    assert set(setup) == {"cylinder", "ball", "camera"}
+    assert set(setup) == {"cylinder", "ball", "camera", "environment"}
+    assert setup["environment"]["air_density_kg_m3"] > 1.0  # rendered in room air, said so
     assert setup["cylinder"]["center_px_u"] == [0.2, 0.2]
     assert truth["mu"] == 0.0079 and truth["frames"] == 400
     angles = truth["angles"]

@@ -1,9 +1,10 @@
 """Make the sample recording that ships inside rollfric (``rollfric/data/sample/``).
 
 The thesis's 10 mm ball in its 85.3 mm trough (sim's default scenario, the reference engine),
-released at rest at 15 degrees, rendered by synth with the thesis's room lighting and the
-realistic sensor noise, then cropped to the band of the frame the ball crosses so that
-400 frames fit in a few MB as a lossless (deflate + horizontal predictor) TIFF stack::
+in room air (the drag law the fitter models), released at rest at 15 degrees, rendered by
+synth with the thesis's room lighting and the realistic sensor noise, then cropped to the band
+of the frame the ball crosses so that 400 frames fit in a few MB as a lossless (deflate +
+horizontal predictor) TIFF stack::
 
     PYOPENGL_PLATFORM=egl python -m validation.make_sample [--seed 0] [--out rollfric/data/sample]
 
@@ -62,7 +63,10 @@ def make_sample(out=DEFAULT_OUT, *, seed: int = 0, frames: int = FRAMES,
     from rollfric.setup import save_setup, setup_from_dict
 
     out = Path(out)
-    scenario = sim.Scenario(theta0=math.radians(THETA0_DEG), duration=frames / 1000.0, seed=seed)
+    from validation.case import ROOM_AIR_DENSITY
+
+    scenario = sim.Scenario(theta0=math.radians(THETA0_DEG), duration=frames / 1000.0, seed=seed,
+                            air_density=ROOM_AIR_DENSITY, air_drag="law")
     traj = sim.simulate(scenario)
     with tempfile.TemporaryDirectory(prefix="rollfric-sample-") as tmp:
         path = synth.render(traj, Path(tmp) / "rec.zarr", scene=synth.SceneConfig(),
