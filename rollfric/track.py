@@ -155,7 +155,8 @@ class TrackInfo:
     seconds : dict of str to float
         Wall time of each stage of :func:`measure` (s): "open" (the recording, the setup, the
         frame times), "background", "trough centre", "tracking", "fit", "turning points"
-        (the dropped-frame search where the ball turns), "ellipse check", "checks"; empty
+        (the dropped-frame search where the ball turns), "ellipse check", "path check" (the
+        path's ellipse: a tilted camera or an out-of-round bore), "checks"; empty
         from :func:`track_recording` alone. Not written to fit.json.
     background_from : str
         How the background was had: "given" (an image), "recording" (the recording's own),

@@ -36,7 +36,7 @@ from rollfric.errors import InputError
 from rollfric.fit import fit_mu
 from rollfric.setup import THESIS_BALLS, Setup
 from rollfric.uncertainty import Measurement, budget
-from validation.coverage import NOMINAL, TOLERANCE, _centres, misses
+from validation.coverage import NOMINAL, TOLERANCE, _centres, drawn_setups, misses
 
 RELEASE_SEEDS = 1000  # release k of setup s draws its noise with seed s * RELEASE_SEEDS + k
 
@@ -82,19 +82,7 @@ def draw_setup(seed: int, releases: int) -> dict:
 def _setups(case: dict) -> tuple[Setup, Setup]:
     """(as built, the lab's nominal setup with its _u) of a drawn setup; with ``exact`` in
     the case the lab knows the as-built setup exactly (only the independent part is left)."""
-    true = Setup(cylinder_radius=case["true_radius_mm"] * 1e-3,
-                 ball_diameter=case["true_diameter_mm"] * 1e-3, ball_mass=case["mass_kg"],
-                 fps=case["true_fps"], pixel_size=case["true_pixel_size_mm"] * 1e-3,
-                 center_px=case["true_center_px"])
-    tol = TOLERANCE
-    lab = Setup(cylinder_radius=NOMINAL["radius_mm"] * 1e-3,
-                ball_diameter=case["diameter_mm"] * 1e-3, ball_mass=case["mass_kg"],
-                fps=NOMINAL["fps"], pixel_size=NOMINAL["pixel_size_mm"] * 1e-3,
-                center_px=NOMINAL["center_px"],
-                uncertainty=(("cylinder_radius", tol["radius_mm"] * 1e-3),
-                             ("ball_diameter", tol["diameter_mm"] * 1e-3),
-                             ("center_px", (tol["center_px"], tol["center_px"])),
-                             ("fps", tol["fps"]), ("pixel_size", tol["pixel_size_mm"] * 1e-3)))
+    true, lab = drawn_setups(case)
     if case.get("exact"):
         lab = true
     return true, lab

@@ -121,11 +121,8 @@ def contour_background(case: dict, true: Setup) -> np.ndarray:
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
 
-def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
-             contour: bool = False) -> dict:
-    """Measure one case blind (nominal setup with its _u) and, with ``oracle``, with the
-    exact as-built setup. ``contour``: the lab gives no centre; rollfric finds it, with its
-    uncertainty, from the case's background (:func:`contour_background`)."""
+def drawn_setups(case: dict) -> tuple[Setup, Setup]:
+    """(as built, the lab's nominal setup with its _u: :data:`TOLERANCE`) of a drawn case."""
     true = Setup(cylinder_radius=case["true_radius_mm"] * 1e-3,
                  ball_diameter=case["true_diameter_mm"] * 1e-3, ball_mass=case["mass_kg"],
                  fps=case["true_fps"], pixel_size=case["true_pixel_size_mm"] * 1e-3,
@@ -139,6 +136,15 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
                              ("ball_diameter", tol["diameter_mm"] * 1e-3),
                              ("center_px", (tol["center_px"], tol["center_px"])),
                              ("fps", tol["fps"]), ("pixel_size", tol["pixel_size_mm"] * 1e-3)))
+    return true, lab
+
+
+def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
+             contour: bool = False) -> dict:
+    """Measure one case blind (nominal setup with its _u) and, with ``oracle``, with the
+    exact as-built setup. ``contour``: the lab gives no centre; rollfric finds it, with its
+    uncertainty, from the case's background (:func:`contour_background`)."""
+    true, lab = drawn_setups(case)
     frames, x, y = _centres(case, true)
     out = {k: v for k, v in case.items() if not isinstance(v, tuple)}
     center, center_u = lab.center_px, None
