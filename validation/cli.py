@@ -16,8 +16,9 @@ the track and the truth).
 
 Without CASE.toml it runs the built-in default: the thesis's 10 mm ball, mu = 0.0079, released
 at 20 deg, thesis lighting (two lamps beside the camera), the "realistic" 8-bit sensor noise,
-the full 1280 x 1024 thesis camera, 2 s of 1000 Hz frames (six half-swings; about 15 s on
-an idle 2-core CPU, most of it rendering).
+the full 1280 x 1024 thesis camera, 2 s of 1000 Hz frames (six half-swings; most of its time
+is rendering; how long it takes: the end-to-end section of the benchmarks page,
+docs/benchmarks.md).
 
 CASE.toml has the sections [scenario] (the sim scenario form: [scenario.ball], [scenario.motion],
 [scenario.engine], ...: the as-built truth), [render] (lighting, noise, motion_blur,
