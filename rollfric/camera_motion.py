@@ -30,6 +30,10 @@ MOTION_MIN_PX = 0.1
 STEP_SCATTER_PX = 0.05
 BALL_MARGIN = 2.0  # the ball's disc and its shadow: this many ball radii masked
 ECC_STEPS = 30  # iterations of the ECC refinement at most
+# the quick look: images halved this many times; a camera whose samples there stay within
+# QUICK_STILL_PX of each other is still (a quarter-size shift is good to ~0.01 px here)
+QUICK_LEVEL = 2
+QUICK_STILL_PX = 0.05
 # the phase correlation's sub-pixel bias is a few tenths of a pixel; an ECC result farther
 # from it than this has wandered off in a scene with too little structure
 PHASE_AGREE_PX = 0.5
@@ -100,16 +104,19 @@ def _window(shape):
     return cv2.createHanningWindow((shape[1], shape[0]), cv2.CV_64F)
 
 
-def frame_shift(frame, background, ball=None, r_px: float = 0.0, window=None):
+def frame_shift(frame, background, ball=None, r_px: float = 0.0, window=None, *,
+                level: int = 0):
     """The scene's shift (dx, dy) px in ``frame`` against ``background``, the ball at
     ``ball`` = (x, y) px masked (NaN when the phase correlation's peak is below
     PHASE_MIN_RESPONSE or the two estimates below disagree by more than PHASE_AGREE_PX: a
     scene without the structure to measure it): phase correlation
     (``cv2.phaseCorrelate``, whose sub-pixel peak is biased by a few tenths of a pixel),
     refined by the enhanced correlation coefficient's translation (``cv2.findTransformECC``)
-    over the pixels outside the ball."""
-    f = np.asarray(frame, dtype=np.float64)
-    b = np.asarray(background, dtype=np.float64)
+    over the pixels outside the ball. ``level``: both images halved that many times first
+    (``cv2.pyrDown``; the shift is given in the full images' pixels), for a quick look;
+    ``window``: a Hanning window of the (halved) images' shape, or None."""
+    f = np.asarray(frame, dtype=np.float32)
+    b = np.asarray(background, dtype=np.float32)
     if f.ndim == 3:
         f = f.mean(axis=2)
     if b.ndim == 3:
@@ -123,24 +130,29 @@ def frame_shift(frame, background, ball=None, r_px: float = 0.0, window=None):
         f = f.copy()
         f[y0:y1, x0:x1] = b[y0:y1, x0:x1]
         mask[y0:y1, x0:x1] = 0
+    for _ in range(level):
+        f, b = cv2.pyrDown(f), cv2.pyrDown(b)
+        mask = (cv2.resize(mask, (f.shape[1], f.shape[0]), interpolation=cv2.INTER_AREA)
+                > 0).astype(np.uint8)
+    if window is None or window.shape != f.shape:
+        window = _window(f.shape)
+    scale = float(2 ** level)
     # copies: cv2.phaseCorrelate applies its window to its inputs in place
-    (dx, dy), response = cv2.phaseCorrelate(b.copy(), f.copy(),
-                                            window if window is not None else _window(f.shape))
+    (dx, dy), response = cv2.phaseCorrelate(b.astype(np.float64), f.astype(np.float64), window)
     if not response >= PHASE_MIN_RESPONSE:
         return math.nan, math.nan
     warp = np.array([[1, 0, dx], [0, 1, dy]], dtype=np.float32)
     # the rho increment ends it: from the phase estimate it is small at once, so a tiny one
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, ECC_STEPS, 1e-7)
     try:
-        _, warp = cv2.findTransformECC(b.astype(np.float32), f.astype(np.float32), warp,
-                                       cv2.MOTION_TRANSLATION, crit, mask, 1)
+        _, warp = cv2.findTransformECC(b, f, warp, cv2.MOTION_TRANSLATION, crit, mask, 1)
     except cv2.error as exc:  # a featureless scene
         logger.debug(f"ECC failed: {exc}")
         return math.nan, math.nan
     ex, ey = float(warp[0, 2]), float(warp[1, 2])
     if abs(ex - dx) > PHASE_AGREE_PX or abs(ey - dy) > PHASE_AGREE_PX:
         return math.nan, math.nan  # the two disagree: a scene without the structure to tell
-    return ex, ey
+    return ex * scale, ey * scale
 
 
 def find_motion(source, background, centres, r_px: float, *, samples: int = SAMPLES,
@@ -168,17 +180,21 @@ def find_motion(source, background, centres, r_px: float, *, samples: int = SAMP
     CameraMotion
     """
     n = len(source)
-    win = _window(np.asarray(background).shape[:2])
+    bg_shape = np.asarray(background).shape[:2]
+    # a quick look at a quarter of the size tells a still camera (the usual case) within
+    # MOTION_MIN_PX; a moving one is measured again at full size
+    level = QUICK_LEVEL if min(bg_shape) >= 64 * 2 ** QUICK_LEVEL else 0
     cache: dict[int, np.ndarray] = {}
 
-    def shift(i):
+    def shift(i):  # the frames are read again for the full size: a few, and rarely
         if i not in cache:
             try:
                 frame = source[i]
             except (RecordingError, OSError, ValueError):  # a corrupt frame: no sample
                 cache[i] = np.full(2, np.nan)
             else:
-                cache[i] = np.array(frame_shift(frame, background, centres[i], r_px, win))
+                cache[i] = np.array(frame_shift(frame, background, centres[i], r_px,
+                                                level=level))
         return cache[i]
 
     pool = np.flatnonzero(usable) if usable is not None else np.arange(n)
@@ -198,8 +214,20 @@ def find_motion(source, background, centres, r_px: float, *, samples: int = SAMP
         return CameraMotion("unknown", idx, s)
     idx, s = idx[ok], s[ok]
     rel = s - s[0]
-    if np.max(np.hypot(rel[:, 0], rel[:, 1])) < MOTION_MIN_PX:
+    if np.max(np.hypot(rel[:, 0], rel[:, 1])) < QUICK_STILL_PX or (
+            level == 0 and np.max(np.hypot(rel[:, 0], rel[:, 1])) < MOTION_MIN_PX):
         return CameraMotion("still", idx, s)
+    if level:  # it moved, or may have: every sample again at full size
+        level = 0
+        cache.clear()
+        s = np.array([shift(i) for i in idx])
+        keep = np.isfinite(s).all(axis=1)
+        if keep.sum() < 3:
+            return CameraMotion("unknown", idx, s)
+        idx, s = idx[keep], s[keep]
+        rel = s - s[0]
+        if np.max(np.hypot(rel[:, 0], rel[:, 1])) < MOTION_MIN_PX:
+            return CameraMotion("still", idx, s)
     # one step: the split that leaves the least scatter on both sides
     best = None
     for j in range(1, len(idx)):
