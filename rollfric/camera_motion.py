@@ -22,7 +22,7 @@ from rollfric.source import RecordingError
 
 logger = logging.getLogger(__name__)
 
-SAMPLES = 24  # frames compared with the background over the recording
+SAMPLES = 12  # frames compared with the background over the recording (a bump: then bisected)
 # a shift below this is not acted on: 0.1 px on the 200-600 px path radius of a lab's camera
 # moves the angles by 2e-4 to 5e-4 rad, below the locators' own systematic errors
 MOTION_MIN_PX = 0.1
