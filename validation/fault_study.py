@@ -181,14 +181,16 @@ def run_one(rec: Recording) -> dict:
 
 
 def fault_summary(rows) -> dict:
-    """Per fault and size: cases, verdicts, named, |err| > U, quietly wrong (ok, |err| > U,
-    not named), and the hit rate (named among the cases whose mu is off by more than U)."""
+    """Per fault and size: cases, verdicts, named, |err| > U, ok with |err| > U (``ok_off``),
+    quietly wrong (ok, |err| > U, not named), and the hit rate (named among the cases whose mu
+    is off by more than U)."""
     out = {}
     for r in rows:
         key = f"{r['fault']} {r['magnitude']:g}"
         s = out.setdefault(key, {"fault": r["fault"], "magnitude": r["magnitude"], "n": 0,
                                  "ok": 0, "suspect": 0, "refused": 0, "named": 0,
-                                 "off_by_U": 0, "named_where_off": 0, "quietly_wrong": 0,
+                                 "off_by_U": 0, "named_where_off": 0, "ok_off": 0,
+                                 "quietly_wrong": 0,
                                  "err_U": [], "err_rel": [], "reasons": {}})
         s["n"] += 1
         s[r["verdict"]] += 1
@@ -196,6 +198,7 @@ def fault_summary(rows) -> dict:
         s["named"] += bool(r["named"])
         s["off_by_U"] += off
         s["named_where_off"] += off and bool(r["named"])
+        s["ok_off"] += off and r["verdict"] == "ok"
         s["quietly_wrong"] += off and r["verdict"] == "ok" and not r["named"]
         if r["err_U"] is not None:
             s["err_U"].append(round(r["err_U"], 2))
@@ -212,7 +215,7 @@ def clean_summary(rows) -> dict:
     false alarms), with the totals over all families under "all"."""
     out = {}
     for r in rows:
-        for key in (r["family"], "all"):
+        for key in (r["family"],):
             s = out.setdefault(key, {"n": 0, "ok": 0, "suspect": 0, "refused": 0,
                                      "off_by_U": 0, "false_alarms": {}})
             s["n"] += 1
@@ -220,6 +223,13 @@ def clean_summary(rows) -> dict:
             s["off_by_U"] += r["err_U"] is not None and abs(r["err_U"]) > 1.0
             for c in r["reasons"] + r["findings"]:
                 s["false_alarms"][c] = s["false_alarms"].get(c, 0) + 1
+    total = {"n": 0, "ok": 0, "suspect": 0, "refused": 0, "off_by_U": 0, "false_alarms": {}}
+    for s in out.values():
+        for k in ("n", "ok", "suspect", "refused", "off_by_U"):
+            total[k] += s[k]
+        for c, v in s["false_alarms"].items():
+            total["false_alarms"][c] = total["false_alarms"].get(c, 0) + v
+    out["all"] = total
     return out
 
 
@@ -314,14 +324,15 @@ def main(argv=None) -> int:
 def format_tables(study) -> str:
     """The two tables as Markdown: the faults, and the clean families' false alarms."""
     lines = ["| fault | size | n | ok / suspect / refused | named | abs(err) > U | hit rate "
-             "| quietly wrong | err / U (median, max abs) | reasons |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "| ok, abs(err) > U | quietly wrong | err / U (median, max abs) | reasons |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in study["faults"].values():
         e = np.abs(s["err_U"]) if s["err_U"] else None
         hit = "-" if s["hit_rate"] is None else f"{100 * s['hit_rate']:.0f} %"
         lines.append(
             f"| {s['fault']} | {s['magnitude']:g} | {s['n']} | {s['ok']} / {s['suspect']} / "
-            f"{s['refused']} | {s['named']} | {s['off_by_U']} | {hit} | {s['quietly_wrong']} | "
+            f"{s['refused']} | {s['named']} | {s['off_by_U']} | {hit} | {s['ok_off']} | "
+            f"{s['quietly_wrong']} | "
             + ("-" if e is None else f"{np.median(s['err_U']):+.2f}, {e.max():.2f}")
             + " | " + ", ".join(f"{k} {v}" for k, v in sorted(s["reasons"].items())) + " |")
     lines += ["", "| clean family | n | ok / suspect / refused | abs(err) > U | false alarms |",
