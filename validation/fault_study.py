@@ -44,6 +44,13 @@ SIZES = {
     "glitches": (0.015,),
 }
 
+# faults on another family than the default: label -> (fault, sizes, family)
+VARIANTS = {
+    # the resting or held ball sits in the per-pixel median background (issue 33's rest)
+    "rest, median background": ("rest", (0.5,), Family(median_background=True)),
+    "held, median background": ("held", (60,), Family(median_background=True)),
+}
+
 # clean families: name -> Family
 FAMILIES = {
     "noise 1 DN": Family(),
@@ -235,7 +242,8 @@ def clean_summary(rows) -> dict:
 
 def run_study(*, seeds: int = 3, clean_seeds: int = 15, faults=None, families=None,
               sizes=None, log=print) -> dict:
-    """The study: every fault of ``faults`` (default all of :data:`SIZES`) at its sizes over
+    """The study: every fault of ``faults`` (default all of :data:`SIZES`, then
+    :data:`VARIANTS`) at its sizes over
     ``seeds`` seeds, every family of ``families`` (default all of :data:`FAMILIES`) over
     ``clean_seeds`` seeds; the rows and their summaries.
 
@@ -244,7 +252,7 @@ def run_study(*, seeds: int = 3, clean_seeds: int = 15, faults=None, families=No
     seeds, clean_seeds : int
         Seeds per faulty size and per clean family.
     faults, families : sequence of str, optional
-        The faults and clean families to run.
+        The faults (of :data:`SIZES` and :data:`VARIANTS`) and clean families to run.
     sizes : dict, optional
         fault -> its sizes, in place of :data:`SIZES`'.
     log : callable
@@ -259,11 +267,13 @@ def run_study(*, seeds: int = 3, clean_seeds: int = 15, faults=None, families=No
     logging.getLogger("rollfric").setLevel(logging.ERROR)
     fault_rows, clean_rows = [], []
     sizes = {**SIZES, **(sizes or {})}
-    for fault in (faults or SIZES):
-        for mag in sizes[fault]:
+    for label in (faults or list(SIZES) + list(VARIANTS)):
+        fault, mags, fam = VARIANTS[label] if label in VARIANTS else \
+            (label, sizes[label], Family())
+        for mag in mags:
             for seed in range(seeds):
-                row = run_one(faulty(fault, mag, seed=seed))
-                row["seed"] = seed
+                row = run_one(faulty(fault, mag, seed=seed, family=fam))
+                row.update(fault=label, seed=seed)
                 fault_rows.append(row)
                 log(_line(row))
     for fam in (families or FAMILIES):
@@ -298,7 +308,8 @@ def main(argv=None) -> int:
     p.add_argument("--seeds", type=int, default=3, help="seeds per fault size (default 3)")
     p.add_argument("--clean-seeds", type=int, default=15,
                    help="seeds per clean family (default 15)")
-    p.add_argument("--faults", nargs="*", choices=sorted(SIZES), help="faults to run (all)")
+    p.add_argument("--faults", nargs="*", choices=sorted(SIZES) + sorted(VARIANTS),
+                   help="faults to run (all)")
     p.add_argument("--families", nargs="*", choices=sorted(FAMILIES),
                    help="clean families to run (all)")
     p.add_argument("--out", type=Path, default=None,
