@@ -188,7 +188,8 @@ def run_one(rec: Recording) -> dict:
 
 
 def fault_summary(rows) -> dict:
-    """Per fault and size: cases, verdicts, named, |err| > U, ok with |err| > U (``ok_off``),
+    """Per fault and size: cases, verdicts, named, reasons and findings (:func:`findings`)
+    by code, |err| > U, ok with |err| > U (``ok_off``),
     quietly wrong (ok, |err| > U, not named), and the hit rate (named among the cases whose mu
     is off by more than U)."""
     out = {}
@@ -198,7 +199,7 @@ def fault_summary(rows) -> dict:
                                  "ok": 0, "suspect": 0, "refused": 0, "named": 0,
                                  "off_by_U": 0, "named_where_off": 0, "ok_off": 0,
                                  "quietly_wrong": 0,
-                                 "err_U": [], "err_rel": [], "reasons": {}})
+                                 "err_U": [], "err_rel": [], "reasons": {}, "findings": {}})
         s["n"] += 1
         s[r["verdict"]] += 1
         off = r["err_U"] is not None and abs(r["err_U"]) > 1.0
@@ -212,6 +213,8 @@ def fault_summary(rows) -> dict:
             s["err_rel"].append(round(r["err_rel"], 5))
         for c in r["reasons"]:
             s["reasons"][c] = s["reasons"].get(c, 0) + 1
+        for c in r["findings"]:
+            s["findings"][c] = s["findings"].get(c, 0) + 1
     for s in out.values():
         s["hit_rate"] = s["named_where_off"] / s["off_by_U"] if s["off_by_U"] else None
     return out
@@ -335,8 +338,9 @@ def main(argv=None) -> int:
 def format_tables(study) -> str:
     """The two tables as Markdown: the faults, and the clean families' false alarms."""
     lines = ["| fault | size | n | ok / suspect / refused | named | abs(err) > U | hit rate "
-             "| ok, abs(err) > U | quietly wrong | err / U (median, max abs) | reasons |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| ok, abs(err) > U | quietly wrong | err / U (median, max abs) | reasons "
+             "| findings |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in study["faults"].values():
         e = np.abs(s["err_U"]) if s["err_U"] else None
         hit = "-" if s["hit_rate"] is None else f"{100 * s['hit_rate']:.0f} %"
@@ -345,7 +349,8 @@ def format_tables(study) -> str:
             f"{s['refused']} | {s['named']} | {s['off_by_U']} | {hit} | {s['ok_off']} | "
             f"{s['quietly_wrong']} | "
             + ("-" if e is None else f"{np.median(s['err_U']):+.2f}, {e.max():.2f}")
-            + " | " + ", ".join(f"{k} {v}" for k, v in sorted(s["reasons"].items())) + " |")
+            + " | " + ", ".join(f"{k} {v}" for k, v in sorted(s["reasons"].items()))
+            + " | " + ", ".join(f"{k} {v}" for k, v in sorted(s["findings"].items())) + " |")
     lines += ["", "| clean family | n | ok / suspect / refused | abs(err) > U | false alarms |",
               "|---|---|---|---|---|"]
     for fam, s in study["clean"].items():
