@@ -113,7 +113,9 @@ def glitch_frames(frames, *, seed: int, rate: float = 0.015, kinds=KINDS,
                     rng.random() < band_on_ball
                 if on_ball:
                     cy = float(np.asarray(centers)[i, 1])
-                    y0 = int(np.clip(rng.uniform(cy - r_px, cy + r_px - rows), 0, h - rows))
+                    # rows within the ball's, or the ball's within the rows (a small ball)
+                    lo, hi = sorted((cy - r_px, cy + r_px - rows))
+                    y0 = int(np.clip(rng.uniform(lo, hi), 0, h - rows))
                 else:
                     y0 = int(rng.integers(0, h - rows))
                 noise = rng.uniform(0, full, (rows, w))
