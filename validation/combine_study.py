@@ -36,7 +36,7 @@ from rollfric.errors import InputError
 from rollfric.fit import fit_mu
 from rollfric.setup import THESIS_BALLS, Setup
 from rollfric.uncertainty import Measurement, budget
-from validation.coverage import NOMINAL, TOLERANCE, _centres, drawn_setups, misses
+from validation.coverage import _centres, drawn_as_built, drawn_setups, misses
 
 RELEASE_SEEDS = 1000  # release k of setup s draws its noise with seed s * RELEASE_SEEDS + k
 
@@ -60,7 +60,6 @@ def draw_setup(seed: int, releases: int) -> dict:
     rng = np.random.default_rng(seed)
     ball = str(rng.choice(list(THESIS_BALLS)))
     d_mm, mass = THESIS_BALLS[ball][0] * 1e3, THESIS_BALLS[ball][1]
-    tol = TOLERANCE
     return {
         "seed": seed, "ball": ball, "mass_kg": mass, "releases": releases,
         "mu": float(math.exp(rng.uniform(math.log(0.004), math.log(0.02)))),
@@ -68,12 +67,7 @@ def draw_setup(seed: int, releases: int) -> dict:
         "noise_px": float(math.exp(rng.uniform(math.log(0.01), math.log(0.1)))),
         "ar": float(rng.choice([0.0, 0.5, 0.9])),
         "diameter_mm": d_mm,
-        "true_radius_mm": NOMINAL["radius_mm"] + rng.normal(0.0, tol["radius_mm"]),
-        "true_diameter_mm": d_mm + rng.normal(0.0, tol["diameter_mm"]),
-        "true_center_px": tuple(float(c + rng.normal(0.0, tol["center_px"]))
-                                for c in NOMINAL["center_px"]),
-        "true_fps": NOMINAL["fps"] + rng.normal(0.0, tol["fps"]),
-        "true_pixel_size_mm": NOMINAL["pixel_size_mm"] + rng.normal(0.0, tol["pixel_size_mm"]),
+        **drawn_as_built(rng, d_mm),
         "theta0_deg": [float(rng.choice([-1.0, 1.0]) * rng.uniform(6.0, 30.0))
                        for _ in range(releases)],
     }

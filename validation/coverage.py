@@ -47,12 +47,25 @@ TOLERANCE = {"radius_mm": 0.5, "diameter_mm": 0.005, "center_px": 2.0, "fps": 0.
              "pixel_size_mm": 0.0003}
 
 
+def drawn_as_built(rng, d_mm: float) -> dict:
+    """The trough, ball and camera as built: the nominal values (NOMINAL, the ball's
+    ``d_mm``) each off by a draw of its TOLERANCE, in this order (the studies' seeds stand)."""
+    tol = TOLERANCE
+    return {
+        "true_radius_mm": NOMINAL["radius_mm"] + rng.normal(0.0, tol["radius_mm"]),
+        "true_diameter_mm": d_mm + rng.normal(0.0, tol["diameter_mm"]),
+        "true_center_px": tuple(float(c + rng.normal(0.0, tol["center_px"]))
+                                for c in NOMINAL["center_px"]),
+        "true_fps": NOMINAL["fps"] + rng.normal(0.0, tol["fps"]),
+        "true_pixel_size_mm": NOMINAL["pixel_size_mm"] + rng.normal(0.0, tol["pixel_size_mm"]),
+    }
+
+
 def draw_case(seed: int) -> dict:
     """One case's motion, noise and as-built setup, drawn with ``seed``."""
     rng = np.random.default_rng(seed)
     ball = str(rng.choice(list(THESIS_BALLS)))
     d_mm, mass = THESIS_BALLS[ball][0] * 1e3, THESIS_BALLS[ball][1]
-    tol = TOLERANCE
     return {
         "seed": seed, "ball": ball, "mass_kg": mass,
         "mu": float(math.exp(rng.uniform(math.log(0.004), math.log(0.02)))),
@@ -61,12 +74,7 @@ def draw_case(seed: int) -> dict:
         "noise_px": float(math.exp(rng.uniform(math.log(0.01), math.log(0.1)))),
         "ar": float(rng.choice([0.0, 0.5, 0.9])),
         "diameter_mm": d_mm,
-        "true_radius_mm": NOMINAL["radius_mm"] + rng.normal(0.0, tol["radius_mm"]),
-        "true_diameter_mm": d_mm + rng.normal(0.0, tol["diameter_mm"]),
-        "true_center_px": tuple(float(c + rng.normal(0.0, tol["center_px"]))
-                                for c in NOMINAL["center_px"]),
-        "true_fps": NOMINAL["fps"] + rng.normal(0.0, tol["fps"]),
-        "true_pixel_size_mm": NOMINAL["pixel_size_mm"] + rng.normal(0.0, tol["pixel_size_mm"]),
+        **drawn_as_built(rng, d_mm),
         # the background the contour mode finds the centre in (drawn after the rest, so the
         # cases above are those of the lab mode)
         "contour_gradient": (float(rng.uniform(-0.5, 0.5)), float(rng.uniform(-0.5, 0.5))),
