@@ -26,27 +26,27 @@ except PackageNotFoundError:  # run from a source tree that was never installed
 # public name -> the module that defines it
 _WHERE = {
     # a measurement, from a recording to mu
-    "measure": "rollfric.track",
-    "track_recording": "rollfric.track",
-    "TrackInfo": "rollfric.track",
-    "angles": "rollfric.track",
+    "measure": "rollfric.track.tracker",
+    "track_recording": "rollfric.track.tracker",
+    "TrackInfo": "rollfric.track.tracker",
+    "angles": "rollfric.track.tracker",
     # recordings and images
-    "open_recording": "rollfric.io",
-    "read_image": "rollfric.io",
-    "RecordingError": "rollfric.source",
+    "open_recording": "rollfric.io.readers",
+    "read_image": "rollfric.io.readers",
+    "RecordingError": "rollfric.io.source",
     # the lab's setup and the camera's calibration
-    "Setup": "rollfric.setup",
-    "load_setup": "rollfric.setup",
-    "setup_from_dict": "rollfric.setup",
-    "thesis_setup": "rollfric.setup",
-    "Calibration": "rollfric.lens",
+    "Setup": "rollfric.setup.model",
+    "load_setup": "rollfric.setup.model",
+    "setup_from_dict": "rollfric.setup.model",
+    "thesis_setup": "rollfric.setup.model",
+    "Calibration": "rollfric.setup.lens",
     # fitting mu and its uncertainty
-    "fit_mu": "rollfric.fit",
-    "FitResult": "rollfric.fit",
-    "Measurement": "rollfric.uncertainty",
-    "measurement_from_track": "rollfric.uncertainty",
-    "budget": "rollfric.uncertainty",
-    "Budget": "rollfric.uncertainty",
+    "fit_mu": "rollfric.fit.estimate",
+    "FitResult": "rollfric.fit.estimate",
+    "Measurement": "rollfric.uncertainty.budget",
+    "measurement_from_track": "rollfric.uncertainty.budget",
+    "budget": "rollfric.uncertainty.budget",
+    "Budget": "rollfric.uncertainty.budget",
     # bad input (the command line's exit status 2)
     "InputError": "rollfric.errors",
 }

@@ -5,7 +5,7 @@ class InputError(ValueError):
     """Input that cannot be measured, simulated or rendered: the message names the culprit.
 
     The command line prints the message and exits with status 2, writing nothing. Every
-    stage's own bad-input errors (``SetupError``, :class:`~rollfric.source.RecordingError`,
+    stage's own bad-input errors (``SetupError``, :class:`~rollfric.io.source.RecordingError`,
     ...) are subclasses.
 
     Examples

@@ -8,7 +8,7 @@ imported on first use (:meth:`Registry.load`). An unknown name is bad input
 
 rollfric's registries are here (the simulation engines' is ``ENGINES`` in the suite's engines
 module). To add a locator or a fit method: write it (a :class:`rollfric.locate.Locator` or a
-:class:`rollfric.fit.FitMethod`) and add one line below; the CLI offers it and
+:class:`rollfric.fit.estimate.FitMethod`) and add one line below; the CLI offers it and
 ``tests/test_architecture.py`` checks that it loads and has the interface.
 """
 
@@ -37,6 +37,10 @@ class Registry(Mapping):
 
     def __getitem__(self, name: str) -> str:
         return self.targets[name]
+
+    def __contains__(self, name: object) -> bool:
+        # a TOML value of another type (a list, a table) is simply not a registered name
+        return isinstance(name, str) and name in self.targets
 
     def __iter__(self) -> Iterator[str]:
         return iter(self.targets)
@@ -98,9 +102,9 @@ LOCATORS = Registry("locator", {
     "thesis-small": "rollfric.locate.thesis:thesis_small_locator",
 })
 
-#: Fit methods (:class:`rollfric.fit.FitMethod`), the default first.
+#: Fit methods (:class:`rollfric.fit.estimate.FitMethod`), the default first.
 FIT_METHODS = Registry("fit method", {
-    "lsq": "rollfric.fit:fit_lsq",
-    "paper1_eps": "rollfric.thesis:paper1_eps_method",
-    "paper2_grid": "rollfric.thesis:paper2_grid_method",
+    "lsq": "rollfric.fit.estimate:fit_lsq",
+    "paper1_eps": "rollfric.fit.thesis:paper1_eps_method",
+    "paper2_grid": "rollfric.fit.thesis:paper2_grid_method",
 })

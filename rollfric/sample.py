@@ -14,7 +14,7 @@ import json
 import shutil
 from pathlib import Path
 
-from rollfric.outputs import check_folder, staged_folder
+from rollfric.output.folder import check_folder, staged_folder
 
 RECORDING = "frames.tif"
 SETUP = "setup.toml"
@@ -74,7 +74,7 @@ def write_sample(out, *, overwrite: bool = False) -> Path:
 
     Raises
     ------
-    rollfric.outputs.OutputError
+    rollfric.output.folder.OutputError
         ``out`` may not be written (exit status 2 from the command).
 
     Examples

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from rollfric.helpformat import HelpFormatter, example
+from rollfric.cli.helpformat import HelpFormatter, example
 from sim.engines import ENGINES
 
 _HELP = """\
@@ -100,8 +100,8 @@ def scenario_from_args(args):
 
 
 def check_outputs(out, *, overwrite: bool, inputs=()):
-    """The CSV and its sidecar, checked before any work (rollfric.outputs)."""
-    from rollfric.outputs import check_file, check_not_input
+    """The CSV and its sidecar, checked before any work (rollfric.output.folder)."""
+    from rollfric.output.folder import check_file, check_not_input
     from sim.trajectory import sidecar_path
 
     side = sidecar_path(out, check=True)

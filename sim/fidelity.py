@@ -1,5 +1,5 @@
 """Engine fidelity: fit mu back from each engine's ground-truth theta(t) with the project's own
-fitter (rollfric.fit.fit_mu) and compare with the configured mu.
+fitter (rollfric.fit.estimate.fit_mu) and compare with the configured mu.
 
     python -m sim.fidelity --out DIR      # writes DIR/sim_fidelity.csv and .md
 
@@ -53,7 +53,7 @@ def fidelity_table(engines=tuple(ENGINES), *, balls=BALLS, mus=MUS,
     from tqdm import tqdm
 
     import sim
-    from rollfric.fit import fit_mu
+    from rollfric.fit.estimate import fit_mu
 
     if naive not in ("subset", "all", "none"):
         raise sim.ScenarioError(f"naive must be subset, all or none, got {naive!r}")
@@ -131,7 +131,7 @@ def to_markdown(table, duration: float = 4.0) -> str:
 
 
 def write_report(table, out_dir, duration: float = 4.0) -> tuple[Path, Path]:
-    from rollfric.atomic import write_text
+    from rollfric.output.atomic import write_text
 
     out_dir = Path(out_dir)
     return (write_text(out_dir / "sim_fidelity.csv",
@@ -142,7 +142,8 @@ def write_report(table, out_dir, duration: float = 4.0) -> tuple[Path, Path]:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m sim.fidelity",
-        description="Fit mu back from each engine's ground-truth theta(t) (rollfric.fit) and "
+        description="Fit mu back from each engine's ground-truth theta(t) "
+                    "(rollfric.fit.estimate) and "
                     "compare with the configured mu: three thesis balls x mu {0.0065, 0.0079, "
                     "0.0164} x theta0 {10, 20, 35} deg. Writes sim_fidelity.csv and .md.")
     parser.add_argument("--out", required=True, help="output directory")

@@ -17,22 +17,22 @@ rollfric fits a constant coefficient (M = mu r N). A real ball also loses energy
   the air's added mass (both about rho_air / rho_steel = 1.5e-4 of the weight and the
   inertia), the drag torque on the spinning ball and its Magnus force.
 - **the fitter's air** (scenario key ``environment.air_drag = "law"``): Cd at every instant's
-  Reynolds number by :mod:`rollfric.air`'s wall-corrected law, with buoyancy and added mass,
+  Reynolds number by :mod:`rollfric.fit.air`'s wall-corrected law, with buoyancy and added mass,
   written out here (:func:`_law_accel`) as the truth of a recording whose lab states only the
   air's density. MuJoCo and PyBullet apply that drag but neither buoyancy nor added mass (a
-  fit with them is then 0.01-0.1 % off, as :mod:`rollfric.air` measures).
+  fit with them is then 0.01-0.1 % off, as :mod:`rollfric.fit.air` measures).
 
-With both, the equation of motion of :mod:`rollfric.eom` becomes::
+With both, the equation of motion of :mod:`rollfric.fit.eom` becomes::
 
     theta'' = -(5 / (7 L)) [g sin(theta) + s ((mu + mu_speed L |theta'|) (g cos(theta)
               + L theta'^2) + k L^2 theta'^2)],   s = sign(theta'), k = rho Cd pi r^2 / (2 m)
 
-and :func:`solve` integrates it with the loop of :func:`rollfric.eom.solve_reference`,
-:func:`rollfric.eom.solve_segments` (DOP853 to 1e-10, an event at every turning point, the ball
+and :func:`solve` integrates it with the loop of :func:`rollfric.fit.eom.solve_reference`,
+:func:`rollfric.fit.eom.solve_segments` (DOP853 to 1e-10, an event at every turning point, the ball
 sticks for good where |tan(theta)| <= mu: at rest neither the speed term nor the drag acts).
 The right-hand side is written here, apart from rollfric, because the truth of a study of what
 the fitter does not assume must not share the fitter's model; the loop it shares is the
-reference integrator's, not the fitter's compiled one (:func:`rollfric.eom.solve`).
+reference integrator's, not the fitter's compiled one (:func:`rollfric.fit.eom.solve`).
 
 Small-angle checks (tests): with mu = 0 and drag only, each half-swing loses
 (4/3) c A^2 of its amplitude A, c = 5 k L / 7 (quadratic damping of a harmonic oscillator);
@@ -47,8 +47,8 @@ import math
 
 import numpy as np
 
-from rollfric.air import Air
-from rollfric.eom import drag_accel, solve_segments
+from rollfric.fit.air import Air
+from rollfric.fit.eom import drag_accel, solve_segments
 
 AIR_VISCOSITY = 1.81e-5  # Pa s, air at 20 C (for the Reynolds number only)
 ROOM_AIR_DENSITY = 1.204  # kg/m^3, dry air at 20 C and 1013 hPa
@@ -68,14 +68,14 @@ class Losses:
     air_cd : float
         Drag coefficient of the ball (1).
     law : bool
-        Use the fitter's air (:mod:`rollfric.air`: Cd from the instant's Reynolds number with
+        Use the fitter's air (:mod:`rollfric.fit.air`: Cd from the instant's Reynolds number with
         the wall factor, buoyancy, added mass) instead of the constant ``air_cd``.
     """
 
     mu_speed: float = 0.0
     air_density: float = 0.0
     air_cd: float = SPHERE_CD
-    law: bool = False  # True: rollfric.air's drag law, buoyancy and added mass (air_cd unused)
+    law: bool = False  # True: rollfric.fit.air's drag law, buoyancy and added mass (air_cd unused)
 
     @property
     def active(self) -> bool:
@@ -84,7 +84,7 @@ class Losses:
                                         and (self.air_cd != 0.0 or self.law))
 
     def air(self) -> Air:
-        """The drag as :class:`rollfric.air.Air` (density 0 without air)."""
+        """The drag as :class:`rollfric.fit.air.Air` (density 0 without air)."""
         return Air(density=self.air_density, cd=None if self.law else self.air_cd)
 
     def drag_per_mass(self, ball_radius: float, ball_mass: float) -> float:
@@ -183,10 +183,10 @@ def theta_ddot(theta, theta_dot, mu, losses: Losses, *, track_radius, ball_radiu
 
 
 def _law_accel(mu, losses: Losses, L, ball_radius, ball_mass, gravity):
-    """theta''(theta, theta', s) with rollfric.air's drag law, buoyancy and added mass,
+    """theta''(theta, theta', s) with rollfric.fit.air's drag law, buoyancy and added mass,
     written out (not the fitter's compiled kernel): (7/5 m + C_a rho V) L theta'' =
     -[(m - rho V) g sin + s (mu((m - rho V) g cos + (m + C_a rho V) L theta'^2) + D)]."""
-    from rollfric.air import ADDED_MASS_COEFFICIENT
+    from rollfric.fit.air import ADDED_MASS_COEFFICIENT
 
     a = losses.air().coefficients(ball_radius, ball_mass)
     beta = a[0]
@@ -280,7 +280,7 @@ def applied_force(velocity, losses: Losses, ball_radius: float, ball_mass: float
     """
     v = np.asarray(velocity, dtype=float)
     speed = float(np.linalg.norm(v))
-    if losses.law:  # rollfric.air's Cd at this speed's Reynolds number
+    if losses.law:  # rollfric.fit.air's Cd at this speed's Reynolds number
         a = losses.air().coefficients(ball_radius, ball_mass)
         if speed == 0.0:
             return np.zeros(3)

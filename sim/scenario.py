@@ -1,7 +1,7 @@
 """Scenario: everything that defines one simulated run, in SI units.
 
 A scenario file is TOML in bench units (mm, g, Hz, degrees), a superset of the lab setup file
-(``rollfric.setup``): every key is optional and defaults to the thesis's 10 mm ball::
+(``rollfric.setup.model``): every key is optional and defaults to the thesis's 10 mm ball::
 
     [cylinder]
     radius_mm = 85.3
@@ -19,7 +19,7 @@ A scenario file is TOML in bench units (mm, g, Hz, degrees), a superset of the l
     gravity_m_s2 = 9.81
     air_density_kg_m3 = 0.0 # air drag on the ball, off; room air 1.2 (sim.losses)
     air_cd = 0.47           # the ball's drag coefficient
-    air_drag = "constant"   # "constant": air_cd; "law": rollfric.air's drag law (Cd at the
+    air_drag = "constant"   # "constant": air_cd; "law": rollfric.fit.air's drag law (Cd at the
                             # instant's Re, wall factor) with buoyancy and added mass
     [motion]
     mu = 0.0079
@@ -42,9 +42,15 @@ import math
 from pathlib import Path
 from typing import Any
 
-from rollfric.limits import MAX_SAMPLES
-from rollfric.setup import PLAUSIBLE, THESIS_BALLS, THESIS_TROUGH_RADIUS, Setup, check_plausible
-from rollfric.tomlfile import read_toml
+from rollfric.io.limits import MAX_SAMPLES
+from rollfric.setup.model import (
+    PLAUSIBLE,
+    THESIS_BALLS,
+    THESIS_TROUGH_RADIUS,
+    Setup,
+    check_plausible,
+)
+from rollfric.setup.tomlfile import read_toml
 from sim.engines import ENGINES
 from sim.errors import ScenarioError
 
@@ -93,7 +99,7 @@ class Scenario:
     mu_speed: float = 0.0
     air_density: float = 0.0  # kg/m^3; 0: no drag
     air_cd: float = 0.47
-    air_drag: str = "constant"  # "constant" (air_cd) or "law" (rollfric.air, the fitter's)
+    air_drag: str = "constant"  # "constant" (air_cd) or "law" (rollfric.fit.air, the fitter's)
     ovality: float = 0.0  # m, D_max - D_min of an elliptic bore (sim.section.Section)
     ovality_angle: float = 0.0  # rad, its major axis from world x, counter-clockwise
     tilt: float = 0.0  # rad, the trough axis tilted along its length, the far end up for
@@ -241,7 +247,7 @@ class Scenario:
         return out
 
     def setup(self, pixel_size: float | None = None) -> Setup:
-        """The lab setup (rollfric.setup.Setup) a camera filming this scenario would have."""
+        """The lab setup (rollfric.setup.model.Setup) a camera filming this scenario would have."""
         return Setup(cylinder_radius=self.cylinder_radius, ball_diameter=self.ball_diameter,
                      ball_mass=self.ball_mass, fps=self.fps,
                      pixel_size=self.pixel_size if pixel_size is None else pixel_size,

@@ -3,7 +3,7 @@ heavy imports happen in the handler)."""
 
 from __future__ import annotations
 
-from rollfric.helpformat import HelpFormatter, example
+from rollfric.cli.helpformat import HelpFormatter, example
 
 HELP = "render a trajectory as a synthetic camera recording (Zarr) with exact ground truth"
 
@@ -64,7 +64,7 @@ def run(args) -> int:
     import dataclasses
 
     import synth
-    from rollfric.outputs import check_distinct, check_not_input
+    from rollfric.output.folder import check_distinct, check_not_input
     from synth.export import check_export, export_recording
     from synth.pipeline import check_output
 

@@ -3,7 +3,7 @@
 ``DIR/frames.tif`` (multi-page TIFF, one page a frame, 8 or 16 bit, lossless: deflate with a
 horizontal predictor, :data:`COMPRESSION`; a 10-14 bit sensor's full scale in the pages'
 ``MaxSampleValue`` tag), ``DIR/background.png``,
-``DIR/setup.toml`` (the lab format, rollfric.setup.save_setup) and ``DIR/truth.csv``
+``DIR/setup.toml`` (the lab format, rollfric.setup.model.save_setup) and ``DIR/truth.csv``
 (``frame,t_s,x_px,y_px,theta_rad``; x_px, y_px: the projected sphere centre).
 """
 
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rollfric.outputs import OutputError, check_folder, staged_folder
+from rollfric.output.folder import OutputError, check_folder, staged_folder
 from synth.config import SynthError
 from synth.store import open_recording
 
@@ -47,7 +47,7 @@ def export_recording(recording, out_dir, *, progress: bool = False,
     import tifffile
     from tqdm import tqdm
 
-    from rollfric.setup import save_setup, setup_from_dict
+    from rollfric.setup.model import save_setup, setup_from_dict
 
     out_dir = check_export(out_dir, overwrite=overwrite)
     rec = recording if hasattr(recording, "frames") else open_recording(recording)

@@ -22,7 +22,8 @@ part f of the lens's displacement, and the locator's edge-model fit read that as
 0.06 px of ball centre; rendered finer and integrated over the footprint, the ball is where an
 exactly bent drawing of it is to 0.003 px (tests/test_lens.py).
 
-Written apart from :mod:`rollfric.lens` (which calls OpenCV) on purpose: the truth must not share
+Written apart from :mod:`rollfric.setup.lens` (which calls OpenCV) on purpose: the truth must not
+share
 the measurement's code, so an error in either shows up; the tests hold both to
 ``cv2.projectPoints``.
 """

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rollfric.atomic import replacing
+from rollfric.output.atomic import replacing
 from synth.camera import CameraModel
 from synth.config import SceneConfig, SensorConfig, SynthError
 from synth.store import CHUNK, FORMAT, TRUTH_COLUMNS, writer_layout
@@ -583,8 +583,8 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
         start_fork_server()  # its imports (~1 s) while this process prepares
     from tqdm import tqdm
 
-    from rollfric.lens import Calibration
-    from rollfric.setup import Setup
+    from rollfric.setup.lens import Calibration
+    from rollfric.setup.model import Setup
     base = traj.setup()
     cam = scene.camera
     # the camera's effective bit depth (camera.bit_depth) where rollfric's setup knows the key
@@ -756,8 +756,8 @@ def check_output(out, *, overwrite: bool, what: str = "output") -> Path:
     """``out`` as a Path if a recording may be written there: absent, an empty folder, or (with
     ``overwrite``) an earlier recording; SynthError otherwise (a file, a folder of something
     else, an unwritable place). Checked before any work."""
-    from rollfric.atomic import is_leftover
-    from rollfric.outputs import OutputError, check_folder
+    from rollfric.output.atomic import is_leftover
+    from rollfric.output.folder import OutputError, check_folder
 
     out = Path(out)
     if out.is_dir() and any(not is_leftover(p) for p in out.iterdir()):

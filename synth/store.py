@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rollfric.source import check_roi
+from rollfric.io.source import check_roi
 from synth.config import SensorConfig, SynthError
 
 FORMAT = "rollfric-synth-recording/1"
@@ -110,7 +110,7 @@ class SynthFrames:
     ``concurrent_reads`` (True): frames and regions may be read from several threads at once
     (each read opens its own chunk files; the sensor model keeps no state between reads), so
     rollfric tracks a long recording's segments on as many threads
-    (:func:`rollfric.track.track_segments`).
+    (:func:`rollfric.track.tracker.track_segments`).
     """
 
     concurrent_reads = True

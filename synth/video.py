@@ -16,7 +16,7 @@ container's frame rate is ``playback_fps`` if given (camera software often write
 rate such as 30 fps), else the recording's.
 
 PyAV (``av``) writes both containers; rollfric reads them back with OpenCV (``VideoCapture``,
-:mod:`rollfric.io`), the path a lab's video takes.
+:mod:`rollfric.io.readers`), the path a lab's video takes.
 """
 
 from __future__ import annotations

@@ -10,9 +10,9 @@ import threading
 
 import numpy as np
 
-from rollfric import eom
-from rollfric.io import RecordingError
-from rollfric.setup import Setup
+from rollfric.fit import eom
+from rollfric.io.readers import RecordingError
+from rollfric.setup.model import Setup
 from validation.drawn_frames import Scene, make_frames
 
 R = 85.3e-3
@@ -62,7 +62,7 @@ def write_lab(folder, n=60, noise=1.0):
     ``setup.toml`` and the exact angles as ``track.csv``; returns ``folder``."""
     import tifffile
 
-    from rollfric.setup import save_setup
+    from rollfric.setup.model import save_setup
 
     rec = make_recording(n, noise=noise)
     tifffile.imwrite(folder / "rec.tif", np.stack(rec.frames))

@@ -1,4 +1,5 @@
-"""Room air in the fit (rollfric.air): the drag law, the fit with drag, the budget's air rows."""
+"""Room air in the fit (rollfric.fit.air): the drag law, the fit with drag, the budget's air
+rows."""
 
 import math
 
@@ -6,8 +7,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from rollfric import air, fit, uncertainty
-from rollfric.setup import setup_from_dict, thesis_setup
+from rollfric.fit import air
+from rollfric.fit import estimate as fit
+from rollfric.setup.model import setup_from_dict, thesis_setup
+from rollfric.uncertainty import budget as uncertainty
 
 SIGMA = 1e-6  # rad: the test's white noise (0 would give a standard error of 0)
 

@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from rollfric import analytic, eom
-from rollfric.setup import thesis_setup
+from rollfric.fit import analytic, eom
+from rollfric.setup.model import thesis_setup
 
 
 def test_paper1_mu_reproduces_the_paper():

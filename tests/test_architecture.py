@@ -6,9 +6,9 @@ import argparse
 import numpy as np
 import pytest
 
-from rollfric import io
 from rollfric.errors import InputError
-from rollfric.fit import FitMethod
+from rollfric.fit.estimate import FitMethod
+from rollfric.io import readers as io
 from rollfric.locate import Locator
 from rollfric.registry import FIT_METHODS, LOCATORS, Registry
 from sim.engines import ENGINES, Engine
@@ -35,7 +35,7 @@ def _choices(parser, command, option):
 
 
 def test_cli_choices_come_from_the_registries():
-    from rollfric.cli import build_parser
+    from rollfric.cli.main import build_parser
 
     parser = build_parser()
     assert list(_choices(parser, "measure", "--method")) == list(LOCATORS)
@@ -127,9 +127,10 @@ def _a_cycle(graph):
 
 def test_no_import_cycles():
     graph = _import_graph()
-    assert {"rollfric.fit", "rollfric.thesis", "sim.scenario", "sim.engines.mujoco_engine",
-            "validation.e2e", "validation.report"} <= set(graph)
-    assert "rollfric.thesis" in graph["rollfric.fit"] or "rollfric.fit" in graph["rollfric.thesis"]
+    assert {"rollfric.fit.estimate", "rollfric.fit.thesis", "sim.scenario",
+            "sim.engines.mujoco_engine", "validation.e2e", "validation.report"} <= set(graph)
+    assert ("rollfric.fit.thesis" in graph["rollfric.fit.estimate"]
+            or "rollfric.fit.estimate" in graph["rollfric.fit.thesis"])
     cycle = _a_cycle(graph)
     assert cycle is None, "import cycle: " + " -> ".join(cycle)
     assert _a_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
@@ -170,9 +171,9 @@ def test_only_the_adapter_touches_pyrenders_private_attributes():
 def test_a_command_prints_the_librarys_messages_and_stops_after(capsys):
     import logging
 
-    from rollfric.messages import to_stderr
+    from rollfric.cli.messages import to_stderr
 
-    log = logging.getLogger("rollfric.track")
+    log = logging.getLogger("rollfric.track.tracker")
     with to_stderr("measure"):
         log.info("no background given")
         log.warning("the recording says 30 frames/s")

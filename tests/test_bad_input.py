@@ -9,9 +9,9 @@ import pytest
 import tifffile
 from measure_data import write_lab
 
-from rollfric import limits
-from rollfric.cli import main
-from rollfric.setup import dumps_setup, thesis_setup
+from rollfric.cli.main import main
+from rollfric.io import limits
+from rollfric.setup.model import dumps_setup, thesis_setup
 
 
 @pytest.fixture

@@ -10,11 +10,12 @@ from measure_data import make_recording
 from skimage.measure import CircleModel, find_contours
 from test_measure_roi import _Plain
 
-from rollfric import ballfree, io
-from rollfric.background import median, sample
 from rollfric.errors import InputError
-from rollfric.setup import Setup
-from rollfric.track import measure
+from rollfric.io import ballfree
+from rollfric.io import readers as io
+from rollfric.io.background import median, sample
+from rollfric.setup.model import Setup
+from rollfric.track.tracker import measure
 from validation.drawn_frames import Scene, make_frames
 
 REAL = Path(__file__).parent / "data" / "real" / "ball_12bit.cihx"
@@ -136,8 +137,8 @@ def test_the_command_refuses_the_ghost_clip_and_reports_the_background_it_used(t
     import pandas as pd
     import tifffile
 
-    from rollfric.cli import main
-    from rollfric.setup import save_setup
+    from rollfric.cli.main import main
+    from rollfric.setup.model import save_setup
 
     save_setup(_real_setup(), tmp_path / "real.toml")
     out = tmp_path / "o"

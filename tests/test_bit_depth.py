@@ -13,12 +13,13 @@ import numpy as np
 import pytest
 import tifffile
 
-from rollfric import bitdepth, io
-from rollfric.cylinder import find_cylinder_center
 from rollfric.errors import InputError
+from rollfric.geometry.trough import find_cylinder_center
+from rollfric.io import bitdepth
+from rollfric.io import readers as io
 from rollfric.locate import SubpixelOptions, locate_subpixel
 from rollfric.locate.thesis import locate_small_thesis
-from rollfric.setup import SetupError, setup_from_dict, thesis_setup
+from rollfric.setup.model import SetupError, setup_from_dict, thesis_setup
 from validation.drawn_frames import disk_coverage
 
 REAL = Path(__file__).parent / "data" / "real"
@@ -168,7 +169,7 @@ def test_the_setup_key_is_validated():
 def test_p10_codes_are_linearised_with_the_makers_table(tmp_path):
     from camera_files import write_cine
 
-    from rollfric.formats.phantom_lut import P10_TO_LINEAR
+    from rollfric.io.formats.phantom_lut import P10_TO_LINEAR
 
     codes = np.arange(2 * 16 * 32, dtype=np.uint16).reshape(2, 16, 32) % 1024
     path = write_cine(tmp_path / "p10.cine", codes, packed10=True)
@@ -187,7 +188,7 @@ def test_p10_codes_are_linearised_with_the_makers_table(tmp_path):
 def test_a_real_p10_file_is_pims_codes_through_the_table():
     from pims.cine import Cine
 
-    from rollfric.formats.phantom_lut import P10_TO_LINEAR
+    from rollfric.io.formats.phantom_lut import P10_TO_LINEAR
 
     path = REAL / "data_small_cine.cine"
     ref = Cine(str(path))
@@ -209,8 +210,8 @@ def test_a_10_bit_recording_at_half_contrast_in_16_bit_words_measures(tmp_path, 
     import pandas as pd
     from measure_data import make_recording
 
-    from rollfric.cli import main
-    from rollfric.setup import save_setup
+    from rollfric.cli.main import main
+    from rollfric.setup.model import save_setup
 
     rec = make_recording(160, noise=1.0, fps=200.0)
     frames8 = np.stack(rec.frames)
@@ -306,7 +307,7 @@ def test_thesis_large_on_a_drawn_dark_ball_without_highlight_is_not_found():
 def test_the_overlay_shows_a_12_bit_frame_to_its_full_scale(tmp_path):
     import pandas as pd
 
-    from rollfric.overlay import plot_overlays
+    from rollfric.output.overlay import plot_overlays
 
     frames = np.full((1, 64, 64), 4095, np.uint16)  # a 12-bit camera's white
     tifffile.imwrite(tmp_path / "w.tif", frames, extratags=[(281, "H", 1, 4095, True)])
@@ -340,7 +341,7 @@ def test_the_real_12_bit_ball_at_110_dn_of_contrast_is_located():
 def test_a_zarr_store_states_its_depth_by_its_bit_depth_attribute(tmp_path):
     import zarr
 
-    from rollfric.io import RecordingError
+    from rollfric.io.readers import RecordingError
 
     frames = np.full((3, 8, 10), 100, np.uint16)
     for name, attr in (("twelve.zarr", 12), ("none.zarr", None), ("bad.zarr", 20)):

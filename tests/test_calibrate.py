@@ -7,9 +7,9 @@ import cv2
 import numpy as np
 import pytest
 
-from rollfric.calibrate import calibrate_chessboard
-from rollfric.cli import main
-from rollfric.lens import Calibration
+from rollfric.cli.main import main
+from rollfric.setup.calibrate import calibrate_chessboard
+from rollfric.setup.lens import Calibration
 from synth.lens import Lens
 
 K = [[800.0, 0.0, 319.5], [0.0, 800.0, 239.5], [0.0, 0.0, 1.0]]
@@ -103,7 +103,7 @@ def test_chessboards_through_a_known_lens_give_it_back(views, tmp_path):
     assert main(args) == 0
     import tomllib
 
-    from rollfric.lens import calibration_from_dict
+    from rollfric.setup.lens import calibration_from_dict
 
     back = calibration_from_dict(tomllib.loads(out.read_text())["camera"])
     # the same fit (OpenCV's solver differs from run to run in the 9th digit)
@@ -118,18 +118,18 @@ def test_chessboards_through_a_known_lens_give_it_back(views, tmp_path):
 def test_a_calibration_over_the_rms_limit_is_written_as_suspect(views, tmp_path, capsys,
                                                                monkeypatch):
     # the clean views fit to ~0.1 px; with the limit under that the command must say suspect
-    import rollfric.calibrate
+    import rollfric.setup.calibrate
 
     paths = _write_boards(views, tmp_path)
     out = tmp_path / "camera.toml"
     args = ["calibrate", *paths, "--board", "7x5", "--square-mm", "20", "--out", str(out)]
-    monkeypatch.setattr(rollfric.calibrate, "MAX_RMS_PX", 0.05)
+    monkeypatch.setattr(rollfric.setup.calibrate, "MAX_RMS_PX", 0.05)
     assert main(args) == 3
     err = capsys.readouterr().err
     assert "suspect: rms reprojection error 0.1" in err and "over 0.05 px" in err
     text = out.read_text()
     assert "# suspect: rms reprojection error" in text and "image_size_px = [640, 480]" in text
-    monkeypatch.setattr(rollfric.calibrate, "MAX_RMS_PX", 1.0)
+    monkeypatch.setattr(rollfric.setup.calibrate, "MAX_RMS_PX", 1.0)
     assert main([*args, "--overwrite"]) == 0
     assert "suspect" not in out.read_text()
 
@@ -203,7 +203,7 @@ def test_copies_of_one_view_are_refused(views, tmp_path, capsys):
         assert "1 distinct orientation(s)" in err and "Traceback" not in err
         assert not out.exists()
     # the board slid and turned in its own plane is one orientation too (POSES 0 and 7)
-    from rollfric.calibrate import count_orientations
+    from rollfric.setup.calibrate import count_orientations
 
     normals = [cv2.Rodrigues(np.asarray(r, float))[0][:, 2] for r, _ in POSES]
     assert count_orientations(normals, 2.0) == len(POSES) - 1

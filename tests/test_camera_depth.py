@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rollfric.errors import InputError
-from rollfric.perspective import ball_plane_center, contour_depth_from_radius
-from rollfric.setup import SetupError, dumps_setup, setup_from_dict, thesis_setup
+from rollfric.geometry.perspective import ball_plane_center, contour_depth_from_radius
+from rollfric.setup.model import SetupError, dumps_setup, setup_from_dict, thesis_setup
 from synth.camera import CameraModel
 
 R_CYL, R_BALL = 0.0853, 0.005

@@ -1,12 +1,12 @@
 """A camera bumped or drifting during the recording: found from the static scene
-(rollfric.camera_motion), named, and the centres moved back (drawn recordings whose frames
+(rollfric.track.camera_motion), named, and the centres moved back (drawn recordings whose frames
 are shifted from a frame on, or steadily: validation.camera_faults)."""
 
 import numpy as np
 import pytest
 
-from rollfric import camera_motion as cm
-from rollfric.track import measure
+from rollfric.track import camera_motion as cm
+from rollfric.track.tracker import measure
 from tests.measure_data import MemorySource, make_recording
 from validation.camera_faults import camera_shift, moved_frames
 from validation.drawn_frames import Scene, make_frames

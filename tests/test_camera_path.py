@@ -1,5 +1,6 @@
 """A yawed or pitched camera and an out-of-round bore: the ball's path as an ellipse about the
-trough axis (rollfric.pathshape), found from the track, corrected when the period singles the
+trough axis (rollfric.geometry.pathshape), found from the track, corrected when the period singles
+the
 camera out, left alone (and reported) for a bore. Drawn recordings with the exact path
 (validation.camera_faults)."""
 
@@ -10,9 +11,9 @@ import numpy as np
 import pytest
 
 import sim
-from rollfric.fit import fit_mu
-from rollfric.track import angles, measure
-from rollfric.uncertainty import budget, measurement_from_track
+from rollfric.fit.estimate import fit_mu
+from rollfric.track.tracker import angles, measure
+from rollfric.uncertainty.budget import budget, measurement_from_track
 from tests.measure_data import PIX, MemorySource, R, make_recording
 from validation import drawn_frames as dfm
 from validation.camera_faults import turned_centres, turned_image

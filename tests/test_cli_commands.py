@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 import rollfric
-from rollfric import cli
+from rollfric.cli import main as cli
 
 SUITE_PACKAGES = ("sim", "synth", "validation")
 ROLLFRIC_DIR = Path(rollfric.__file__).parent
@@ -65,7 +65,7 @@ def test_without_the_suite_every_rollfric_module_imports_and_suite_commands_exit
         import rollfric
         for mod in pkgutil.walk_packages(rollfric.__path__, "rollfric."):
             importlib.import_module(mod.name)
-        from rollfric.cli import build_parser, main
+        from rollfric.cli.main import build_parser, main
         print("HELP", build_parser().format_help())
         for argv in (["validate"], ["validate", "--help"], ["sweep", "x.toml", "--out", "d"],
                      ["simulate", "--mu", "0.01"], ["render", "t.csv"], ["bench"]):
@@ -89,7 +89,7 @@ def test_without_the_suite_every_rollfric_module_imports_and_suite_commands_exit
 
 def test_without_the_suite_measurement_commands_still_parse(tmp_path):
     proc = _run("""
-        from rollfric.cli import build_parser
+        from rollfric.cli.main import build_parser
         parser = build_parser()
         args = parser.parse_args(["fit", "track.csv", "--setup", "s.toml", "--out", "f.json"])
         print(args.command, args.func.__module__)
@@ -101,14 +101,14 @@ def test_without_the_suite_measurement_commands_still_parse(tmp_path):
                 print("EXIT", exc.code)
     """, tmp_path, block_suite=True)
     assert proc.returncode == 0, proc.stderr
-    assert "fit rollfric.cli_fit" in proc.stdout
+    assert "fit rollfric.cli.fit" in proc.stdout
     assert proc.stdout.count("EXIT 0") == 4
 
 
 def test_building_the_parser_loads_nothing_of_the_suites_stack(tmp_path):
     proc = _run("""
         import sys
-        from rollfric.cli import build_parser
+        from rollfric.cli.main import build_parser
         build_parser()
         # SciPy and numba too: --help should not wait for them (0.65 s against 0.27 s)
         heavy = ("mujoco", "pybullet", "pyrender", "OpenGL", "trimesh", "dask", "distributed",
@@ -200,7 +200,7 @@ def test_sigterm_runs_the_cleanup_and_exits_143(monkeypatch, capsys):
     import os
     import signal
 
-    from rollfric import cli
+    from rollfric.cli import main as cli
 
     cleaned = []
 
@@ -233,7 +233,7 @@ def test_the_exit_freezes_what_the_command_left_for_the_collector(tmp_path):
     code = textwrap.dedent("""
         import atexit, gc, sys
         atexit.register(lambda: print("frozen at exit", gc.get_freeze_count() > 0))
-        from rollfric import cli
+        from rollfric.cli import main as cli
         for name in ("a", "b"):  # twice; a command of rollfric's own (bad input: exit 2), as
             # the measurement-only install runs this file too (`simulate` is the suite's)
             assert cli.main(["fit", sys.argv[1] + name + ".csv", "--setup",

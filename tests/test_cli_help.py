@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from rollfric.cli import build_parser
-from rollfric.helpformat import HelpFormatter
+from rollfric.cli.helpformat import HelpFormatter
+from rollfric.cli.main import build_parser
 
 
 def _commands():

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from rollfric.cli import main
-from rollfric.combine import birge_range, combine_files
+from rollfric.cli.main import main
 from rollfric.errors import InputError
+from rollfric.uncertainty.combine import birge_range, combine_files
 
 SETUP = {"cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.5},
          "ball": {"diameter_mm": 10.0, "mass_g": 4.07612},
@@ -181,8 +181,8 @@ def test_fit_json_without_a_setup_record_compared_through_its_budget(tmp_path):
 
 
 def test_fit_records_its_setup_and_two_fits_combine(tmp_path, capsys):
-    from rollfric import eom
-    from rollfric.setup import load_setup, save_setup, thesis_setup
+    from rollfric.fit import eom
+    from rollfric.setup.model import load_setup, save_setup, thesis_setup
 
     setup = thesis_setup("10mm", uncertainty=(("cylinder_radius", 0.5e-3), ("fps", 0.05)))
     save_setup(setup, tmp_path / "setup.toml")

@@ -1,4 +1,4 @@
-"""rollfric.ellipse: the contour as an ellipse and the mu bias it implies (against exact
+"""rollfric.geometry.ellipse: the contour as an ellipse and the mu bias it implies (against exact
 projections of simulated tracks)."""
 
 import math
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import sim
-from rollfric import ellipse as ell
-from rollfric.fit import fit_mu
+from rollfric.fit.estimate import fit_mu
+from rollfric.geometry import ellipse as ell
 
 PX = 0.1343e-3
 
@@ -98,7 +98,7 @@ def test_round_contour_implies_no_bias():
 
 def test_rendered_out_of_round_bore_is_found_as_its_ellipse():
     """synth draws the bore as the scenario's ellipse; rollfric's contour finds it back."""
-    from rollfric.cylinder import find_cylinder_center
+    from rollfric.geometry.trough import find_cylinder_center
     from synth.camera import CameraModel
     from synth.config import SceneConfig
     from synth.scene import SceneRenderer

@@ -1,4 +1,4 @@
-"""Independent computations on threads (rollfric.cpus): the results of the plain loop.
+"""Independent computations on threads (rollfric.parallel): the results of the plain loop.
 
 The fits that run on threads when CPUs are free (the least-squares fit's coarse starts, the
 dropped-frame search's refits at turning points, the uncertainty budget's refits) are compared
@@ -15,12 +15,12 @@ import pytest
 from test_timing import FPS, SETUP, angles_of, camera_track
 from test_uncertainty import LAB, _lab_track, write
 
-from rollfric import cpus
-from rollfric.fit import fit_mu
-from rollfric.setup import load_setup
-from rollfric.timing import find_gaps
-from rollfric.track import turning_gaps
-from rollfric.uncertainty import Measurement, budget
+from rollfric import parallel as cpus
+from rollfric.fit.estimate import fit_mu
+from rollfric.setup.model import load_setup
+from rollfric.track.dropped_frames import find_gaps
+from rollfric.track.tracker import turning_gaps
+from rollfric.uncertainty.budget import Measurement, budget
 
 
 @pytest.mark.parametrize("workers", [1, 2, 3])
@@ -131,7 +131,7 @@ def test_measure_on_threads_is_measure_in_one_thread_and_times_its_stages(monkey
     # 1000 frames: the recording's halves on two threads too, the fits on two
     from measure_data import MemorySource, make_recording
 
-    from rollfric import track
+    from rollfric.track import tracker as track
 
     rec = make_recording(1000, mu=0.01, theta0=0.5, fps=200.0, noise=1.0, seed=2)
     src = MemorySource(rec.frames, concurrent=True)

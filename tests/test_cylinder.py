@@ -11,8 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
-from rollfric import cylinder
-from rollfric.cylinder import find_cylinder_center
+from rollfric.geometry import trough as cylinder
+from rollfric.geometry.trough import find_cylinder_center
 from validation.drawn_frames import disk_coverage
 
 XC, YC, R = 640.3, 380.7, 635.0

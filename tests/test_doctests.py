@@ -10,7 +10,7 @@ import pytest
 
 import rollfric
 
-MODULES = sorted({"rollfric", "rollfric.helpformat", *rollfric._WHERE.values()})
+MODULES = sorted({"rollfric", "rollfric.cli.helpformat", *rollfric._WHERE.values()})
 
 
 @pytest.mark.parametrize("name", MODULES)

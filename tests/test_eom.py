@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from rollfric import eom
-from rollfric.setup import thesis_setup
+from rollfric.fit import eom
+from rollfric.setup.model import thesis_setup
 
 L10 = thesis_setup("10mm").track_radius
 T4 = np.arange(4000) / 1000.0

@@ -1,7 +1,7 @@
-"""rollfric.eom.solve_segments: the one segment-and-stick loop of the reference integrator and
+"""rollfric.fit.eom.solve_segments: the one segment-and-stick loop of the reference integrator and
 of sim.losses.
 
-The outputs of both callers (rollfric.eom.solve_reference and sim.losses.solve) were recorded
+The outputs of both callers (rollfric.fit.eom.solve_reference and sim.losses.solve) were recorded
 with the code before they shared the loop (commit c0ae672, each with a copy of its own) in
 tests/data/eom_segments_c0ae672.npz, written by ``recorded_outputs()`` below; the shared loop
 reproduces them bit for bit (checked here to 1e-12 rad, so that a libm differing in the last
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rollfric import eom
+from rollfric.fit import eom
 from sim.losses import Losses
 from sim.losses import solve as solve_losses
 

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from rollfric import filtering
 from rollfric.errors import InputError
+from rollfric.fit import filtering
 
 FPS = 1000.0
 T = np.arange(4000) / FPS

@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from rollfric import analytic, eom
-from rollfric.cli import main
+from rollfric.cli.main import main
 from rollfric.errors import InputError
-from rollfric.fit import fit_mu
-from rollfric.setup import save_setup, thesis_setup
+from rollfric.fit import analytic, eom
+from rollfric.fit.estimate import fit_mu
+from rollfric.setup.model import save_setup, thesis_setup
 
 T4 = np.arange(4000) / 1000.0
 BALLS = ["1.58mm", "10mm", "12.69mm"]

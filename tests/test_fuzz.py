@@ -27,10 +27,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from measure_data import make_recording
 
-from rollfric.cli import main
-from rollfric.cli_fit import read_track
+from rollfric.cli.fit import read_track
+from rollfric.cli.main import main
 from rollfric.errors import InputError
-from rollfric.setup import PLAUSIBLE, dumps_setup, save_setup, setup_from_dict
+from rollfric.setup.model import PLAUSIBLE, dumps_setup, save_setup, setup_from_dict
 
 PROPS = settings(derandomize=True, database=None, deadline=None, max_examples=50,
                  suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
@@ -92,7 +92,7 @@ def _plausible(name):
        g=_plausible("gravity"),
        c=st.none() | st.tuples(st.floats(-1e6, 1e6), st.floats(-1e6, 1e6)))
 def test_setup_round_trips_through_its_file_form(r, d, m, fps, px, g, c):
-    from rollfric.setup import Setup
+    from rollfric.setup.model import Setup
 
     try:
         s = Setup(cylinder_radius=r, ball_diameter=d, ball_mass=m, fps=fps, pixel_size=px,
@@ -117,7 +117,7 @@ SCENARIO_KEYS = {"cylinder": ["radius_mm"], "ball": ["diameter_mm", "mass_g"],
 @PROPS
 @given(_tables(SCENARIO_KEYS))
 def test_scenario_parser_returns_a_scenario_within_the_limits_or_refuses(data):
-    from rollfric.limits import MAX_SAMPLES
+    from rollfric.io.limits import MAX_SAMPLES
     from sim.scenario import scenario_from_dict
 
     try:

@@ -9,8 +9,8 @@ import pytest
 import tifffile
 from test_real_camera_files import CINES, EXPECTED, P10, PHOTRONS, REAL
 
-from rollfric.cli import main
-from rollfric.formats.phantom_lut import P10_BITS
+from rollfric.cli.main import main
+from rollfric.io.formats.phantom_lut import P10_BITS
 
 
 def _info(capsys, *argv):

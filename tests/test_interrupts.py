@@ -18,7 +18,7 @@ import pytest
 import tifffile
 from measure_data import make_recording
 
-from rollfric.setup import save_setup
+from rollfric.setup.model import save_setup
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -50,7 +50,7 @@ def test_a_signal_inside_a_numba_kernel_exits_with_its_status(monkeypatch, capsy
                                                               status, word):
     # issue 33: Ctrl-C or SIGTERM landing in a kernel ended in exit 1 and "SystemError:
     # CPUDispatcher(_pass_raw) returned a result with an exception set"
-    from rollfric import cli
+    from rollfric.cli import main as cli
 
     kernel = _kernel()
     cleaned = []
@@ -79,7 +79,7 @@ def test_a_signal_inside_a_numba_kernel_exits_with_its_status(monkeypatch, capsy
 
 def test_an_error_that_is_no_interruption_is_not_taken_for_one(monkeypatch):
     # a SystemError (or any bug) with no signal behind it is still raised, not reported as 130
-    from rollfric import cli
+    from rollfric.cli import main as cli
 
     def work(args):
         raise SystemError("a real bug")
@@ -117,7 +117,7 @@ def test_a_signal_while_measure_tracks_exits_with_its_status_writing_nothing(lab
     for k, delay in enumerate((0.0, 0.05, 0.15, 0.3)):
         out = tmp_path / f"out{k}"
         p = subprocess.Popen(
-            [sys.executable, "-m", "rollfric.cli", "measure", str(lab / "rec.tif"),
+            [sys.executable, "-m", "rollfric.cli.main", "measure", str(lab / "rec.tif"),
              "--setup", str(lab / "setup.toml"), "--background", str(lab / "bg.tif"),
              "--out", str(out)],
             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)

@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from rollfric.cylinder import find_cylinder_center
-from rollfric.lens import Calibration
-from rollfric.setup import SetupError, dumps_setup, setup_from_dict, thesis_setup
+from rollfric.geometry.trough import find_cylinder_center
+from rollfric.setup.lens import Calibration
+from rollfric.setup.model import SetupError, dumps_setup, setup_from_dict, thesis_setup
 from synth.lens import Lens, distort_image, ideal_window
 
 K = [[2400.0, 0.0, 639.5], [0.0, 2390.0, 511.5], [0.0, 0.0, 1.0]]
@@ -126,7 +126,7 @@ def test_calibration_image_size_is_kept_and_checked_against_the_frames():
     # frames without a check (its centre and distortion then fall on other pixels)
     import tomllib
 
-    from rollfric.track import check_setup_fits
+    from rollfric.track.tracker import check_setup_fits
 
     d = thesis_setup().to_toml_dict()
     d["camera"].update(matrix=K, distortion=D, image_size_px=[1280, 1024])
@@ -180,7 +180,7 @@ def test_a_recording_through_a_lens_measured_with_and_without_its_calibration(tm
     assert m["theta_rms_rad"] < math.radians(0.03)  # 0.4 mm pixels: 1 px is 0.29 deg
     assert m["center_rms_px"] < 0.15  # located vs the distorted projection of the centre
     # the budget re-evaluates the undistorted centres: its nominal re-fit is the fit
-    from rollfric.uncertainty import budget, measurement_from_track
+    from rollfric.uncertainty.budget import budget, measurement_from_track
 
     b = budget(measurement_from_track(r.track, r.track_info), r.fit)
     assert b.mu == pytest.approx(r.fit.mu, rel=1e-6)
@@ -243,7 +243,7 @@ def _target_lens_path(n: int):
     """The lens target (k1 = -0.18 at fx = 2400 px), its exact setup with the calibration and
     n ball centres along the thesis's path over +-24 deg: (lens, setup, theta, truth px,
     L px, r px)."""
-    from rollfric.setup import Setup
+    from rollfric.setup.model import Setup
 
     lens = Lens([[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]],
                 [-0.18, 0.0, 0.0, 0.0, 0.0])
@@ -264,7 +264,7 @@ def test_located_ball_undistorted_lands_on_the_true_centre():
     the located centre alone was off by up to 0.034 px along the path and 0.06 px across
     it (the bent outline is not round: its fitted circle is not centred on the bent
     centre)."""
-    from rollfric.track import track_recording
+    from rollfric.track.tracker import track_recording
 
     lens, setup, th, truth, L, r = _target_lens_path(9)
     src = _DrawnThroughLens(lens, truth, r)
@@ -318,7 +318,7 @@ def test_synth_lens_rendering_is_the_ball_bent_exactly():
     max, 0.0014 px rms); one bilinear sample of a frame-resolution ideal image (synth's
     rendering before) was 0.06 px off, as the pixel fit reads its kernel (1 - f, f) that
     follows the lens's fractional displacement f."""
-    from rollfric.track import track_recording
+    from rollfric.track.tracker import track_recording
 
     lens, setup, th, truth, L, r = _target_lens_path(13)
     exact = _DrawnThroughLens(lens, truth, r)

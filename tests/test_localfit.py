@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from rollfric.localfit import polyfit_rows
-from rollfric.plausibility import innovations
+from rollfric.track.localfit import polyfit_rows
+from rollfric.track.plausibility import innovations
 
 
 @pytest.mark.parametrize("degree", [1, 2, 3])

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rollfric.io import open_recording
+from rollfric.io.readers import open_recording
 from rollfric.locate import locate_subpixel
 from validation.bench_locate import edge_point_locator
 from validation.shadow_frames import ShadowScene, background, draw

@@ -6,8 +6,8 @@ import numpy as np
 from measure_data import make_recording, messages
 from test_measure_roi import _Plain
 
-from rollfric.background import median, median_background, sample
-from rollfric.track import measure
+from rollfric.io.background import median, median_background, sample
+from rollfric.track.tracker import measure
 
 
 def _errors(df, rec):

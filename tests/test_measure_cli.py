@@ -11,10 +11,10 @@ import tifffile
 import zarr
 from measure_data import make_recording, messages
 
-from rollfric.cli import main
-from rollfric.cylinder import ContourError, find_cylinder_center
-from rollfric.setup import dumps_setup, save_setup
-from rollfric.track import angles, measure
+from rollfric.cli.main import main
+from rollfric.geometry.trough import ContourError, find_cylinder_center
+from rollfric.setup.model import dumps_setup, save_setup
+from rollfric.track.tracker import angles, measure
 from validation.drawn_frames import Scene, background, to_dtype
 
 
@@ -75,7 +75,7 @@ def test_measure_cli_tiff(tmp_path, capsys):
     assert fit["n_frames"] == 160 and fit["n_found"] == 160
     assert fit["mu"] == pytest.approx(0.02, rel=0.05)
     # the setup it was measured with, in the lab file's form (rollfric combine compares it)
-    from rollfric.setup import load_setup
+    from rollfric.setup.model import load_setup
     assert fit["setup"] == load_setup(tmp_path / "setup.toml").to_toml_dict()
     assert (out / "fit.png").stat().st_size > 0 and (out / "overlays.png").stat().st_size > 0
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]  # no temp left

@@ -13,10 +13,10 @@ import tifffile
 from camera_files import pack12, write_cihx, write_cine, write_mraw
 from measure_data import make_recording
 
-from rollfric.cli import main
-from rollfric.io import RecordingError, open_recording
-from rollfric.setup import save_setup
-from rollfric.track import frame_times
+from rollfric.cli.main import main
+from rollfric.io.readers import RecordingError, open_recording
+from rollfric.setup.model import save_setup
+from rollfric.track.tracker import frame_times
 
 rng = np.random.default_rng(5)
 

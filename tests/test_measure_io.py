@@ -12,7 +12,7 @@ import pytest
 import tifffile
 import zarr
 
-from rollfric.io import (
+from rollfric.io.readers import (
     RecordingError,
     check_background,
     open_recording,
@@ -70,7 +70,7 @@ def test_folder_numbered_without_leading_zeros_in_natural_order(tmp_path):
 
 
 def test_natural_key_orders_numbers_as_numbers():
-    from rollfric.io import natural_key
+    from rollfric.io.readers import natural_key
 
     names = ["img_10.png", "img_", "img_9.png", "img_.png", "img_0009.png", "x2y10", "x2y9"]
     assert sorted(names, key=natural_key) == ["img_", "img_0009.png", "img_9.png",
@@ -199,7 +199,7 @@ def test_median_background_streams_a_subsample():
             f[i % 8, :] = 250  # a 'ball' that moves: never in the median
             return f
 
-    from rollfric.background import median_background
+    from rollfric.io.background import median_background
 
     src = Counting()
     bg, notes = median_background(src, 1.0, max_frames=21)
@@ -288,7 +288,7 @@ def test_tiff_cut_between_two_pages_is_refused(tmp_path, contiguous):
 def test_measure_of_a_tiff_cut_between_pages_writes_nothing(tmp_path, capsys):
     from measure_data import write_lab
 
-    from rollfric.cli import main
+    from rollfric.cli.main import main
 
     lab = write_lab(tmp_path, n=60)
     with tifffile.TiffFile(lab / "rec.tif") as tif:

@@ -8,8 +8,8 @@ import numpy as np
 import tifffile
 from measure_data import make_recording
 
-from rollfric.cli import main
-from rollfric.setup import save_setup
+from rollfric.cli.main import main
+from rollfric.setup.model import save_setup
 
 
 def _measure(tmp_path, rec, setup, background="bg.tif"):

@@ -11,9 +11,9 @@ import tifffile
 import zarr
 from measure_data import make_recording, messages
 
-from rollfric import io
+from rollfric.io import readers as io
 from rollfric.locate import LazyFrame, locate_subpixel
-from rollfric.track import measure
+from rollfric.track.tracker import measure
 
 rng = np.random.default_rng(1)
 FR8 = rng.integers(0, 255, (4, 37, 53), dtype=np.uint8)

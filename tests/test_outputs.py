@@ -1,6 +1,6 @@
 """Nothing of the user's is deleted or mixed: every command refuses an existing destination
 before any work unless --overwrite, replaces only its own outputs, never a folder by a file (or
-the reverse), and removes the temporary paths of killed runs (rollfric.atomic, .outputs)."""
+the reverse), and removes the temporary paths of killed runs (rollfric.output.atomic, .outputs)."""
 
 from __future__ import annotations
 
@@ -14,10 +14,10 @@ from pathlib import Path
 import pytest
 from measure_data import write_lab
 
-from rollfric import atomic
-from rollfric.cli import main
+from rollfric.cli.main import main
 from rollfric.errors import InputError
-from rollfric.outputs import OutputError, check_file, check_folder, staged_folder
+from rollfric.output import atomic
+from rollfric.output.folder import OutputError, check_file, check_folder, staged_folder
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,11 +30,11 @@ def _snapshot(folder: Path) -> dict:
 
 def _kill_inside_replacing(dest: Path, folder: bool = False) -> Path:
     """Run a process that dies (SIGKILL-like os._exit) while writing ``dest`` through
-    rollfric.atomic.replacing: the temporary path it leaves behind."""
+    rollfric.output.atomic.replacing: the temporary path it leaves behind."""
     code = textwrap.dedent(f"""
         import os, sys
         sys.path.insert(0, {str(ROOT)!r})
-        from rollfric.atomic import replacing
+        from rollfric.output.atomic import replacing
         with replacing({str(dest)!r}, folder_ok=True) as tmp:
             if {folder!r}:
                 tmp.mkdir(); (tmp / "zarr.json").write_text("{{}}")
@@ -49,7 +49,8 @@ def _kill_inside_replacing(dest: Path, folder: bool = False) -> Path:
     return left[0]
 
 
-# -- rollfric.atomic and rollfric.outputs --------------------------------------------------------
+# -- rollfric.output.atomic and rollfric.output.folder
+# --------------------------------------------------------
 
 def test_a_file_never_replaces_a_folder_nor_the_reverse(tmp_path):
     d = tmp_path / "out"

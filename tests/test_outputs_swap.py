@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from measure_data import write_lab
 
-from rollfric.outputs import staged_folder
-from rollfric.swap import claim, claim_path, exchange
+from rollfric.output.folder import staged_folder
+from rollfric.output.swap import claim, claim_path, exchange
 
 ROOT = Path(__file__).resolve().parents[1]
 OWN = ("budget.png", "fit.json", "fit.png", "track.csv")
@@ -23,7 +23,7 @@ OWN = ("budget.png", "fit.json", "fit.png", "track.csv")
 _SCRIPT = """
 import os, signal, sys
 from pathlib import Path
-import rollfric.outputs as outputs
+import rollfric.output.folder as outputs
 k, calls = int(sys.argv[2]), [0]
 def killing(f):
     def call(*a, **kw):
@@ -98,7 +98,7 @@ def test_a_second_run_into_a_folder_being_written_is_refused(tmp_path, capsys):
     own = dict.fromkeys(OWN, "file")
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT),
                                                        os.environ.get("PYTHONPATH", "")]))
-    argv = [sys.executable, "-m", "rollfric.cli", "measure", str(lab / "rec.tif"), "--setup",
+    argv = [sys.executable, "-m", "rollfric.cli.main", "measure", str(lab / "rec.tif"), "--setup",
             str(lab / "setup.toml"), "--out", str(out), "--no-progress"]
     with staged_folder(out, own, overwrite=False) as tmp:  # this run writes m now
         (tmp / "track.csv").write_text("first")

@@ -6,11 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from rollfric import eom, filtering, quality
-from rollfric.cli import main
+from rollfric.cli.main import main
 from rollfric.errors import InputError
-from rollfric.fit import fit_lsq, fit_mu
-from rollfric.setup import save_setup, thesis_setup
+from rollfric.fit import eom, filtering
+from rollfric.fit.estimate import fit_lsq, fit_mu
+from rollfric.setup.model import save_setup, thesis_setup
+from rollfric.uncertainty import quality
 
 T4 = np.arange(4000) / 1000.0
 

@@ -1,4 +1,4 @@
-"""Reading one frame ahead on a second thread (rollfric.readahead): the same bytes as plain
+"""Reading one frame ahead on a second thread (rollfric.track.readahead): the same bytes as plain
 reads, in order, every read on the one worker thread, errors raised where they were asked for,
 and a measurement that is the same with and without it."""
 
@@ -11,9 +11,9 @@ import pytest
 from measure_data import MemorySource as _Source
 from measure_data import make_recording
 
-from rollfric.io import RecordingError
-from rollfric.readahead import ReadAhead
-from rollfric.track import measure, track_recording
+from rollfric.io.readers import RecordingError
+from rollfric.track.readahead import ReadAhead
+from rollfric.track.tracker import measure, track_recording
 
 
 def _frames(n=12, h=40, w=50, seed=0):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import tifffile
 
-from rollfric.cli import main
+from rollfric.cli.main import main
 from rollfric.sample import sample_path, sample_truth
 
 
@@ -86,7 +86,7 @@ def test_a_first_measure_announces_the_compilation_and_a_second_does_not(tmp_pat
     assert main(["sample", str(d)]) == 0
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
            "PYTHONPATH": os.pathsep.join(sys.path)}
-    cmd = [sys.executable, "-m", "rollfric.cli", "measure", str(d / "frames.tif"), "--setup",
+    cmd = [sys.executable, "-m", "rollfric.cli.main", "measure", str(d / "frames.tif"), "--setup",
            str(d / "setup.toml"), "--out", str(d / "r"), "--overwrite"]
 
     def run():

@@ -2,7 +2,14 @@ import math
 
 import pytest
 
-from rollfric.setup import Setup, SetupError, dumps_setup, load_setup, setup_from_dict, thesis_setup
+from rollfric.setup.model import (
+    Setup,
+    SetupError,
+    dumps_setup,
+    load_setup,
+    setup_from_dict,
+    thesis_setup,
+)
 
 GOOD = """
 [cylinder]

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import sim
-from rollfric.eom import energy
-from rollfric.fit import fit_mu
+from rollfric.fit.eom import energy
+from rollfric.fit.estimate import fit_mu
 
 # Tolerances of the accurate (tangent) surfaces over 1 s (measured: angle 0.02-0.05 deg,
 # normal force 0.02-0.3 %, spin 0.4 %, mu +0.02 % to +0.04 % (MuJoCo) and < 0.005 % (PyBullet)).

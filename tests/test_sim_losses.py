@@ -8,8 +8,8 @@ import pytest
 from scipy.signal import argrelextrema
 
 import sim
-from rollfric import eom
-from rollfric.fit import fit_mu
+from rollfric.fit import eom
+from rollfric.fit.estimate import fit_mu
 from sim.losses import ROOM_AIR_DENSITY, Losses, reynolds, solve, theta_ddot
 
 R, D, M, G = 0.0853, 0.010, 0.00407612, 9.81
@@ -109,7 +109,7 @@ def test_scenario_keys_round_trip_and_refuse_negatives():
     assert sim.scenario_from_dict(sc.to_toml_dict()) == sc
     with pytest.raises(sim.ScenarioError, match="air_cd"):
         sim.scenario_from_dict({"environment": {"air_cd": -1.0}})
-    # off by default: the trajectory is rollfric.eom's, its meta without losses
+    # off by default: the trajectory is rollfric.fit.eom's, its meta without losses
     assert "losses" not in sim.simulate(sim.Scenario(duration=0.2)).meta
 
 
@@ -150,7 +150,7 @@ def test_engines_apply_the_losses_like_the_ode(engine):
 
 
 def test_the_law_engine_is_what_the_fitter_models():
-    # air_drag = "law": the reference engine integrates rollfric.air's drag law, buoyancy and
+    # air_drag = "law": the reference engine integrates rollfric.fit.air's drag law, buoyancy and
     # added mass (written out in sim.losses); the fitter, told only the air's density by the
     # setup, recovers mu to 1e-5; told no air, it takes the drag for friction
     sc = sim.Scenario(duration=2.0, air_density=1.204, air_drag="law")

@@ -41,7 +41,7 @@ def test_bad_scenarios_are_refused_with_a_named_input(changes, word):
 
 
 def test_cli_refuses_bad_scenario_and_writes_nothing(tmp_path):
-    from rollfric.cli import main
+    from rollfric.cli.main import main
 
     out = tmp_path / "traj.csv"
     assert main(["simulate", "--engine", "mujoco", "--theta0-deg", "85",
@@ -51,7 +51,7 @@ def test_cli_refuses_bad_scenario_and_writes_nothing(tmp_path):
 
 
 def test_cli_writes_csv_and_sidecar(tmp_path):
-    from rollfric.cli import main
+    from rollfric.cli.main import main
 
     out = tmp_path / "traj.csv"
     assert main(["simulate", "--engine", "reference", "--mu", "0.0079",

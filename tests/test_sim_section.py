@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import sim
-from rollfric.eom import solve_reference
+from rollfric.fit.eom import solve_reference
 from sim.engines.reference import solve_section
 from sim.errors import ScenarioError
 from sim.section import Section

@@ -6,9 +6,10 @@ import numpy as np
 from measure_data import PIX, R
 from test_measure_roi import _Plain
 
-from rollfric import eom, still
-from rollfric.setup import Setup
-from rollfric.track import measure
+from rollfric.fit import eom
+from rollfric.setup.model import Setup
+from rollfric.track import still
+from rollfric.track.tracker import measure
 from validation.drawn_frames import Scene, make_frames
 
 
@@ -39,8 +40,8 @@ def test_a_held_start_is_flagged_and_left_out_and_mu_comes_out_within_u(tmp_path
     import pandas as pd
     import tifffile
 
-    from rollfric.cli import main
-    from rollfric.setup import save_setup
+    from rollfric.cli.main import main
+    from rollfric.setup.model import save_setup
 
     n_held = 60  # 0.3 s at 200 Hz (before: mu 0.148, exit 3 for residuals, no word of a hold)
     setup, bg, frames, theta = _recording(n_held, 300)
@@ -83,7 +84,7 @@ def test_a_release_from_rest_at_the_start_is_not_a_hold():
 
 
 def test_rollfric_fit_leaves_the_still_rows_of_a_track_out(tmp_path):
-    from rollfric.cli_fit import read_track
+    from rollfric.cli.fit import read_track
 
     p = tmp_path / "track.csv"
     p.write_text("t_s,theta_rad,found,flag,still\n0,0.5,1,,held\n0.01,0.5,1,,held\n"
@@ -107,8 +108,8 @@ def test_a_rest_held_by_the_median_background_is_named_and_the_fit_is_ok():
 def test_the_median_without_the_still_frames_tells_a_held_ball_from_the_backdrop():
     import pandas as pd
 
-    from rollfric.background import median, sample
-    from rollfric.track import _median_without_still
+    from rollfric.io.background import median, sample
+    from rollfric.track.tracker import _median_without_still
 
     # at rest in 400 of 608 frames: the plain median holds the ball at its rest place
     setup, bg_true, frames, theta = _recording(0, 240, 400, mu=0.02)

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from rollfric import plausibility
+from rollfric.track import plausibility
 
 
 def _noisy(x, y, seed=0, s=0.02):

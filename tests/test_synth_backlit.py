@@ -88,7 +88,7 @@ def test_sensor_bits_in_16_bit_words_and_the_tiff_tag(tmp_path, bits):
 
 @pytest.mark.parametrize("bits", [10, 14])
 def test_sensor_bits_in_the_recordings_setup(tmp_path, bits):
-    from rollfric.setup import Setup, load_setup
+    from rollfric.setup.model import Setup, load_setup
     from synth.export import export_recording
 
     if "bit_depth" not in Setup.__dataclass_fields__:

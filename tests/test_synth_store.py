@@ -7,7 +7,7 @@ from importlib.metadata import entry_points
 import numpy as np
 import pytest
 
-import rollfric.io
+import rollfric.io.readers
 import sim
 import synth
 from synth.camera import CameraModel
@@ -224,7 +224,7 @@ def test_store_chunks_read_directly_and_old_stores_keep_their_noise(rec_path, tm
 
 
 def test_read_a_region_is_the_crop_of_the_frame(rec_path):
-    from rollfric import io
+    from rollfric.io import readers as io
 
     frames = synth.open_recording(rec_path).frames
     src = io.open_recording(rec_path)  # through rollfric's reader and the entry point
@@ -317,7 +317,7 @@ def test_export_like_a_lab_camera(rec_path, tmp_path):
     import pandas as pd
     import tifffile
 
-    from rollfric.setup import load_setup
+    from rollfric.setup.model import load_setup
     from synth.export import export_recording
 
     d = export_recording(rec_path, tmp_path / "exp")
@@ -332,7 +332,7 @@ def test_export_like_a_lab_camera(rec_path, tmp_path):
         assert page.compression == tifffile.COMPRESSION.ADOBE_DEFLATE
         assert page.predictor == tifffile.PREDICTOR.HORIZONTAL
     assert (d / "frames.tif").stat().st_size < 0.8 * stack.nbytes
-    src = rollfric.io.open_recording(d / "frames.tif")
+    src = rollfric.io.readers.open_recording(d / "frames.tif")
     for i in range(len(rec)):
         np.testing.assert_array_equal(stack[i], rec.frames[i])
         np.testing.assert_array_equal(src[i], rec.frames[i])
@@ -362,7 +362,7 @@ def test_bad_inputs_are_refused(traj, tmp_path):
 
 
 def test_rollfric_reads_the_recording_through_its_io(rec_path):
-    io = pytest.importorskip("rollfric.io")
+    io = pytest.importorskip("rollfric.io.readers")
     src = io.open_recording(rec_path)
     rec = synth.open_recording(rec_path)
     assert len(src) == len(rec)
@@ -415,9 +415,9 @@ def test_a_corrupt_chunk_stops_the_measurement_with_a_message(rec_path, tmp_path
     import re
     import shutil
 
-    from rollfric.cli import main
+    from rollfric.cli.main import main
     from rollfric.errors import InputError
-    from rollfric.track import measure
+    from rollfric.track.tracker import measure
 
     bad = tmp_path / "bad.zarr"
     shutil.copytree(rec_path, bad)

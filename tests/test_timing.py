@@ -1,8 +1,9 @@
 """The camera's timing: synth's jitter and dropped frames (synth.timing), rollfric's dropped
-frames found from the motion (rollfric.timing) and repaired, and timestamps carried by a Zarr
+frames found from the motion (rollfric.track.dropped_frames) and repaired, and timestamps carried
+by a Zarr
 recording.
 
-The angles are the reference solution of the equation of motion (rollfric.eom) at the real
+The angles are the reference solution of the equation of motion (rollfric.fit.eom) at the real
 sample times, so every expected value is exact; the centres are its projection on a circle."""
 
 from __future__ import annotations
@@ -12,10 +13,10 @@ import math
 import numpy as np
 import pytest
 
-from rollfric import eom
-from rollfric.fit import fit_mu
-from rollfric.setup import Setup
-from rollfric.timing import find_gaps
+from rollfric.fit import eom
+from rollfric.fit.estimate import fit_mu
+from rollfric.setup.model import Setup
+from rollfric.track.dropped_frames import find_gaps
 
 FPS = 1000.0
 SETUP = Setup(cylinder_radius=85.3e-3, ball_diameter=10e-3, ball_mass=4.07612e-3, fps=FPS,
@@ -203,7 +204,7 @@ def test_measure_repairs_dropped_frames_and_reports_them(tmp_path):
     no frame flagged, mu as from the clean recording."""
     import tifffile
 
-    from rollfric import track as track_mod
+    from rollfric.track import tracker as track_mod
     from tests.measure_data import make_recording
 
     clean = make_recording(300, mu=0.02, theta0=0.5, fps=200.0, noise=1.0, seed=2)
@@ -225,8 +226,8 @@ def test_zarr_timestamps_are_the_times(tmp_path):
     a gap in them), no drop is looked for in the motion."""
     import zarr
 
-    from rollfric import io
-    from rollfric import track as track_mod
+    from rollfric.io import readers as io
+    from rollfric.track import tracker as track_mod
     from tests.measure_data import make_recording
 
     clean = make_recording(200, mu=0.02, theta0=0.5, fps=200.0, noise=1.0, seed=5)
@@ -244,7 +245,7 @@ def test_zarr_timestamps_are_the_times(tmp_path):
 
 def test_a_frame_lost_where_the_ball_turns_is_found_by_the_fit():
     """No step shows a frame lost at a turning point; the fit's residual after it does."""
-    from rollfric.track import turning_gaps
+    from rollfric.track.tracker import turning_gaps
 
     omega = math.sqrt(5 * 9.80665 / (7 * SETUP.track_radius))
     turn = 3 * int(round(math.pi / omega * FPS))  # the third turning point, camera frame 1008
@@ -271,10 +272,10 @@ def test_a_frame_lost_where_the_ball_turns_is_found_by_the_fit():
 
 def _judged(x, y, found, sigma):
     """The tracker's chain: the gaps, the plausibility flags (with the gaps' frame times), the
-    lost frames flagged, and the irregular steps split (rollfric.track.track_recording)."""
-    from rollfric import plausibility
-    from rollfric.timing import split_irregular
-    from rollfric.track import LOCATOR_FLAGS
+    lost frames flagged, and the irregular steps split (rollfric.track.tracker.track_recording)."""
+    from rollfric.track import plausibility
+    from rollfric.track.dropped_frames import split_irregular
+    from rollfric.track.tracker import LOCATOR_FLAGS
 
     gaps = find_gaps(x, y, found)
     flags = plausibility.flag_frames(x, y, found, sigma=sigma, pos=gaps.pos)
@@ -315,7 +316,7 @@ def test_measure_reports_frames_taken_half_a_period_late_as_timing(tmp_path):
     quarter period late: the quality reason is the timing's, not the located frames'."""
     import tifffile
 
-    from rollfric import track as track_mod
+    from rollfric.track import tracker as track_mod
     from tests.measure_data import make_recording
 
     fine = make_recording(1200, mu=0.02, theta0=0.5, fps=800.0, noise=1.0, seed=2)

@@ -1,4 +1,5 @@
-"""A long recording tracked in segments (rollfric.track.track_segments): the split itself, the
+"""A long recording tracked in segments (rollfric.track.tracker.track_segments): the split itself,
+the
 track against one pass through the recording (the same but at the first frames of a later
 segment, which start from a full-frame search), the same track on threads and one after
 another, a repeated frame at a segment's start, and an error in one segment."""
@@ -10,10 +11,10 @@ import pandas as pd
 import pytest
 from measure_data import MemorySource, make_recording
 
-from rollfric import cpus
+from rollfric import parallel as cpus
 from rollfric.errors import InputError
-from rollfric.io import RecordingError
-from rollfric.track import SEGMENT_MIN_FRAMES, track_recording, track_segments
+from rollfric.io.readers import RecordingError
+from rollfric.track.tracker import SEGMENT_MIN_FRAMES, track_recording, track_segments
 
 
 def test_the_segments_cover_the_recording_in_order():

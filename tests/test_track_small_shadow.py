@@ -10,8 +10,8 @@ import math
 import numpy as np
 
 from rollfric.locate import locate_subpixel
-from rollfric.setup import Setup
-from rollfric.track import RadiusCalibration, track_recording
+from rollfric.setup.model import Setup
+from rollfric.track.tracker import RadiusCalibration, track_recording
 from validation.drawn_frames import disk_coverage
 
 R = 5.9  # the setup's radius (px)

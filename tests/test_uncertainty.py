@@ -1,4 +1,4 @@
-"""The uncertainty budget (rollfric.uncertainty) and the setup's _u keys."""
+"""The uncertainty budget (rollfric.uncertainty.budget) and the setup's _u keys."""
 
 import json
 import math
@@ -8,12 +8,19 @@ import pandas as pd
 import pytest
 import tifffile
 
-from rollfric import eom
-from rollfric.cli import main
-from rollfric.fit import fit_mu
-from rollfric.setup import Setup, SetupError, dumps_setup, load_setup, save_setup, thesis_setup
-from rollfric.track import measure
-from rollfric.uncertainty import Measurement, budget, hac_covariance, measurement_from_track
+from rollfric.cli.main import main
+from rollfric.fit import eom
+from rollfric.fit.estimate import fit_mu
+from rollfric.setup.model import (
+    Setup,
+    SetupError,
+    dumps_setup,
+    load_setup,
+    save_setup,
+    thesis_setup,
+)
+from rollfric.track.tracker import measure
+from rollfric.uncertainty.budget import Measurement, budget, hac_covariance, measurement_from_track
 
 LAB = """
 [cylinder]
@@ -324,7 +331,7 @@ def test_lens_calibration_uncertainty_is_propagated():
     recorded image and undistorted with the calibration for the angles. Its standard
     uncertainties (as rollfric calibrate writes them) are sources; each sensitivity agrees with
     the finite difference of two independent full fits with that parameter moved."""
-    from rollfric.lens import Calibration
+    from rollfric.setup.lens import Calibration
 
     K = [[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]]
     D = [-0.18, 0.0, 0.0, 0.0, 0.0]
@@ -383,7 +390,7 @@ def test_second_order_terms_are_exact_for_a_known_interaction():
     y = a x1 + b x2 + c x1 x2 + d x1^2 with independent normal inputs (sd u1, u2) the exact
     variance is a^2 u1^2 + b^2 u2^2 + c^2 u1^2 u2^2 + 2 d^2 u1^4; the first-order law gives
     the first two terms, the next-order terms the rest (exactly: no higher derivatives)."""
-    from rollfric.uncertainty import second_order
+    from rollfric.uncertainty.budget import second_order
 
     a, b, c, d, u1, u2 = 3.0, -2.0, 1.5, 0.7, 0.4, 1.3
 
@@ -409,7 +416,7 @@ def test_second_order_terms_of_a_cubic_and_of_a_mixed_third_derivative():
     is exact to u^4 (a^2 u^2 + 6 a e u^4, + 5 e^2 u^6 of the 15), smaller than the secant's
     square when the cubic narrows the distribution. y = a x1 + b x2 + g x1 x2^2: the pair's
     f_i f_ijj term is 2 a g u1^2 u2^2 (the exact variance adds 3 g^2 u1^2 u2^4 beyond)."""
-    from rollfric.uncertainty import second_order
+    from rollfric.uncertainty.budget import second_order
 
     a, e, u = 2.0, -0.3, 0.5
     var2, _ = second_order(lambda k: a * k[0] * u + e * (k[0] * u) ** 3, 1)
@@ -428,7 +435,7 @@ def test_second_order_row_is_that_of_independent_full_fits(tmp_path):
     independent full fits at every moved setup (trough radius +- 0.5 mm and the lab's centre
     x +- 2 px, 2 px off), and the first-order budget (order=1, the default) is the same
     without it."""
-    from rollfric.uncertainty import SECOND_ORDER, second_order
+    from rollfric.uncertainty.budget import SECOND_ORDER, second_order
 
     lab = _lab_setup(tmp_path).replace(uncertainty=(("cylinder_radius", 5e-4),
                                                     ("center_px", (2.0, 0.0))))
@@ -471,7 +478,7 @@ def test_method_row_holds_a_smooth_locator_error(order, k):
     the noise fit absorbs, so the statistical row cannot see it), biases mu by many standard
     errors; the ``method (angle map)`` row, computed from the record alone, is that bias
     (within 10 %) and the truth lies within U."""
-    from rollfric.uncertainty import METHOD
+    from rollfric.uncertainty.budget import METHOD
 
     true, frames, x, y = _mapped_track(lambda t: k * t**order)
     meas = Measurement(setup=true, frames=frames, x=x, y=y, center=true.center_px)
@@ -489,7 +496,7 @@ def test_method_row_is_noise_free_on_white_noise():
     part) has an rms near 1 (the noise part is calibrated), and the row (d^2 less the noise
     part's square, when d is above twice it) leaves u_mu the statistical row's in most
     draws."""
-    from rollfric.uncertainty import METHOD
+    from rollfric.uncertainty.budget import METHOD
 
     ratios, infl = [], []
     for seed in range(12):
@@ -512,7 +519,7 @@ def test_method_row_leaves_a_centre_error_to_the_centre_rows():
     """A trough centre 2 px off leaves a smooth angle map too; with the centre's u in the
     setup that map is the centre rows' (the method row is 0: no double counting), without it
     the method row sees it."""
-    from rollfric.uncertainty import METHOD
+    from rollfric.uncertainty.budget import METHOD
 
     true, frames, x, y = _mapped_track(lambda t: 0.0 * t)
     for u, expect_zero in (((2.0, 2.0), True), (None, False)):

@@ -135,7 +135,7 @@ def test_blind_case_finds_the_trough_centre_from_the_contour(tmp_path):
 def test_camera_roll_is_the_fitted_angle_offset(tmp_path):
     """A camera rolled by 0.5 deg: the trough bottom appears at theta = +0.5 deg; the fit's
     angle offset (on by default: three turning points in 1.2 s) finds it and keeps mu."""
-    from rollfric.fit import fit_mu
+    from rollfric.fit.estimate import fit_mu
 
     d = C.small_case_dict(seconds=1.2)
     d["render"]["shadows"] = False

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from rollfric.cli import main
+from rollfric.cli.main import main
 from validation import case as C
 from validation import sweep as S
 

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from rollfric.cli import main
+from rollfric.cli.main import main
 from validation import case as C
 from validation import e2e
 
@@ -69,7 +69,7 @@ def test_same_seed_same_result_other_seed_other_noise(tmp_path):
     ma, mb, mc = _no_timing(a.metrics), _no_timing(b.metrics), _no_timing(c.metrics)
     assert ma == mb
     np.testing.assert_array_equal(a.track["x_px"].to_numpy(), b.track["x_px"].to_numpy())
-    from rollfric import io
+    from rollfric.io import readers as io
 
     ra, rb, rc = (io.open_recording(tmp_path / f"{n}.zarr") for n in "abc")
     for i in (0, 60, len(ra) - 1):
@@ -143,7 +143,7 @@ def test_report_overlays_read_their_crops_alone(tmp_path, monkeypatch):
     # the overlays read each crop's region of the recording (rollfric's FrameSource.read), not
     # the whole frame: the same picture as the whole frames cropped, byte for byte (the crops,
     # 121 px square, cut by the cropped camera's 112 px rows)
-    from rollfric import io
+    from rollfric.io import readers as io
     from validation import report
 
     res = e2e.run_case(_tiny(0), report_dir=tmp_path / "r", keep_recording=True,

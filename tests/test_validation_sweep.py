@@ -163,7 +163,7 @@ def test_real_pipeline_sweep_keeps_recordings(client, tmp_path):
     assert by.loc["subpixel", "center_rms_px"] < 0.1
     idx = pd.read_csv(out / "recordings" / "index.csv")
     assert sorted(idx["case_id"]) == sorted(df["case_id"])
-    from rollfric import io
+    from rollfric.io import readers as io
 
     for rel in idx["recording"]:
         src = io.open_recording(out / rel)
@@ -298,7 +298,7 @@ def test_from_recordings_cli_checks_its_input(tmp_path, capsys):
     """``rollfric sweep --from-recordings SRC``: the cases of SRC's kept recordings (a
     dry run lists them), refused (exit 2, nothing written) for --out SRC itself, for a --set
     of a key that would change what was rendered, and for a SRC without recordings."""
-    from rollfric.cli import main
+    from rollfric.cli.main import main
     from validation.case import small_case_dict
 
     spec = S.sweep_from_dict({"sweep": {"name": "rec"}, "base": small_case_dict(0.1),

@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 from measure_data import make_recording
 
-from rollfric import eom, quality
-from rollfric.fit import fit_mu
-from rollfric.setup import thesis_setup
-from rollfric.track import frame_times
-from rollfric.track import measure as measure_track
+from rollfric.fit import eom
+from rollfric.fit.estimate import fit_mu
+from rollfric.setup.model import thesis_setup
+from rollfric.track.tracker import frame_times
+from rollfric.track.tracker import measure as measure_track
+from rollfric.uncertainty import quality
 
 T4 = np.arange(4000) / 1000.0
 
@@ -46,7 +47,7 @@ def test_timestamps_in_ms_or_us_are_read_in_their_unit(unit, scale):
 def test_a_recording_with_millisecond_timestamps_measures_mu(tmp_path):
     import zarr
 
-    from rollfric import io
+    from rollfric.io import readers as io
 
     rec = make_recording(200, mu=0.02, theta0=0.5, fps=200.0, noise=1.0, seed=5)
     g = zarr.open_group(str(tmp_path / "rec.zarr"), mode="w")
@@ -131,7 +132,7 @@ def test_a_clock_slip_next_to_a_repeated_frame_is_still_irregular():
     # period late (a slipped clock) with a repeated frame 6-10 frames on (rejected). Measured
     # before: the repeat at 206 hid the slip and made step 192 (1.06 x) irregular; the
     # repeat's own zero step (0.00 x) was a timing reason too
-    from rollfric import timing
+    from rollfric.track import dropped_frames as timing
 
     rng = np.random.default_rng(2)
     n = 600
@@ -157,8 +158,8 @@ def test_a_budget_whose_U_exceeds_mu_is_suspect_naming_its_key(tmp_path, capsys)
 
     import tifffile
 
-    from rollfric.cli import main
-    from rollfric.setup import save_setup
+    from rollfric.cli.main import main
+    from rollfric.setup.model import save_setup
 
     rec = make_recording(160, noise=1.0)
     tifffile.imwrite(tmp_path / "rec.tif", np.stack(rec.frames))

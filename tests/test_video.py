@@ -1,5 +1,6 @@
 """Compressed video: synth writes MJPEG (.avi) and H.264 (.mp4) with PyAV (synth.video),
-rollfric reads them back with OpenCV (rollfric.io.VideoSource); the case keys render.video and
+rollfric reads them back with OpenCV (rollfric.io.readers.VideoSource); the case keys render.video
+and
 render.timing."""
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ def test_lower_quality_changes_the_pixels_more(tmp_path, drawn, codec, qualities
 
 
 def test_a_playback_rate_is_reported_and_the_setup_rate_used(tmp_path, drawn):
-    from rollfric import track as track_mod
+    from rollfric.track import tracker as track_mod
 
     path = write_video(drawn.frames, tmp_path / "v.mp4", VideoSpec("h264", 18,
                                                                     playback_fps=30.0), 200.0)

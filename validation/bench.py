@@ -47,10 +47,10 @@ def median_time(fn, repeats: int, warmup: bool = True) -> tuple[float, object]:
 # --------------------------------------------------------------------------------- fitting
 def bench_fit(quick: bool) -> list[Row]:
     """Least-squares fit vs the thesis's grid search (paper 2) and eps iteration (paper 1)."""
-    from rollfric import eom
-    from rollfric.fit import fit_mu, initial_guess
-    from rollfric.setup import thesis_setup
-    from rollfric.thesis import PAPER2_GRID, fit_paper2_grid
+    from rollfric.fit import eom
+    from rollfric.fit.estimate import fit_mu, initial_guess
+    from rollfric.fit.thesis import PAPER2_GRID, fit_paper2_grid
+    from rollfric.setup.model import thesis_setup
 
     rows = []
     t = np.arange(4000) / 1000.0
@@ -116,7 +116,7 @@ def bench_fit(quick: bool) -> list[Row]:
 def bench_sim(quick: bool) -> list[Row]:
     """Seconds for 4 s of motion per engine (accurate contact) and mu bias vs the naive mesh."""
     import sim
-    from rollfric.fit import fit_mu
+    from rollfric.fit.estimate import fit_mu
 
     rows = []
     base = sim.Scenario()
@@ -366,10 +366,10 @@ def validate_command(seconds: float, out: str | Path) -> tuple[float, dict]:
         The command failed.
     """
     # the console script when it sits beside this Python (a virtual environment), else its
-    # equivalent: rollfric.cli's main in a new interpreter
+    # equivalent: rollfric.cli.main's main in a new interpreter
     script = Path(sys.executable).with_name("rollfric")
     cmd = [str(script)] if script.is_file() else [
-        sys.executable, "-c", "import sys; from rollfric.cli import main; sys.exit(main())"]
+        sys.executable, "-c", "import sys; from rollfric.cli.main import main; sys.exit(main())"]
     cmd += ["validate", "--set", f"scenario.motion.seconds={seconds:g}", "--out", str(out),
             "--no-progress"]
     # its output into files, not pipes: the wait ends with the command's process, as a
@@ -440,7 +440,7 @@ def bench_e2e(quick: bool) -> list[Row]:
                         "locator (the recording's halves, on 2 threads when a core is free), fits, "
                         "checks and budget "
                         "(the process's imports not counted)"))
-        # where the measure stage's wall time goes (rollfric.track.measure's own stages)
+        # where the measure stage's wall time goes (rollfric.track.tracker.measure's own stages)
         if parts:
             parts["the store opened, the setup read (before measure())"] = max(
                 0.0, m["t_measure_s"] - sum(parts.values()))
@@ -533,10 +533,10 @@ def run_bench(out: str | Path, *, quick: bool = False, sections=None, progress: 
     """Run the chosen sections (all by default); write bench.md and bench.json into out.
 
     An existing non-empty ``out`` is refused before any work unless ``overwrite`` (then only
-    bench.md and bench.json are replaced; :mod:`rollfric.outputs`)."""
+    bench.md and bench.json are replaced; :mod:`rollfric.output.folder`)."""
     from tqdm.auto import tqdm
 
-    from rollfric.outputs import check_folder, staged_folder
+    from rollfric.output.folder import check_folder, staged_folder
 
     out = Path(out)
     check_folder(out, OUTPUTS, overwrite=overwrite, command="bench")

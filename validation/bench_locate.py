@@ -101,7 +101,7 @@ def rendered_case(ball: str, n: int, *, noise: str = "none", lighting: str = "th
 
     import sim
     import synth
-    from rollfric.setup import THESIS_BALLS
+    from rollfric.setup.model import THESIS_BALLS
 
     diameter, mass = THESIS_BALLS[ball]
     # frames 20 ms apart: positions spread over the swing
@@ -291,8 +291,8 @@ def run_case(case: Case, *, seed: int = 0) -> list[dict]:
 def throughput(ball: str = "10mm", n: int = 300, method: str = "subpixel") -> float:
     """Frames per second of the whole streaming loop (prediction, ROI locator, angles) on
     in-memory 1280 x 1024 8-bit frames of a ball swinging on the track (one core)."""
-    from rollfric.setup import thesis_setup
-    from rollfric.track import track_recording
+    from rollfric.setup.model import thesis_setup
+    from rollfric.track.tracker import track_recording
 
     scene = Scene(r_px=BALLS[ball])
     setup = thesis_setup(ball, center_px=scene.center)

@@ -81,7 +81,7 @@ import math
 from pathlib import Path
 
 from rollfric.errors import InputError
-from rollfric.tomlfile import read_toml
+from rollfric.setup.tomlfile import read_toml
 
 
 class CaseError(InputError):
@@ -118,7 +118,7 @@ ROOM_AIR_DENSITY = 1.204  # kg/m^3, dry air at 20 C and 1013 hPa (sim.losses)
 def default_case_dict() -> dict:
     """The built-in case of ``rollfric validate``.
 
-    The thesis's 10 mm ball, mu 0.0079, in room air (1.204 kg/m^3, drag by rollfric.air's law,
+    The thesis's 10 mm ball, mu 0.0079, in room air (1.204 kg/m^3, drag by rollfric.fit.air's law,
     which the lab's setup file states by its density), thesis lighting, realistic noise, the
     full 1280 x 1024 thesis camera, 2 s of 1000 Hz frames, no motion-blur sub-frames (the blur
     study covers blur; 4 sub-frames would triple the render time).
@@ -133,7 +133,7 @@ def default_case_dict() -> dict:
         "scenario": {
             "ball": {"diameter_mm": 10.0, "mass_g": 4.07612},
             # room air, with the drag law the fitter models (the lab's setup carries the
-            # density, not the engine's Cd: rollfric.air)
+            # density, not the engine's Cd: rollfric.fit.air)
             "environment": {"air_density_kg_m3": ROOM_AIR_DENSITY, "air_drag": "law"},
             "motion": {"mu": 0.0079, "theta0_deg": 20.0, "seconds": DEFAULT_SECONDS},
             "engine": {"name": "reference", "surface": "tangent", "seed": 0},
@@ -535,7 +535,7 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
                 locator=m.get("locator", "subpixel"), fit=m.get("fit", "lsq"),
                 offset=m.get("offset", "auto"), data=d, oracle=m.get("oracle", False), lab=lab,
                 timing=timing, video=video)
-    from rollfric.setup import setup_from_dict
+    from rollfric.setup.model import setup_from_dict
 
     try:
         setup_from_dict(case.lab_setup_dict(), source=f"{source} [lab]")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rollfric.helpformat import HelpFormatter, example
+from rollfric.cli.helpformat import HelpFormatter, example
 from sim.engines import ENGINES
 
 _VALIDATE_HELP = """\
@@ -154,7 +154,7 @@ def handle_validate(args) -> int:
     import os
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    from rollfric.outputs import check_folder, check_not_input
+    from rollfric.output.folder import check_folder, check_not_input
     from validation import case as case_mod
     from validation import e2e
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from rollfric.helpformat import HelpFormatter, example
+from rollfric.cli.helpformat import HelpFormatter, example
 
 SECTION_NAMES = ("fitting", "simulation", "rendering", "recognition", "end-to-end",
                  "sweeps")

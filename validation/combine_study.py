@@ -8,8 +8,9 @@ their own release angle (6-30 deg, to either side) and their own noise. As in
 :mod:`validation.coverage`, the ball's path is the reference ODE on the as-built trough,
 sampled at the as-built frame rate and projected with the as-built scale and centre; the
 measurement sees only the nominal setup with its ``_u`` keys, fits and runs the budget
-(:func:`rollfric.uncertainty.budget`) of each release, and the releases' fit.json keys are
-combined by :func:`rollfric.combine.combine` as ``rollfric combine`` does (suspect releases
+(:func:`rollfric.uncertainty.budget.budget`) of each release, and the releases' fit.json keys are
+combined by :func:`rollfric.uncertainty.combine.combine` as ``rollfric combine`` does (suspect
+releases
 left out). Per setup: z = (mu_combined - mu_true) / u_combined; an honest combination has the
 truth within U (k = 2) in about 95 % of the setups and within u in about 68 %. The Birge
 ratios are compared with their distribution for consistent releases (chi2 with N - 1 degrees
@@ -31,11 +32,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rollfric.combine import birge_range, combine, run_from_fit
 from rollfric.errors import InputError
-from rollfric.fit import fit_mu
-from rollfric.setup import THESIS_BALLS, Setup
-from rollfric.uncertainty import Measurement, budget
+from rollfric.fit.estimate import fit_mu
+from rollfric.setup.model import THESIS_BALLS, Setup
+from rollfric.uncertainty.budget import Measurement, budget
+from rollfric.uncertainty.combine import birge_range, combine, run_from_fit
 from validation.coverage import _centres, drawn_as_built, drawn_setups, misses
 
 RELEASE_SEEDS = 1000  # release k of setup s draws its noise with seed s * RELEASE_SEEDS + k

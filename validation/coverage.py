@@ -6,7 +6,7 @@ values (trough radius, ball diameter, trough centre, frame rate, pixel size; the
 ``K_u``). The ball's path is the reference ODE on the as-built trough, sampled at the as-built
 frame rate, projected to pixels with the as-built scale and centre; the measurement sees only
 the nominal setup (with its ``_u`` keys) and runs the real fit and budget
-(:func:`rollfric.uncertainty.budget`) on those centres. z = (mu - mu_true) / u_mu; an honest
+(:func:`rollfric.uncertainty.budget.budget`) on those centres. z = (mu - mu_true) / u_mu; an honest
 budget has |z| <= 1 in about 68 % and |z| <= 2 (truth within U_mu, k = 2) in about 95 % of
 the cases. The oracle mode (the exact as-built setup given, only the statistical part) is
 checked the same way, with the corrected and the ordinary standard error.
@@ -35,10 +35,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rollfric import eom
-from rollfric.fit import fit_mu
-from rollfric.setup import THESIS_BALLS, Setup
-from rollfric.uncertainty import Measurement, budget
+from rollfric.fit import eom
+from rollfric.fit.estimate import fit_mu
+from rollfric.setup.model import THESIS_BALLS, Setup
+from rollfric.uncertainty.budget import Measurement, budget
 
 # the lab's nominal setup and its standard uncertainties (lab units), issue 14's lab
 NOMINAL = {"radius_mm": 85.3, "center_px": (640.0, 380.0), "fps": 1000.0,
@@ -157,7 +157,7 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
     out = {k: v for k, v in case.items() if not isinstance(v, tuple)}
     center, center_u = lab.center_px, None
     if contour:
-        from rollfric.cylinder import ContourError, find_cylinder_center
+        from rollfric.geometry.trough import ContourError, find_cylinder_center
 
         try:
             found = find_cylinder_center(contour_background(case, true),
@@ -379,7 +379,7 @@ def plot(df: pd.DataFrame, path: Path) -> None:
     the method row)."""
     from matplotlib.figure import Figure  # no pyplot: no backend, no global figure state
 
-    from rollfric.atomic import replacing
+    from rollfric.output.atomic import replacing
 
     cols = [("z", "blind: (mu - truth) / u_mu"),
             ("z_oracle", "oracle: / statistical u (corrected)"),
@@ -419,7 +419,7 @@ def main(argv=None) -> int:
     p.add_argument("--fit-length", action="store_true", help="blind fits also fit L")
     p.add_argument("--contour", action="store_true",
                    help="blind without center_px: the centre and its uncertainty from a drawn "
-                        "background's contour (rollfric.cylinder)")
+                        "background's contour (rollfric.geometry.trough)")
     p.add_argument("--out", help="output folder (track-level cases)")
     p.add_argument("--merge", nargs="+", metavar="DIR",
                    help="report the coverage.csv of these folders (runs of other --seed "

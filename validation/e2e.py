@@ -100,10 +100,10 @@ class CaseResult:
     trajectory: object  # sim.Trajectory
     truth: object  # pandas.DataFrame, one row per frame (synth's truth)
     track: object  # pandas.DataFrame: frame, t_s, x_px, y_px, theta_rad, found, ...
-    track_info: object  # rollfric.track.TrackInfo: how the track was measured
-    fit: object  # rollfric.fit.FitResult from the measured track
+    track_info: object  # rollfric.track.tracker.TrackInfo: how the track was measured
+    fit: object  # rollfric.fit.estimate.FitResult from the measured track
     fit_truth: object  # the same fitter on the engine's theta(t)
-    setup: object  # rollfric.setup.Setup used by the measurement
+    setup: object  # rollfric.setup.model.Setup used by the measurement
     setup_dict: dict  # the setup file rollfric was given (lab-file form)
     recording: Path | None  # the recording, when kept
 
@@ -127,7 +127,8 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
     temporary directory, removed at the end unless ``keep_recording`` (then it is kept as
     ``report_dir/recording.zarr``). ``report_dir``: also write the report there
     (:mod:`validation.report`): an existing non-empty folder is refused unless ``overwrite``,
-    which replaces the report's own files only (:mod:`rollfric.outputs`); the report is written
+    which replaces the report's own files only (:mod:`rollfric.output.folder`); the report is
+    written
     to a hidden folder first and moved in when complete. ``render_workers``/
     ``render_threads``: rendering processes (synth's default: up to 2) and llvmpipe threads
     each; a sweep worker uses 1/1. With render processes the fit of the engine's angles
@@ -139,7 +140,7 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
     if isinstance(case, dict):
         case = case_from_dict(case)
     _start_render_early(case, render_workers)  # before the imports below
-    from rollfric.outputs import check_folder, staged_folder
+    from rollfric.output.folder import check_folder, staged_folder
     from validation.report import OUTPUTS
 
     if report_dir is None:
@@ -167,7 +168,7 @@ def _simulate(case: Case, timings: dict):
 def _fit_truth(case: Case, traj, timings: dict):
     """The fit of the trajectory's exact angles (the engine's mu), timed as the stage
     "fit_truth"."""
-    from rollfric.fit import fit_mu
+    from rollfric.fit.estimate import fit_mu
 
     setup_truth = case.scenario.setup()
     with _timer(timings, "fit_truth"):
@@ -193,7 +194,8 @@ def case_scratch(n_frames: int, folder: str | Path | None = None) -> Path:
 
     In RAM where there is room (:func:`synth.store.scratch_dir`: a recording is ~2 files a
     frame), else the system's temporary folder; named as rollfric's temporary paths are
-    (``.rollfric-case-XXXXXXXX.part-PID-START``, :func:`rollfric.atomic.temp_path`), so that the
+    (``.rollfric-case-XXXXXXXX.part-PID-START``, :func:`rollfric.output.atomic.temp_path`), so that
+    the
     folders of runs that were killed (SIGTERM, SIGKILL: no ``finally`` ran; in /dev/shm each
     holds its recording in RAM until the machine restarts) are found and removed here, by the
     next case in that folder.
@@ -212,7 +214,7 @@ def case_scratch(n_frames: int, folder: str | Path | None = None) -> Path:
     """
     import secrets
 
-    from rollfric.atomic import remove_leftovers, temp_path
+    from rollfric.output.atomic import remove_leftovers, temp_path
     from synth.store import scratch_dir
 
     if folder is None:
@@ -368,16 +370,16 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
 
     Exactly what ``rollfric measure REC.zarr --setup SETUP.toml`` does: the recording opened
     through rollfric's reader (synth's Zarr entry point) with its background, the case's
-    locator and fit method (:func:`rollfric.track.measure`). With ``render.video`` the
+    locator and fit method (:func:`rollfric.track.tracker.measure`). With ``render.video`` the
     recording is first exported as that video (:func:`synth.video.export_video`, to a
     temporary folder) and rollfric reads the video file and the background's one-frame video
     instead. Blind mode: SETUP.toml is the
     lab's (:meth:`validation.case.Case.lab_setup_dict`); oracle mode: the setup the recording
     carries (the renderer's exact geometry and center_px).
     """
-    from rollfric import io
-    from rollfric import track as track_mod
-    from rollfric.setup import setup_from_dict
+    from rollfric.io import readers as io
+    from rollfric.setup.model import setup_from_dict
+    from rollfric.track import tracker as track_mod
 
     src = io.open_recording(path)
     if case.oracle:
@@ -406,7 +408,7 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
 
 def _offset(case: Case, t, theta, setup) -> bool:
     """The case's offset choice for a fit of theta(t) ("auto": as rollfric decides)."""
-    from rollfric.track import resolve_offset
+    from rollfric.track.tracker import resolve_offset
 
     return resolve_offset(case.offset, t, theta, setup, case.fit)[0]
 
@@ -469,7 +471,7 @@ def timing_metrics(case: Case, attrs: dict, info) -> dict:
 
 
 def budget_metrics(case: Case, track, info, fit, truth_center=None) -> dict:
-    """rollfric's uncertainty budget of the measured mu (:mod:`rollfric.uncertainty`) against
+    """rollfric's uncertainty budget of the measured mu (:mod:`rollfric.uncertainty.budget`) against
     the truth: u_mu, U_mu (k = 2), z_budget = (mu - truth) / u_mu, within_u / within_U (1 or
     0), the statistical part alone (u_stat, z_stat), the largest source and the budget's time;
     with ``measure.second_order = true`` the second-order row (``u_second_order``, else 0) and
@@ -480,7 +482,7 @@ def budget_metrics(case: Case, track, info, fit, truth_center=None) -> dict:
     true trough centre ``truth_center``, px); its coverage is what an exactly linear budget
     would reach with these draws. Oracle mode: the setup is exact, the budget is its
     statistical part."""
-    from rollfric.uncertainty import SECOND_ORDER, budget, measurement_from_track
+    from rollfric.uncertainty.budget import SECOND_ORDER, budget, measurement_from_track
 
     if fit.method != "lsq":
         return {}
@@ -542,7 +544,8 @@ def compute_metrics(case: Case, traj, truth, track, fit, fit_truth, setup) -> di
         "fit_relative_error": _f(getattr(fit, "relative_error", math.nan)),
         "fit_offset_rad": _f(getattr(fit, "offset", 0.0)),
         "fit_method": case.fit,
-        # rollfric's own verdict (rollfric.quality): "ok" or "suspect", and the reasons' codes
+        # rollfric's own verdict (rollfric.uncertainty.quality): "ok" or "suspect", and the
+        # reasons' codes
         "fit_quality": getattr(fit, "quality", "ok"),
         "fit_quality_reasons": ",".join(r.code for r in getattr(fit, "quality_reasons", ())),
         "locator": case.locator, "renderer": case.scene.renderer,

@@ -2,7 +2,7 @@
 
 For each of the lab's faults (:mod:`validation.faults`), over a few sizes and seeds,
 :func:`rollfric.measure` on the faulty drawn recording: mu's error against the truth in units
-of the budget's U(mu) (:func:`rollfric.uncertainty.budget`), the verdict ("ok", "suspect" or
+of the budget's U(mu) (:func:`rollfric.uncertainty.budget.budget`), the verdict ("ok", "suspect" or
 "refused": an InputError / SetupError, the command's exit 2) and whether the fault was named
 (:func:`named`: the reason, warning or finding that says what it is). For clean recordings of
 several families (noise, contrast, ball size, a median background) the same, and how often each
@@ -80,9 +80,9 @@ def findings(df, info, res) -> list[str]:
     ----------
     df : pandas.DataFrame
         The track.
-    info : rollfric.track.TrackInfo
+    info : rollfric.track.tracker.TrackInfo
         How it was measured.
-    res : rollfric.fit.FitResult
+    res : rollfric.fit.estimate.FitResult
         The fit.
 
     Returns
@@ -161,9 +161,9 @@ def run_one(rec: Recording) -> dict:
         ``findings``, ``named``, ``message`` (why refused), ``seconds``.
     """
     from rollfric.errors import InputError
-    from rollfric.setup import SetupError
-    from rollfric.track import measure
-    from rollfric.uncertainty import budget, measurement_from_track, with_budget_reason
+    from rollfric.setup.model import SetupError
+    from rollfric.track.tracker import measure
+    from rollfric.uncertainty.budget import budget, measurement_from_track, with_budget_reason
 
     row = {"fault": rec.fault, "magnitude": rec.magnitude}
     t0 = time.perf_counter()

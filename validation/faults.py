@@ -33,9 +33,9 @@ import math
 
 import numpy as np
 
-from rollfric import eom
-from rollfric.setup import Setup
-from rollfric.source import BaseSource
+from rollfric.fit import eom
+from rollfric.io.source import BaseSource
+from rollfric.setup.model import Setup
 from validation import camera_faults
 from validation.drawn_frames import Scene, make_frames
 
@@ -69,7 +69,7 @@ class Recording:
     ----------
     source : ArraySource
         The frames (and timestamps) as the measurement reads them.
-    setup : rollfric.setup.Setup
+    setup : rollfric.setup.model.Setup
         The setup the lab gives (wrong where the fault is the setup's).
     background : numpy.ndarray or None
         The background image without the ball; None: the measurement makes its own.

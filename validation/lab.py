@@ -1,7 +1,7 @@
 """Blind mode: what the lab knows (its setup file) against what was built (the truth).
 
 A case's ``[lab]`` table is the lab's setup file, in the lab-file form of
-:mod:`rollfric.setup` (mm, g, Hz): the *nominal* values the lab would type. Every key is
+:mod:`rollfric.setup.model` (mm, g, Hz): the *nominal* values the lab would type. Every key is
 optional; a key not given is the as-built value of the ``[scenario]`` (a lab that knows it
 exactly)::
 
@@ -57,7 +57,8 @@ NOMINAL_KEYS = {
 }
 TOP_KEYS = ("draw", "seed", "center_error_px", "center_px_u", "lens_calibrated")
 CALIBRATION_KEYS = ("matrix", "distortion")
-# what the lab states about its camera's depth (rollfric.perspective), copied into its setup
+# what the lab states about its camera's depth (rollfric.geometry.perspective), copied into its
+# setup
 # file as given: no as-built counterpart in the scenario (the camera's are render.camera keys)
 STATED_KEYS = {"camera": ("working_distance_mm",), "cylinder": ("contour_depth_mm",)}
 
@@ -126,7 +127,7 @@ class Lab:
 def setup_reads_tolerances() -> bool:
     """Whether rollfric's setup file takes ``_u`` keys (stated uncertainties); until it does,
     the lab's tolerances drive only the as-built draws and are left out of its setup file."""
-    from rollfric.setup import setup_from_dict, thesis_setup
+    from rollfric.setup.model import setup_from_dict, thesis_setup
 
     d = thesis_setup().to_toml_dict()
     d["cylinder"]["radius_mm_u"] = 0.1

@@ -60,7 +60,7 @@ def make_sample(out=DEFAULT_OUT, *, seed: int = 0, frames: int = FRAMES,
 
     import sim
     import synth
-    from rollfric.setup import save_setup, setup_from_dict
+    from rollfric.setup.model import save_setup, setup_from_dict
 
     out = Path(out)
     from validation.case import ROOM_AIR_DENSITY

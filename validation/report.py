@@ -25,10 +25,10 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from rollfric.atomic import replacing, write_text
-from rollfric.fit import json_safe  # noqa: F401  (validation.cli prints with it)
+from rollfric.fit.estimate import json_safe  # noqa: F401  (validation.cli prints with it)
+from rollfric.output.atomic import replacing, write_text
 
-# everything a report folder may hold from validate (rollfric.outputs: --overwrite replaces or
+# everything a report folder may hold from validate (rollfric.output.folder: --overwrite replaces or
 # removes only these names; recording.zarr with --keep-recording)
 OUTPUTS = {name: "file" for name in (
     "metrics.json", "case.toml", "setup.toml", "fit.json", "fit_truth.json", "frames.csv",
@@ -44,8 +44,8 @@ def _savefig(fig, path: Path) -> None:
 
 def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
     """Write the report of a :class:`validation.e2e.CaseResult` into ``out`` (created)."""
-    from rollfric.fit import save_fit
-    from rollfric.plots import plot_fit
+    from rollfric.fit.estimate import save_fit
+    from rollfric.output.plots import plot_fit
     from validation.case import dumps_case
 
     out = Path(out)
@@ -105,8 +105,8 @@ def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
     _savefig(fig, out / "center_error_vs_time.png")
 
     if result.recording is not None:
-        from rollfric import io
-        from rollfric.overlay import plot_full_frame
+        from rollfric.io import readers as io
+        from rollfric.output.overlay import plot_full_frame
 
         _overlays(result, pf, out / "overlays.png", overlay_frames)
         plot_full_frame(io.open_recording(result.recording), result.track, result.track_info,
@@ -143,7 +143,7 @@ def write_html(result, out: Path) -> Path:
 
 def _overlays(result, pf, path: Path, k: int) -> None:
     """Zoomed frames with the located circle (blue), its centre (+) and the true centre (x)."""
-    from rollfric import io
+    from rollfric.io import readers as io
 
     src = io.open_recording(result.recording)
     n = len(pf)

@@ -52,8 +52,8 @@ import tomllib
 import traceback
 from pathlib import Path
 
-from rollfric.atomic import replacing, write_text
 from rollfric.errors import InputError
+from rollfric.output.atomic import replacing, write_text
 from validation.case import (
     apply_overrides,
     case_from_dict,
@@ -134,7 +134,7 @@ def load_sweep(path_or_name: str | Path, overrides: dict | None = None) -> Sweep
     -------
     SweepSpec
     """
-    from rollfric.tomlfile import read_text
+    from rollfric.setup.tomlfile import read_text
 
     path = _find_sweep(path_or_name)
     text = read_text(path, "sweep", SweepError)
@@ -165,7 +165,7 @@ def _flatten_keys(table: dict, prefix: str = "") -> dict:
 def _check_count(n: int, source: str) -> None:
     """SweepError when a sweep would hold more than MAX_CASES cases (checked before they are
     made: a typo of seeds = 100000000 must not fill the memory, even for --dry-run)."""
-    from rollfric.limits import MAX_CASES
+    from rollfric.io.limits import MAX_CASES
 
     if n > MAX_CASES:
         raise SweepError(f"{source}: {n:,} cases (grid x seeds), more than the limit of "
@@ -488,7 +488,7 @@ def _write_recordings_index(out: Path, spec: SweepSpec, df) -> None:
 
 # -- the output folder ------------------------------------------------------------------------
 
-# what a sweep writes into OUT (rollfric.outputs: --overwrite replaces only these)
+# what a sweep writes into OUT (rollfric.output.folder: --overwrite replaces only these)
 OUTPUTS = {"parts": "folder", "plots": "folder", "recordings": "folder", "sweep.toml": "file",
            "results.parquet": "file", "results.csv": "file", "summary.md": "file",
            "report.html": "file"}
@@ -520,8 +520,8 @@ def check_out(out: str | Path, spec: SweepSpec, *, overwrite: bool = False) -> s
     ``"fresh"`` (``overwrite``: the sweep's own outputs in OUT are removed first, other files
     stay). Refused (SweepError, exit 2): a file; a folder holding another sweep's results or
     anything else, without ``overwrite``."""
-    from rollfric.atomic import is_leftover
-    from rollfric.outputs import check_folder
+    from rollfric.output.atomic import is_leftover
+    from rollfric.output.folder import check_folder
 
     out = Path(out)
     check_folder(out, OUTPUTS, overwrite=True, command="sweep")  # kinds, permissions
@@ -545,7 +545,7 @@ def _remove_own_outputs(out: Path) -> None:
     recordings, sweep.toml); files that are not the sweep's stay."""
     import re
 
-    from rollfric.atomic import _remove
+    from rollfric.output.atomic import _remove
 
     own_part = re.compile(r"^[0-9a-f]{12}\.(parquet|zarr)$")
     for sub, keep_names in (("parts", ()), ("recordings", ("index.csv",)), ("plots", ())):
@@ -614,7 +614,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, scheduler: str | None = None,
     from distributed import as_completed
     from tqdm import tqdm
 
-    from rollfric.atomic import remove_leftovers
+    from rollfric.output.atomic import remove_leftovers
 
     t0 = time.perf_counter()
     out = Path(out)

@@ -486,7 +486,7 @@ def main(argv=None) -> int:
     """``python -m validation.systematics OUT --json PATH [--note TEXT]``."""
     import argparse
 
-    from rollfric.atomic import write_text
+    from rollfric.output.atomic import write_text
 
     ap = argparse.ArgumentParser(prog="python -m validation.systematics",
                                  description=__doc__.split("\n\n")[0])

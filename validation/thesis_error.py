@@ -254,7 +254,7 @@ def plot_residuals(ball: str, runs: list, path: Path, target: float) -> Path:
     """
     from matplotlib.figure import Figure
 
-    from rollfric.atomic import replacing
+    from rollfric.output.atomic import replacing
 
     fig = Figure(figsize=(3.2 * len(runs), 7.5))
     axes = fig.subplots(3, len(runs), squeeze=False)
@@ -345,7 +345,7 @@ def main(argv=None) -> int:
     """``python -m validation.thesis_error --json PATH [--plots DIR]``."""
     import argparse
 
-    from rollfric.atomic import write_text
+    from rollfric.output.atomic import write_text
 
     ap = argparse.ArgumentParser(prog="python -m validation.thesis_error",
                                  description=__doc__.split("\n\n")[0])

@@ -14,7 +14,7 @@ by the truth:
    0.024 px rms), seeded by the case's ``render.seed``;
 3. the trough centre is the lab's ``center_px`` when it measured one, else found from the
    contour of the **rendered background** (one frame is rendered, with the case's lens, scale
-   and noise; :func:`rollfric.cylinder.find_cylinder_center`, as ``rollfric measure`` does);
+   and noise; :func:`rollfric.geometry.trough.find_cylinder_center`, as ``rollfric measure`` does);
 4. angles (undistorted first when the lab has a lens calibration), times frame / camera.fps of
    the lab's setup, the offset decided and mu fitted by rollfric's own functions.
 
@@ -91,8 +91,8 @@ def located_centres(truth: dict, sigma_px: float, seed: int) -> tuple[np.ndarray
 
 def oracle_setup(case: Case):
     """The setup synth stores with a recording of ``case`` (exact geometry, center_px, lens)."""
-    from rollfric.lens import Calibration
-    from rollfric.setup import Setup
+    from rollfric.setup.lens import Calibration
+    from rollfric.setup.model import Setup
 
     base = case.scenario.setup()
     cam = case.scene.camera
@@ -123,10 +123,10 @@ def _contour(case: Case, radius_px: float, lens) -> tuple[tuple[float, float], s
         return _CONTOURS[key]
     import sim
     import synth
-    from rollfric import io
-    from rollfric.cylinder import find_cylinder_center
-    from rollfric.lens import Calibration
-    from rollfric.track import resolve_background
+    from rollfric.geometry.trough import find_cylinder_center
+    from rollfric.io import readers as io
+    from rollfric.setup.lens import Calibration
+    from rollfric.track.tracker import resolve_background
 
     cal = None if lens is None else Calibration(lens["matrix"], lens["distortion"])
     traj = sim.simulate(case.scenario.replace(duration=2.0 / case.scenario.fps))
@@ -159,7 +159,7 @@ def trough_center(case: Case, setup) -> tuple[tuple[float, float], str]:
     ----------
     case : Case
         The case.
-    setup : rollfric.setup.Setup
+    setup : rollfric.setup.model.Setup
         The setup rollfric is given.
 
     Returns
@@ -185,7 +185,7 @@ class TrackCase:
     trajectory: object  # sim.Trajectory
     truth: object  # pandas.DataFrame: synth's truth columns
     track: object  # pandas.DataFrame: frame, t_s, x_px, y_px, theta_rad, found
-    fit: object  # rollfric.fit.FitResult
+    fit: object  # rollfric.fit.estimate.FitResult
     fit_truth: object  # the same fitter on the engine's theta(t)
     setup: object  # the setup rollfric was given
     center_px: tuple  # the trough centre used (px)
@@ -211,9 +211,9 @@ def measure_track(case: Case | dict, *, sigma_px: float = LOCATOR_SIGMA_PX) -> T
     import pandas as pd
 
     import sim
-    from rollfric.fit import fit_mu
-    from rollfric.setup import setup_from_dict
-    from rollfric.track import angles, resolve_offset
+    from rollfric.fit.estimate import fit_mu
+    from rollfric.setup.model import setup_from_dict
+    from rollfric.track.tracker import angles, resolve_offset
     from synth.pipeline import truth_table
     from validation.e2e import _offset
 
@@ -280,7 +280,7 @@ def run_track_case(case: Case | dict, *, sigma_px: float = LOCATOR_SIGMA_PX) -> 
     if tc.case.data.get("measure", {}).get("budget") is True and tc.fit.method == "lsq":
         from validation.e2e import _true_center, budget_metrics
 
-        # what rollfric.track.measure tells the budget (TrackInfo's fields it reads)
+        # what rollfric.track.tracker.measure tells the budget (TrackInfo's fields it reads)
         info = SimpleNamespace(**vars(info), setup=tc.setup, angle="atan2",
                                times="frame / camera.fps")
         metrics.update(budget_metrics(tc.case, tc.track, info, tc.fit,  # with t_budget_s

@@ -12,13 +12,13 @@ from mkdocs.structure.files import File
 SECTION = "API reference"
 # the module that defines a name -> the page it is listed on
 TITLES = {
-    "rollfric.track": "Measuring",
-    "rollfric.io": "Recordings",
-    "rollfric.source": "Recordings",
-    "rollfric.setup": "Setup and calibration",
-    "rollfric.lens": "Setup and calibration",
-    "rollfric.fit": "Fitting mu",
-    "rollfric.uncertainty": "Uncertainty",
+    "rollfric.track.tracker": "Measuring",
+    "rollfric.io.readers": "Recordings",
+    "rollfric.io.source": "Recordings",
+    "rollfric.setup.model": "Setup and calibration",
+    "rollfric.setup.lens": "Setup and calibration",
+    "rollfric.fit.estimate": "Fitting mu",
+    "rollfric.uncertainty.budget": "Uncertainty",
     "rollfric.errors": "Errors",
 }
 

@@ -30,10 +30,10 @@ DPI = 110
 def _sample_track():
     """The sample measured as ``rollfric measure`` does (no fit): the track, the setup, the
     recording and the truth."""
-    from rollfric.io import open_recording
+    from rollfric.io.readers import open_recording
     from rollfric.sample import sample_path, sample_truth
-    from rollfric.setup import load_setup
-    from rollfric.track import measure
+    from rollfric.setup.model import load_setup
+    from rollfric.track.tracker import measure
 
     src = open_recording(sample_path("frames.tif"))
     setup = load_setup(sample_path("setup.toml"))
@@ -44,7 +44,7 @@ def _sample_track():
 def measure_steps(df, setup, src, out):
     """What measure does to a frame: the frame, the background, their difference, the
     located ball."""
-    from rollfric.background import median, sample
+    from rollfric.io.background import median, sample
 
     i = 150
     frame = np.asarray(src[i]).astype(float)
@@ -73,7 +73,7 @@ def measure_steps(df, setup, src, out):
 def mu_effect(setup, out):
     """How mu shows in theta(t): the swing's amplitude falls by the same step each half-swing
     (a constant torque), a step proportional to mu."""
-    from rollfric.fit import model_theta
+    from rollfric.fit.estimate import model_theta
 
     t = np.arange(0.0, 3.0, 1e-3)
     fig, ax = plt.subplots(figsize=(8, 3.6), constrained_layout=True)
@@ -124,7 +124,7 @@ def locator_error(df, truth, out):
 
 def record_length(df, setup, truth, out):
     """mu and its statistical standard error against the length of the record fitted."""
-    from rollfric.fit import fit_mu
+    from rollfric.fit.estimate import fit_mu
 
     ns = np.arange(100, len(df) + 1, 25)
     mus, errs = [], []
@@ -231,9 +231,9 @@ def engines(out):
 
     import pandas as pd
 
-    from rollfric.cli import main as rollfric
-    from rollfric.fit import fit_mu
-    from rollfric.setup import thesis_setup
+    from rollfric.cli.main import main as rollfric
+    from rollfric.fit.estimate import fit_mu
+    from rollfric.setup.model import thesis_setup
 
     setup = thesis_setup("10mm")
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True, constrained_layout=True)
@@ -313,8 +313,8 @@ def lighting(out):
 
     import pandas as pd
 
-    from rollfric.cli import main as rollfric
-    from rollfric.io import open_recording
+    from rollfric.cli.main import main as rollfric
+    from rollfric.io.readers import open_recording
 
     presets = ("thesis", "dim", "harsh", "uneven", "flat")
     fig, axes = plt.subplots(len(presets), 1, figsize=(7, 9.5), constrained_layout=True)

@@ -2,7 +2,8 @@
 combine, safety, how it works and its architecture, and the track.csv and setup.toml formats.
 
 Drawn from the code itself where the page describes it: the combine figure is
-``rollfric.combine.combine`` on four drawn releases, the architecture's arrows are the import
+``rollfric.uncertainty.combine.combine`` on four drawn releases, the architecture's arrows are the
+import
 statements of the four packages, the format figures are the shipped sample measured as
 ``rollfric measure`` does. Seconds once the locator's kernels are compiled.
 
@@ -75,12 +76,13 @@ def _canvas(w, h, figsize):
 # -- combine ------------------------------------------------------------------------------------
 
 def combine_example(out, seed=3):
-    """Four drawn releases of one setup combined by rollfric.combine.combine: each release's
+    """Four drawn releases of one setup combined by rollfric.uncertainty.combine.combine: each
+    release's
     independent u, the combined mu, its u with and without the shared (setup) part, and where
     the Birge ratio falls in its expected range."""
     from scipy import stats
 
-    from rollfric.combine import Run, birge_range, combine
+    from rollfric.uncertainty.combine import Run, birge_range, combine
 
     rng = np.random.default_rng(seed)
     truth, u_ind, u_radius = 0.0079, np.array([3e-5, 2e-5, 4e-5, 2.5e-5]), 2.2e-5
@@ -234,10 +236,10 @@ def architecture(out):
 
 def _sample_track():
     """The sample measured as ``rollfric measure`` does (no fit)."""
-    from rollfric.io import open_recording
+    from rollfric.io.readers import open_recording
     from rollfric.sample import sample_path
-    from rollfric.setup import load_setup
-    from rollfric.track import measure
+    from rollfric.setup.model import load_setup
+    from rollfric.track.tracker import measure
 
     src = open_recording(sample_path("frames.tif"))
     setup = load_setup(sample_path("setup.toml"))

@@ -74,7 +74,7 @@ _TIMING = re.compile(r"[-+]?\d+(?:\.\d+)? s\b")
 def _rollfric(args, cwd, expect=(0,)):
     """Run ``rollfric ARGS`` in ``cwd``; return what it printed (stderr, then stdout)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT), PYOPENGL_PLATFORM="egl", COLUMNS="100")
-    cmd = [sys.executable, "-c", "import sys; from rollfric.cli import main; sys.exit(main())"]
+    cmd = [sys.executable, "-c", "import sys; from rollfric.cli.main import main; sys.exit(main())"]
     p = subprocess.run(cmd + list(args), cwd=cwd, env=env, capture_output=True, text=True)
     if p.returncode not in expect:
         raise SystemExit(f"rollfric {' '.join(args)} exited {p.returncode}:\n{p.stderr}")
@@ -91,8 +91,8 @@ def _frames_figure(work, out):
     import numpy as np
     import pandas as pd
 
-    from rollfric.io import open_recording
-    from rollfric.setup import load_setup
+    from rollfric.io.readers import open_recording
+    from rollfric.setup.model import load_setup
 
     src = open_recording(work / "sample" / "frames.tif")
     setup = load_setup(work / "sample" / "setup.toml")

@@ -59,7 +59,7 @@ class Location:
 
 @runtime_checkable
 class Locator(Protocol):
-    """A ball locator as the tracking loop (:func:`rollfric.track.locate_frame`) calls it.
+    """A ball locator as the tracking loop (:func:`rollfric.track.tracker.locate_frame`) calls it.
 
     Registered by name in :data:`rollfric.registry.LOCATORS` (the CLI's ``--method``).
 

@@ -87,7 +87,7 @@ def coarse_find(frame: np.ndarray, background: np.ndarray, r_px: float, *,
         Mean |frame - background| over the ball that counts as a ball (DN); default 1 % of
         full scale.
     full_scale : float, optional
-        The camera's full scale, 2**bit_depth - 1 (DN; :mod:`rollfric.bitdepth`); default the
+        The camera's full scale, 2**bit_depth - 1 (DN; :mod:`rollfric.io.bitdepth`); default the
         frame's word's (255 or 65535).
     n_candidates : int, optional
         Candidates compared.
@@ -130,7 +130,7 @@ def coarse_candidates(frame: np.ndarray, background: np.ndarray, r_px: float, *,
         Mean |frame - background| over the ball that counts as a ball (DN); default 1 % of
         full scale.
     full_scale : float, optional
-        The camera's full scale, 2**bit_depth - 1 (DN; :mod:`rollfric.bitdepth`); default the
+        The camera's full scale, 2**bit_depth - 1 (DN; :mod:`rollfric.io.bitdepth`); default the
         frame's word's (255 or 65535).
     n_candidates : int, optional
         Most candidates returned.

@@ -87,7 +87,7 @@ class SubpixelOptions:
     # the search's and the edges' contrast floors are fractions of; None: the frame's word's
     # (255 or 65535), too high for a 12-bit camera's frames in 16-bit words
     pinhole: tuple | None = None  # (principal x, principal y, focal length) px of a pinhole
-    # camera whose image plane is parallel to the ball's plane (rollfric.perspective): the
+    # camera whose image plane is parallel to the ball's plane (rollfric.geometry.perspective): the
     # ball's silhouette is then an ellipse (:func:`silhouette_stretch`), fitted as one; None:
     # a circle (orthographic, or a camera far away)
 

@@ -1,8 +1,8 @@
-"""The exact reference: the equation of motion integrated by DOP853 to 1e-10 (rollfric.eom).
+"""The exact reference: the equation of motion integrated by DOP853 to 1e-10 (rollfric.fit.eom).
 
 With losses the fitter does not assume (speed-dependent rolling friction, air drag: the
 scenario's ``mu_speed``, ``air_density``), the equation of :mod:`sim.losses` instead, integrated
-the same way; without them rollfric.eom's, unchanged.
+the same way; without them rollfric.fit.eom's, unchanged.
 
 Orientation and spin follow from rolling without slipping: the contact point
 c = centre + r n_out (n_out = (sin theta, -cos theta, 0)) is at rest, so
@@ -24,7 +24,7 @@ import numpy as np
 import scipy
 from scipy.integrate import solve_ivp
 
-from rollfric.eom import solve_reference, sticks
+from rollfric.fit.eom import solve_reference, sticks
 from sim.engines.common import centre_from_theta, losses_meta, rolling_spin
 from sim.losses import losses_of
 from sim.losses import solve as solve_losses
@@ -67,7 +67,7 @@ def run(scenario, progress: bool = False):
         theta, theta_dot, t_stop = solve_reference(
             scenario.theta0, scenario.theta_dot0, scenario.mu, t, track_radius=L,
             gravity=scenario.gravity, rtol=opts["rtol"])
-        version = f"scipy {scipy.__version__} solve_ivp DOP853 (rollfric.eom)"
+        version = f"scipy {scipy.__version__} solve_ivp DOP853 (rollfric.fit.eom)"
     phi = -(L / r) * (theta - scenario.theta0)
     quat = np.column_stack([np.cos(phi / 2), np.zeros_like(phi), np.zeros_like(phi),
                             np.sin(phi / 2)])
@@ -102,7 +102,7 @@ def solve_section(section, ball_radius: float, phi0: float, phi_dot0: float, mu:
         phi'' = [-(5/7) (g sin phi + mu sign(phi') (g cos phi + rho_c phi'^2))
                  - rho_c'(phi) phi'^2] / rho_c(phi)
 
-    which for a circle (rho_c = L constant) is the equation of :mod:`rollfric.eom`. The ball
+    which for a circle (rho_c = L constant) is the equation of :mod:`rollfric.fit.eom`. The ball
     sticks at a turning point where |tan phi| <= mu.
 
     Parameters

@@ -1,0 +1,1 @@
+"""The ``rollfric`` command: one entry point, one module per subcommand."""

@@ -1,0 +1,420 @@
+"""The ball's path as an ellipse about the trough axis, from the located centres themselves.
+
+A round trough filmed square-on puts the ball centre's path on a circle of radius L = R - r
+about the axis. Two things make its image an ellipse (:mod:`rollfric.geometry.ellipse`):
+
+- the camera yawed or pitched against the trough axis compresses the image across the tilt
+  axis; the motion is that of the round trough (the period is set by L), only the angles are
+  seen through the compression. The camera reading maps the path back onto a circle (the
+  symmetric square root of the path's conic, :meth:`PathEllipse.round_map`) and fits mu again.
+- an out-of-round bore: the path is really an ellipse (the offset curve of the bore), the
+  period is set by the path's radius of curvature at the bottom, rho_b - r. The trough reading
+  fits again with that length and scales by the bore's angle slope
+  (:func:`rollfric.geometry.ellipse.trough_scale`, :func:`rollfric.geometry.ellipse.trough_bias`).
+
+The image cannot tell them apart, the period can: the swing's length is fitted
+(:func:`fit_length`) and compared with L = R - r (the camera's reading) and with the path's
+bottom curvature (the trough's). Only a reading the period singles out (within SEPARATE
+standard uncertainties of one, beyond them of the other) is acted on: the camera's corrects mu
+(the angles become the mapped ones), the trough's leaves mu as it was (its reading is
+reported). Otherwise both readings are reported and, when they differ by more than
+:data:`rollfric.geometry.ellipse.BIAS_WARN` of mu, the measurement is suspect
+(``camera_orientation``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from scipy import optimize, stats
+
+from rollfric.fit import eom
+from rollfric.geometry import ellipse as ell
+
+# the path's anisotropy (2 degrees of freedom) is real above the chi-square of 3 sigma
+SIGNIFICANT_CHI2 = float(stats.chi2.ppf(stats.norm.cdf(3.0) * 2 - 1, 2))
+# the period singles a reading out when it agrees with it within SEPARATE standard
+# uncertainties and disagrees with the other by more
+SEPARATE = 3.0
+MIN_POINTS = 20
+
+
+@dataclasses.dataclass(frozen=True)
+class PathEllipse:
+    """The conic p' Q p = 1 (p the centre minus the trough axis, px) through the path.
+
+    Attributes
+    ----------
+    q : tuple of float
+        (Q11, Q12, Q22), 1/px^2.
+    cov : numpy.ndarray
+        3 x 3 covariance of q (widened for correlated residuals).
+    center : tuple of float
+        The axis the path was fitted about (px).
+    rms_px : float
+        Rms distance of the centres from the conic (px).
+    n_points : int
+        Centres fitted.
+    """
+
+    q: tuple[float, float, float]
+    cov: np.ndarray = dataclasses.field(repr=False)
+    center: tuple[float, float]
+    rms_px: float
+    n_points: int
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """Q as a 2 x 2 matrix."""
+        a, b, c = self.q
+        return np.array([[a, b], [b, c]])
+
+    @property
+    def semi_axes(self) -> tuple[float, float]:
+        """(a, b), a >= b, px."""
+        lam = np.linalg.eigvalsh(self.matrix)  # ascending: the major axis first
+        return float(1.0 / math.sqrt(lam[0])), float(1.0 / math.sqrt(lam[1]))
+
+    @property
+    def angle_deg(self) -> float:
+        """The major axis's angle from the image x axis towards +y, in (-90, 90] deg."""
+        _, vec = np.linalg.eigh(self.matrix)
+        deg = math.degrees(math.atan2(vec[1, 0], vec[0, 0])) % 180.0
+        return deg - 180.0 if deg > 90.0 else deg
+
+    @property
+    def chi2(self) -> float:
+        """Chi-square of the anisotropy ((Q11 - Q22) / 2, Q12) against 0 (2 dof)."""
+        g = np.array([[0.5, 0.0, -0.5], [0.0, 1.0, 0.0]])
+        d = g @ np.asarray(self.q)
+        try:
+            return float(d @ np.linalg.solve(g @ self.cov @ g.T, d))
+        except np.linalg.LinAlgError:
+            return 0.0
+
+    @property
+    def significant(self) -> bool:
+        """Whether the path is an ellipse beyond its noise (chi2 > SIGNIFICANT_CHI2)."""
+        return self.chi2 > SIGNIFICANT_CHI2
+
+    def bottom_curvature_radius(self, offset: float = 0.0, q=None) -> float:
+        """The path's radius of curvature where its normal points down (turned by ``offset``
+        rad, the camera's roll), px: det(Q^-1) / (n' Q^-1 n)^1.5."""
+        a, b, c = self.q if q is None else q
+        inv = np.linalg.inv(np.array([[a, b], [b, c]]))
+        n = np.array([math.sin(offset), math.cos(offset)])
+        return float(np.linalg.det(inv) / (n @ inv @ n) ** 1.5)
+
+    def bottom_curvature_u(self, offset: float = 0.0) -> float:
+        """Standard uncertainty of :meth:`bottom_curvature_radius` (px), from ``cov``."""
+        q = np.asarray(self.q)
+        grad = np.empty(3)
+        for i in range(3):
+            h = 1e-6 * abs(q[i]) + 1e-12
+            qp, qm = q.copy(), q.copy()
+            qp[i] += h
+            qm[i] -= h
+            grad[i] = (self.bottom_curvature_radius(offset, qp)
+                       - self.bottom_curvature_radius(offset, qm)) / (2 * h)
+        return float(math.sqrt(max(grad @ self.cov @ grad, 0.0)))
+
+    def round_map(self, radius_px: float) -> np.ndarray:
+        """The symmetric 2 x 2 map that takes the path onto a circle of ``radius_px`` about
+        the axis (radius_px Q^(1/2)): a camera's compression undone, its roll left alone."""
+        lam, vec = np.linalg.eigh(self.matrix)
+        return radius_px * (vec * np.sqrt(lam)) @ vec.T
+
+    def tilt_deg(self) -> float:
+        """The camera's tilt that would make this ellipse: acos(b / a), deg."""
+        a, b = self.semi_axes
+        return math.degrees(math.acos(min(1.0, b / a)))
+
+    def to_dict(self) -> dict:
+        """The fit.json form (px, deg)."""
+        a, b = self.semi_axes
+        return {"center_px": list(self.center), "semi_axes_px": [a, b],
+                "angle_deg": self.angle_deg, "axis_ratio": b / a, "rms_px": self.rms_px,
+                "n_points": self.n_points, "chi2": self.chi2, "significant": self.significant,
+                "tilt_deg_if_camera": self.tilt_deg()}
+
+
+def fit_path(x, y, center, center_u=None) -> PathEllipse:
+    """The conic through the ball centres (x, y) px about the trough axis ``center``.
+
+    Parameters
+    ----------
+    x, y : array_like
+        Located centres (px), finite.
+    center : tuple of float
+        The trough axis (px).
+    center_u : tuple of float or None
+        The axis's standard uncertainty (px, x and y): a centre off the axis makes a round
+        path look elliptic about it (2 px sideways an oblique ellipse), so its share is added
+        to the covariance.
+
+    Returns
+    -------
+    PathEllipse
+        The conic (linear least squares on p' Q p = 1, polished on the distances) with its
+        covariance widened by the residuals' AR(1) long-run factor, plus the centre's.
+    """
+    u = np.asarray(x, dtype=float) - center[0]
+    v = np.asarray(y, dtype=float) - center[1]
+    if u.size < MIN_POINTS:
+        raise ValueError(f"fit_path needs at least {MIN_POINTS} centres")
+    a = np.column_stack([u * u, 2 * u * v, v * v])
+    q0, *_ = np.linalg.lstsq(a, np.ones_like(u), rcond=None)
+    scale = float(np.median(np.hypot(u, v)))
+
+    def resid(q):
+        s = np.sqrt(np.clip(a @ q, 1e-12, None))
+        return (s - 1.0) * scale  # px, to first order
+
+    sol = optimize.least_squares(resid, q0, x_scale=np.abs(q0) + 1e-12, xtol=1e-15,
+                                 ftol=1e-15, gtol=1e-15)
+    res = sol.fun - sol.fun.mean()
+    rr = float(res @ res)
+    rho = float(np.clip(res[1:] @ res[:-1] / rr, 0.0, 0.97)) if rr > 0 else 0.0
+    try:
+        cov = np.linalg.inv(sol.jac.T @ sol.jac) * float(sol.fun @ sol.fun) / max(u.size - 3, 1)
+        cov = cov * (1.0 + rho) / (1.0 - rho)
+    except np.linalg.LinAlgError:
+        cov = np.full((3, 3), np.inf)
+    if center_u is not None:
+        for k, uk in enumerate(np.ravel(center_u)[:2]):
+            if uk and np.isfinite(uk):
+                d = np.zeros(2)
+                d[k] = uk
+                moved = fit_path(x, y, (center[0] + d[0], center[1] + d[1]))
+                g = np.asarray(moved.q) - np.asarray(sol.x)  # q's change over one u
+                cov = cov + np.outer(g, g)
+    return PathEllipse(q=tuple(float(v) for v in sol.x), cov=cov,
+                       center=(float(center[0]), float(center[1])),
+                       rms_px=float(np.sqrt(np.mean(sol.fun ** 2))), n_points=int(u.size))
+
+
+def mapped_centres(x, y, center, matrix):
+    """Centres moved by ``matrix`` about ``center`` (the camera reading's centres)."""
+    u = np.asarray(x, dtype=float) - center[0]
+    v = np.asarray(y, dtype=float) - center[1]
+    m = np.asarray(matrix, dtype=float)
+    return center[0] + m[0, 0] * u + m[0, 1] * v, center[1] + m[1, 0] * u + m[1, 1] * v
+
+
+def fit_length(t, theta, setup, result, offset: bool) -> tuple[float, float]:
+    """The swing's length L (m) fitted with the motion, and its standard uncertainty.
+
+    Starts from the fit ``result`` (its ``used`` samples); L free besides mu, the start and,
+    with ``offset``, the bottom's angle. The uncertainty is the Gauss-Newton one widened by the
+    residuals' AR(1) long-run factor.
+    """
+    t = np.asarray(t, dtype=float)
+    th = np.asarray(theta, dtype=float)
+    used = result.used if result.used is not None and result.used.shape == t.shape else \
+        np.isfinite(t) & np.isfinite(th)
+    t, th = t[used], th[used]
+    L0, g = setup.track_radius, setup.gravity
+    rt, rc = np.asarray(result.t, dtype=float), np.asarray(result.curve, dtype=float)
+    th0 = float(np.interp(t[0], rt, rc))
+    om0 = float(np.interp(t[0], rt, np.gradient(rc, rt))) if rt.size > 1 else 0.0
+    x0 = [max(result.mu, 1e-6), th0 - result.offset, om0, L0] + ([result.offset] if offset
+                                                                   else [])
+
+    def resid(p):
+        m, _, _ = eom.solve(p[1], p[2], p[0], t, track_radius=p[3], gravity=g, mu1=result.mu1)
+        return m + (p[4] if offset else 0.0) - th
+
+    lo = [0.0, -math.pi, -np.inf, 0.5 * L0] + ([-np.inf] if offset else [])
+    hi = [1.0, math.pi, np.inf, 2.0 * L0] + ([np.inf] if offset else [])
+    sol = optimize.least_squares(resid, np.clip(x0, lo, hi), bounds=(lo, hi),
+                                 x_scale=[1e-4, 1e-3, 1e-3, 1e-5 * L0] + ([1e-3] if offset
+                                                                          else []),
+                                 xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200)
+    res = sol.fun
+    rr = float((res - res.mean()) @ (res - res.mean()))
+    rho = float(np.clip((res[1:] - res.mean()) @ (res[:-1] - res.mean()) / rr, 0.0, 0.97)) \
+        if rr > 0 else 0.0
+    try:
+        cov = np.linalg.inv(sol.jac.T @ sol.jac) * float(res @ res) / max(res.size - len(x0), 1)
+        u = math.sqrt(max(cov[3, 3], 0.0) * (1.0 + rho) / (1.0 - rho))
+    except np.linalg.LinAlgError:
+        u = math.inf
+    return float(sol.x[3]), u
+
+
+def swing_amplitude(result) -> float:
+    """The swing's typical turning-point angle about the bottom (rad), from the fitted curve."""
+    swing = np.asarray(result.curve, dtype=float) - result.offset
+    k = np.flatnonzero(np.diff(np.sign(np.diff(swing))) != 0) + 1
+    return float(np.median(np.abs(swing[k]))) if len(k) else float(np.nanmax(np.abs(swing)))
+
+
+@dataclasses.dataclass(frozen=True)
+class PathReading:
+    """What the path's ellipse means (:func:`read_path`).
+
+    Attributes
+    ----------
+    path : PathEllipse
+        The path's conic.
+    verdict : str
+        "round" (no significant ellipse), "camera" (the period agrees with L = R - r: the
+        camera's tilt, corrected), "trough" (the period agrees with the path's bottom
+        curvature: an out-of-round bore, mu left as it was), "undecided".
+    mu_camera, mu_trough : float
+        mu read as the camera's tilt (the mapped angles) and as an out-of-round bore.
+    result_camera : object or None
+        The camera reading's fit (:class:`rollfric.fit.estimate.FitResult`).
+    theta_camera : numpy.ndarray or None
+        The camera reading's angles (NaN where no centre).
+    lengths : dict
+        L fitted from the period, L = R - r and the path's bottom curvature (m) with their
+        standard uncertainties.
+    """
+
+    path: PathEllipse
+    verdict: str
+    mu_as_measured: float
+    mu_camera: float = math.nan
+    mu_trough: float = math.nan
+    result_camera: object = dataclasses.field(default=None, repr=False)
+    theta_camera: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    lengths: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def spread(self) -> float:
+        """|mu_camera - mu_trough| / mu (NaN when either is missing)."""
+        return abs(self.mu_camera - self.mu_trough) / abs(self.mu_as_measured) \
+            if self.mu_as_measured else math.nan
+
+    def kind(self) -> str:
+        """"yawed" (the path squeezed sideways), "pitched" (squeezed vertically) or "turned"."""
+        ang = abs(self.path.angle_deg)
+        return "pitched" if ang < 30 else "yawed" if ang > 60 else "turned"
+
+    def to_dict(self) -> dict:
+        """The fit.json form."""
+        out = self.path.to_dict()
+        out.update(verdict=self.verdict, mu_as_measured=self.mu_as_measured,
+                   mu_if_camera=_finite(self.mu_camera), mu_if_trough=_finite(self.mu_trough),
+                   mu_spread=_finite(self.spread), **{k: _finite(v) for k, v in
+                                                      self.lengths.items()})
+        return out
+
+    def message(self) -> str | None:
+        """The warning (None: nothing to say)."""
+        if self.verdict == "round":
+            return None
+        a, b = self.path.semi_axes
+        shape = (f"the ball's path is an ellipse about the trough axis (axes {2 * a:.2f} x "
+                 f"{2 * b:.2f} px, ratio {b / a:.5f}, major axis at {self.path.angle_deg:.1f} "
+                 "deg)")
+        lg = self.lengths
+        period = (f"the swing's period gives L = {1e3 * lg['L_period_m']:.2f} +- "
+                  f"{1e3 * lg['L_period_u_m']:.2f} mm, R - r is {1e3 * lg['L_nominal_m']:.2f} "
+                  f"mm, the path's bottom curvature {1e3 * lg['L_path_m']:.2f} mm")
+        cam = f"{100 * (self.mu_camera / self.mu_as_measured - 1):+.2f} %"
+        trough = f"{100 * (self.mu_trough / self.mu_as_measured - 1):+.2f} %"
+        tilt = f"{self.path.tilt_deg():.1f} deg"
+        if self.verdict == "camera":
+            return (f"{shape}: {period}, so the trough is round and the camera is "
+                    f"{self.kind()} by {tilt} against its axis; corrected: the angles are "
+                    f"taken on the path mapped back to a circle, mu {cam} (from "
+                    f"{self.mu_as_measured:.6g} to {self.mu_camera:.6g}); left: the "
+                    "perspective of a tilted lens (the correction is orthographic)")
+        if self.verdict == "trough":
+            return (f"{shape}: {period}, so the trough is out of round (the camera is square "
+                    f"on): mu left as measured; read with the bore's curvature it would be "
+                    f"{trough} ({self.mu_trough:.6g}); left: the bore's shape beyond an "
+                    "ellipse")
+        return (f"{shape}: if the camera is {self.kind()} by {tilt} against the trough axis "
+                f"mu is {self.mu_camera:.6g} ({cam}), if the trough is out of round "
+                f"{self.mu_trough:.6g} ({trough}); {period}: the period cannot tell which. "
+                "Nothing corrected; square the camera on the trough axis, or state "
+                "cylinder.radius_mm_u small enough for the period to decide")
+
+
+def _finite(v):
+    return float(v) if v is not None and math.isfinite(v) else None
+
+
+def read_path(x, y, center, t, theta, setup, result, *, offset: bool, refit,
+              ball_radius_px: float, angle_of, center_u=None) -> PathReading:
+    """The path's ellipse from the located centres and what it means for mu.
+
+    Parameters
+    ----------
+    x, y : numpy.ndarray
+        Centres (px) the angles were taken from, NaN where no ball.
+    center : tuple of float
+        The trough axis (px).
+    t, theta : numpy.ndarray
+        Times (s) and the measured angles (rad).
+    setup : rollfric.setup.model.Setup
+        The setup.
+    result : rollfric.fit.estimate.FitResult
+        The fit of the measured angles.
+    offset : bool
+        Whether the bottom's angle was fitted.
+    refit : callable
+        refit(t, theta, setup) -> FitResult, as the measurement fits.
+    ball_radius_px : float
+        The ball's radius (px).
+    angle_of : callable
+        angle_of(x, y) -> theta, the measurement's angle formula about ``center``.
+    center_u : tuple of float or None
+        The centre's standard uncertainty (px): see :func:`fit_path`.
+
+    Returns
+    -------
+    PathReading
+    """
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(theta)
+    if result.used is not None and result.used.shape == ok.shape:
+        ok &= result.used
+    path = fit_path(x[ok], y[ok], center, center_u)
+    mu = result.mu
+    if not path.significant:
+        return PathReading(path, "round", mu)
+    L_px = setup.track_radius / setup.pixel_size
+    # the camera's reading: the path mapped back onto a circle, the angles again
+    mx, my = mapped_centres(x, y, center, path.round_map(L_px))
+    th_cam = angle_of(mx, my)
+    res_cam = refit(t, th_cam, setup)
+    # the trough's: the bore's curvature at the bottom sets the period, its slope the angles
+    amp = swing_amplitude(result)
+    a, b = path.semi_axes
+    bore = ell.ContourEllipse(center=path.center, semi_axes=(a + ball_radius_px,
+                                                             b + ball_radius_px),
+                              angle_deg=path.angle_deg, rms_px=path.rms_px,
+                              n_points=path.n_points)
+    r_eff, f_b = ell.trough_scale(bore, ball_radius_px, amp)
+    rho_path = path.bottom_curvature_radius(result.offset)
+    L_path = rho_path * setup.pixel_size
+    try:
+        res_tr = refit(t, theta, setup.replace(cylinder_radius=L_path + setup.ball_radius))
+        mu_tr = res_tr.mu / f_b
+    except ValueError:
+        mu_tr = math.nan
+    # the period decides
+    L_fit, u_fit = fit_length(t, th_cam, setup, res_cam, offset)
+    uR, ud = setup.u("cylinder_radius"), setup.u("ball_diameter")
+    u_nom = math.hypot(uR or 0.0, 0.5 * (ud or 0.0))
+    up = setup.u("pixel_size")
+    u_path = math.hypot(path.bottom_curvature_u(result.offset) * setup.pixel_size,
+                        rho_path * (up or 0.0))
+    z_cam = (L_fit - setup.track_radius) / max(math.hypot(u_fit, u_nom), 1e-300)
+    z_tr = (L_fit - L_path) / max(math.hypot(u_fit, u_path), 1e-300)
+    if abs(z_cam) <= SEPARATE < abs(z_tr):
+        verdict = "camera"
+    elif abs(z_tr) <= SEPARATE < abs(z_cam):
+        verdict = "trough"
+    else:
+        verdict = "undecided"
+    lengths = {"L_period_m": L_fit, "L_period_u_m": u_fit, "L_nominal_m": setup.track_radius,
+               "L_nominal_u_m": u_nom, "L_path_m": L_path, "L_path_u_m": u_path,
+               "z_camera": z_cam, "z_trough": z_tr}
+    return PathReading(path, verdict, mu, mu_camera=res_cam.mu, mu_trough=mu_tr,
+                       result_camera=res_cam, theta_camera=th_cam, lengths=lengths)

@@ -1,0 +1,1 @@
+"""Where results go: output folders written whole, figures of the measurement."""

@@ -1,0 +1,2 @@
+"""The lab's setup: trough, ball and camera, the TOML files that state them, the lens
+calibration."""

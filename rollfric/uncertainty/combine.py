@@ -1,0 +1,561 @@
+"""Repeated releases of one setup combined: a weighted mean of their mu with the budget split.
+
+Each run's budget (fit.json's ``uncertainty_budget``) splits into two parts:
+
+- the **independent** part: the statistical rows (the least-squares error of the locator's
+  noise, ``"statistical"``; a row whose ``part`` is ``"independent"``), whose errors are
+  independent between releases and average down;
+- the **shared** part: every other row (the setup's inputs: trough radius, ball diameter, frame
+  rate, pixel size, the trough's centre, the lens, gravity; the method and second-order rows),
+  whose error is the same on every release of one setup (fully correlated) and does not.
+
+With u_i the independent part of run i, the weights are w_i = u_i^-2 / sum_j u_j^-2, the
+combined mu = sum_i w_i mu_i and its independent part u_ind = (sum_i u_i^-2)^-1/2. A shared
+row s, whose common input error moves run i's mu by its signed u_mu,i,s (the row's ``u_mu``
+with the sign of its ``sensitivity``), moves the mean by sum_i w_i u_mu,i,s: that is the row's
+part of the combined u (it equals the runs' common value when they agree, so it does not
+average down). A row whose recorded input value differs between the runs (a trough centre
+found from each recording's own contour) is not certainly common: it is never taken below its
+value for independent errors, sqrt(sum_i (w_i u_mu,i,s)^2).
+
+The scatter is checked against the runs' own budgets with the Birge ratio
+R_B = sqrt(chi2 / (N - 1)) of the runs about the weighted mean. chi2 uses the residuals'
+covariance from the runs' budgets: a shared row that moves every run alike drops out of the
+residuals, and chi2 is then sum_i (mu_i - mu)^2 / u_i^2 exactly (the runs' independent u);
+a shared row that moves the runs differently (a trough centre's error on releases to either
+side) is scatter the budgets expect and enters chi2's covariance (``birge_ratio_independent``
+keeps the ratio with the independent parts alone). The ``second order`` row of a budget made
+with ``--second-order`` (the inputs' interactions, e.g. radius x centre, which act on releases
+to either side with opposite signs) enters the mean's u in full and chi2 as independent
+between runs: first-order budgets lack it, and releases whose statistical u is far below their
+setup part then scatter more than their budgets say. Its 95 % range at N follows from the chi2
+distribution with N - 1 degrees of freedom. As the Particle Data Group does, the independent
+part is scaled by R_B when R_B > 1; a ratio above its range also makes the result suspect (a
+reason ``birge_ratio``: the releases scatter more than their budgets allow). The combined
+standard uncertainty is sqrt((S u_ind)^2 + u_shared^2), S = max(1, R_B), and U = k u with
+k = 2.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import math
+from pathlib import Path
+
+from rollfric.errors import InputError
+
+log = logging.getLogger(__name__)
+
+COVERAGE_FACTOR = 2.0
+BIRGE_LEVEL = 0.95  # the probability of the Birge ratio's expected range
+INDEPENDENT_SOURCES = ("statistical",)  # budget rows independent between releases
+PARTS = ("shared", "independent")
+# shared rows whose effect differs in sign and size between releases even for one common
+# input error (the inputs' interactions: radius x centre): full in the mean's u, independent
+# in the Birge ratio's chi2
+UNLIKE_SOURCES = ("second order",)
+_FLOAT_REL = 1e-9  # setup values closer than this (relative) are the same value
+
+
+@dataclasses.dataclass(frozen=True)
+class Run:
+    """One release: its mu, the independent part of its u and its shared rows.
+
+    ``shared`` maps a row's source to (signed u_mu, the input's recorded value or None).
+    """
+
+    path: str
+    mu: float
+    u_independent: float
+    u_mu: float
+    shared: dict
+    quality: str
+    quality_codes: tuple
+    setup: dict | None
+
+
+@dataclasses.dataclass(frozen=True)
+class Combined:
+    """The combined mu of N releases, its uncertainty split into parts, the Birge ratio."""
+
+    mu: float
+    mu_u: float
+    U_mu: float
+    coverage_factor: float
+    u_independent: float  # of the mean, scaled by ``scale``
+    u_independent_unscaled: float
+    u_shared: float
+    shared_rows: tuple  # ({"source", "u_mu", "correlation"}, ...), largest first
+    runs: tuple  # ({"path", "mu", "u_independent", "u_mu", "weight", "quality"}, ...)
+    birge_ratio: float
+    birge_range: tuple
+    chi2: float
+    scale: float
+    birge_ratio_independent: float  # with the runs' independent parts alone
+    left_out: tuple  # ({"path", "reason"}, ...)
+    quality_reasons: tuple  # ({"code", "message"}, ...)
+
+    @property
+    def n(self) -> int:
+        """The number of runs combined."""
+        return len(self.runs)
+
+    @property
+    def quality(self) -> str:
+        """``ok``, or ``suspect`` when there is a reason."""
+        return "suspect" if self.quality_reasons else "ok"
+
+    def to_json(self) -> dict:
+        """The combined.json keys (see docs/formats/combined-json.md).
+
+        Returns
+        -------
+        dict
+        """
+        return {"mu": self.mu, "mu_u": self.mu_u, "U_mu": self.U_mu,
+                "coverage_factor": self.coverage_factor, "n": self.n,
+                "u_independent": self.u_independent,
+                "u_independent_unscaled": self.u_independent_unscaled,
+                "u_shared": self.u_shared, "shared_budget": [dict(r) for r in self.shared_rows],
+                "birge_ratio": self.birge_ratio,
+                "birge_range": list(self.birge_range), "birge_level": BIRGE_LEVEL,
+                "birge_ratio_independent": self.birge_ratio_independent,
+                "chi2": self.chi2, "scale": self.scale,
+                "runs": [dict(r) for r in self.runs],
+                "left_out": [dict(r) for r in self.left_out],
+                "quality": self.quality,
+                "quality_reasons": [dict(r) for r in self.quality_reasons]}
+
+
+# -- reading fit.json -------------------------------------------------------------------------
+
+def read_fit(path) -> dict:
+    """A fit.json file as a dict, checked to be one of rollfric's fits with a budget.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+
+    Returns
+    -------
+    dict
+        Its keys.
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If the file is missing, not JSON, not a rollfric fit.json, or has no budget.
+    """
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a directory, not a fit.json") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a rollfric fit.json (not a text file)") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: not a rollfric fit.json (not JSON: {exc})") from None
+    if not isinstance(data, dict) or not all(k in data for k in ("mu", "method", "n_samples")):
+        raise InputError(f"{path}: not a rollfric fit.json (no mu, method and n_samples: "
+                         "write one with rollfric measure or rollfric fit)")
+    if not _number(data["mu"]):
+        raise InputError(f"{path}: mu is {data['mu']!r}, not a number")
+    rows = data.get("uncertainty_budget")
+    if not _number(data.get("u_mu")) or not isinstance(rows, list) or not rows:
+        raise InputError(f"{path}: has no uncertainty budget (fit method {data['method']!r}); "
+                         "combine needs the lsq fit's budget")
+    for r in rows:
+        if not (isinstance(r, dict) and isinstance(r.get("source"), str)
+                and _number(r.get("u_mu"))):
+            raise InputError(f"{path}: a row of uncertainty_budget is not "
+                             "{\"source\", ..., \"u_mu\"}: not a rollfric fit.json")
+        if not 0.0 <= r["u_mu"] <= 1.0:
+            raise InputError(f"{path}: budget row {r['source']!r} has u_mu = {r['u_mu']!r}, "
+                             "not a standard uncertainty of mu (0 to 1)")
+        if r.get("part", "shared") not in PARTS:
+            raise InputError(f"{path}: budget row {r['source']!r} has part {r['part']!r}; "
+                             f"it must be one of {', '.join(PARTS)}")
+    return data
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def row_part(row: dict) -> str:
+    """``"independent"`` or ``"shared"``: how a budget row's error relates between releases.
+
+    Parameters
+    ----------
+    row : dict
+        A row of fit.json's ``uncertainty_budget``; its ``part`` when it states one, else
+        independent for the statistical rows (:data:`INDEPENDENT_SOURCES`), shared otherwise.
+
+    Returns
+    -------
+    str
+    """
+    if "part" in row:
+        return row["part"]
+    return "independent" if row["source"] in INDEPENDENT_SOURCES else "shared"
+
+
+def run_from_fit(data: dict, path) -> Run:
+    """A :class:`Run` from the keys of a fit.json (:func:`read_fit`).
+
+    Parameters
+    ----------
+    data : dict
+        The fit.json's keys.
+    path : str or os.PathLike
+        Where they came from (named in messages and in the output).
+
+    Returns
+    -------
+    Run
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If the budget has no independent part (nothing to weight the run by).
+    """
+    u2 = 0.0
+    shared: dict = {}
+    for r in data["uncertainty_budget"]:
+        if row_part(r) == "independent":
+            u2 += r["u_mu"] ** 2
+            continue
+        sign = -1.0 if _number(r.get("sensitivity")) and r["sensitivity"] < 0 else 1.0
+        value = r.get("value")
+        u_prev, _ = shared.get(r["source"], (0.0, None))
+        shared[r["source"]] = (u_prev + sign * r["u_mu"], value if _number(value) else None)
+    if not u2 > 1e-300:  # 0 (or below what its inverse square can hold)
+        raise InputError(f"{path}: its budget has no statistical row (u_mu of the independent "
+                         "part 0): it cannot be weighted")
+    reasons = data.get("quality_reasons")
+    reasons = reasons if isinstance(reasons, list) else []
+    codes = tuple(str(r.get("code", "?")) if isinstance(r, dict) else str(r) for r in reasons)
+    setup = data.get("setup")
+    return Run(path=str(path), mu=float(data["mu"]), u_independent=math.sqrt(u2),
+               u_mu=float(data["u_mu"]), shared=shared,
+               quality=str(data.get("quality", "ok")), quality_codes=codes,
+               setup=setup if isinstance(setup, dict) else None)
+
+
+# -- one setup ---------------------------------------------------------------------------------
+
+def _flatten(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if _number(a) and _number(b):
+        return math.isclose(a, b, rel_tol=_FLOAT_REL, abs_tol=1e-300)
+    return a == b
+
+
+def setup_differences(a: dict, b: dict) -> list[str]:
+    """The keys where two recorded setups (fit.json's ``setup``) differ.
+
+    Parameters
+    ----------
+    a, b : dict
+        Setups in the lab file's form (sections of keys,
+        :meth:`rollfric.setup.model.Setup.to_toml_dict`).
+
+    Returns
+    -------
+    list of str
+        ``"section.key: A vs B"`` (``absent`` where one lacks the key), sorted by key; empty
+        when the setups agree (numbers within a relative 1e-9).
+    """
+    fa, fb = _flatten(a), _flatten(b)
+    out = []
+    for k in sorted(set(fa) | set(fb)):
+        va, vb = fa.get(k, "absent"), fb.get(k, "absent")
+        if not _same(va, vb):
+            out.append(f"{k}: {va} vs {vb}")
+    return out
+
+
+def check_one_setup(runs: list[Run]) -> list[str]:
+    """Refuse runs of different setups (ball, trough, camera); the warnings of the check.
+
+    Runs that record their setup (fit.json's ``setup``) are compared key by key. A fit.json
+    written before that record compares only through its budget: the values of the uncertain
+    inputs it shares with the first run (a warning says so).
+
+    Parameters
+    ----------
+    runs : list of Run
+        At least one.
+
+    Returns
+    -------
+    list of str
+        Warnings (the runs compared without a setup record).
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If two runs record different setups, naming both files and the keys.
+    """
+    warnings = []
+    first = runs[0]
+    for r in runs[1:]:
+        if first.setup is not None and r.setup is not None:
+            diff = setup_differences(first.setup, r.setup)
+        else:
+            diff = [f"{s}: {first.shared[s][1]} vs {r.shared[s][1]}"
+                    for s in sorted(set(first.shared) & set(r.shared))
+                    if first.shared[s][1] is not None and r.shared[s][1] is not None
+                    and not s.startswith("cylinder.center_px")
+                    and not _same(first.shared[s][1], r.shared[s][1])]
+        if diff:
+            raise InputError(f"{r.path} and {first.path} are of different setups (ball, trough "
+                             f"or camera): {'; '.join(diff[:4])}"
+                             + (f"; and {len(diff) - 4} more" if len(diff) > 4 else ""))
+    old = [r.path for r in runs if r.setup is None]
+    if old:
+        warnings.append(f"{', '.join(old)}: no setup recorded (a fit.json of an earlier "
+                        "rollfric): the setup compared only through the budget's uncertain "
+                        "inputs; measure or fit again to compare the whole setup")
+    return warnings
+
+
+# -- combining -------------------------------------------------------------------------------
+
+def birge_range(n: int, level: float = BIRGE_LEVEL) -> tuple[float, float]:
+    """The central ``level`` interval of the Birge ratio of ``n`` consistent measurements.
+
+    Parameters
+    ----------
+    n : int
+        Number of measurements (>= 2).
+    level : float
+        Probability of the interval.
+
+    Returns
+    -------
+    (low, high) : tuple of float
+        sqrt(q / (n - 1)) for the chi2 quantiles q at (1 - level) / 2 and (1 + level) / 2
+        with n - 1 degrees of freedom.
+    """
+    from scipy.stats import chi2
+
+    dof = n - 1
+    lo, hi = chi2.ppf([(1 - level) / 2, (1 + level) / 2], dof)
+    return math.sqrt(lo / dof), math.sqrt(hi / dof)
+
+
+def combine(runs: list[Run], *, coverage_factor: float = COVERAGE_FACTOR,
+            left_out: tuple = (), level: float = BIRGE_LEVEL) -> Combined:
+    """Combine repeated releases of one setup (see the module's docstring for the formulas).
+
+    Parameters
+    ----------
+    runs : list of Run
+        At least two releases of one setup.
+    coverage_factor : float
+        k of U = k u.
+    left_out : tuple of dict
+        ``{"path", "reason"}`` of runs left out, recorded in the result.
+    level : float
+        Probability of the Birge ratio's expected range.
+
+    Returns
+    -------
+    Combined
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        If there are fewer than two runs.
+    """
+    n = len(runs)
+    if n < 2:
+        raise InputError(f"combine needs at least two runs, got {n}"
+                         + (f" ({len(left_out)} suspect run(s) left out: --include-suspect "
+                            "keeps them)" if left_out else ""))
+    import numpy as np
+
+    inv = [1.0 / r.u_independent ** 2 for r in runs]
+    total = sum(inv)
+    w = [v / total for v in inv]
+    mu = sum(wi * r.mu for wi, r in zip(w, runs, strict=True))
+    u_ind = 1.0 / math.sqrt(total)
+    # the runs' covariance: the independent parts on the diagonal, each shared row's signed
+    # u_mu as a common error (an input found anew in each run: independent)
+    cov = np.diag([r.u_independent ** 2 for r in runs])
+    rows = []
+    for source in dict.fromkeys(s for r in runs for s in r.shared):
+        c = np.array([r.shared[source][0] if source in r.shared else 0.0 for r in runs])
+        values = [r.shared[source][1] for r in runs if source in r.shared]
+        agree = all(v is not None and _same(v, values[0]) for v in values) or \
+            all(v is None for v in values)
+        common = abs(float(np.dot(w, c)))
+        u = common
+        if agree and source in UNLIKE_SOURCES:  # a common error, its effect unlike per run
+            cov += np.diag(c * c)
+        elif agree:
+            cov += np.outer(c, c)
+        else:  # not certainly a common error: never below its value for independent errors
+            u = max(common, float(np.sqrt(np.sum((np.asarray(w) * c) ** 2))))
+            cov += np.diag(c * c)
+        rows.append({"source": source, "u_mu": u,
+                     "correlation": "full" if agree else "full, or none where larger"})
+    rows.sort(key=lambda r: -r["u_mu"])
+    chi2, chi2_independent = _chi2(np.array([r.mu for r in runs]), mu, np.asarray(w), cov,
+                                   np.array(inv))
+    rb = math.sqrt(chi2 / (n - 1))
+    lo, hi = birge_range(n, level)
+    scale = max(1.0, rb)
+    u_shared = math.sqrt(sum(r["u_mu"] ** 2 for r in rows))
+    u = math.hypot(scale * u_ind, u_shared)
+    reasons = []
+    if rb > hi:
+        reasons.append({"code": "birge_ratio", "message": (
+            f"the releases scatter more than their budgets allow: Birge ratio {rb:.3g} above "
+            f"its {100 * level:g} % range [{lo:.3g}, {hi:.3g}] for N = {n}; the independent "
+            f"part is scaled by {rb:.3g}. Look for a release that differs (a setup moved, a "
+            "suspect track) or an error the budget lacks"
+            + ("" if any(UNLIKE_SOURCES[0] in r.shared for r in runs) else
+               "; the runs' budgets are first order: made with --second-order they hold the "
+               "setup inputs' interactions, which act differently on each release"))})
+    suspect = [r.path for r in runs if r.quality != "ok"]
+    if suspect:
+        reasons.append({"code": "suspect_runs", "message": (
+            f"{len(suspect)} run(s) whose own quality is suspect are included "
+            f"(--include-suspect): {', '.join(suspect)}")})
+    run_rows = tuple({"path": r.path, "mu": r.mu, "u_independent": r.u_independent,
+                      "u_mu": r.u_mu, "weight": wi, "quality": r.quality}
+                     for r, wi in zip(runs, w, strict=True))
+    return Combined(mu=mu, mu_u=u, U_mu=coverage_factor * u, coverage_factor=coverage_factor,
+                    u_independent=scale * u_ind, u_independent_unscaled=u_ind,
+                    u_shared=u_shared, shared_rows=tuple(rows), runs=run_rows,
+                    birge_ratio=rb, birge_range=(lo, hi), chi2=chi2, scale=scale,
+                    birge_ratio_independent=math.sqrt(chi2_independent / (n - 1)),
+                    left_out=tuple(left_out), quality_reasons=tuple(reasons))
+
+
+def _chi2(mus, mean: float, w, cov, inv) -> tuple[float, float]:
+    """chi2 of the runs about their weighted mean: with the residuals' covariance from the
+    runs' (``cov``), and with the independent parts alone (sum of r_i^2 / u_i^2).
+
+    The residuals r = (I - 1 w^T) mu have covariance P cov P^T (rank N - 1: the weighted sum
+    of the residuals is 0), so the first N - 1 of them, with their block of it, carry the
+    chi2. A shared row that acts alike on every run drops out of P cov P^T, and the chi2 is
+    then the independent one exactly; one that acts differently (a centre error on releases
+    to either side) is scatter the budgets expect.
+    """
+    import numpy as np
+
+    r = mus - mean
+    n = r.size
+    p = np.eye(n) - np.outer(np.ones(n), w)
+    c = (p @ cov @ p.T)[: n - 1, : n - 1]
+    try:
+        chi2 = float(r[: n - 1] @ np.linalg.solve(c, r[: n - 1]))
+    except np.linalg.LinAlgError:
+        chi2 = float(r[: n - 1] @ np.linalg.pinv(c) @ r[: n - 1])
+    return chi2, float(np.sum(r * r * inv))
+
+
+def combine_files(paths, *, include_suspect: bool = False,
+                  coverage_factor: float = COVERAGE_FACTOR) -> tuple[Combined, list[str]]:
+    """Read fit.json files of repeated releases of one setup and combine them.
+
+    Parameters
+    ----------
+    paths : sequence of str or os.PathLike
+        The fit.json files, each named once.
+    include_suspect : bool
+        Keep runs whose quality is not ``ok`` (the result is then suspect); by default they
+        are left out with a warning.
+    coverage_factor : float
+        k of U = k u.
+
+    Returns
+    -------
+    combined : Combined
+    warnings : list of str
+        What the user should know (runs left out, setups compared only through the budget).
+
+    Raises
+    ------
+    rollfric.errors.InputError
+        A file that is not a rollfric fit.json with a budget, a file named twice, runs of
+        different setups, fewer than two runs (after leaving out the suspect ones).
+    """
+    seen: dict = {}
+    for p in paths:
+        key = Path(p).resolve()
+        if key in seen:
+            raise InputError(f"{p}: named twice (as {seen[key]}): each release counts once")
+        seen[key] = str(p)
+    runs = [run_from_fit(read_fit(p), p) for p in paths]
+    if len(runs) >= 2:
+        warnings = check_one_setup(runs)
+    else:
+        warnings = []
+    left_out = []
+    if not include_suspect:
+        for r in runs:
+            if r.quality != "ok":
+                why = ", ".join(r.quality_codes) or r.quality
+                left_out.append({"path": r.path, "reason": f"quality {r.quality} ({why})"})
+                warnings.append(f"{r.path}: left out, its quality is {r.quality} ({why}); "
+                                "--include-suspect keeps it")
+        runs = [r for r in runs if r.quality == "ok"]
+    for w in warnings:
+        log.warning(w)
+    return combine(runs, coverage_factor=coverage_factor, left_out=tuple(left_out)), warnings
+
+
+def format_summary(c: Combined, out=None) -> str:
+    """The combined result as a few lines of text (the command's printed summary).
+
+    Parameters
+    ----------
+    c : Combined
+    out : str or os.PathLike, optional
+        Where it was written (named on the first line).
+
+    Returns
+    -------
+    str
+        Lines joined by newlines (no trailing newline).
+    """
+    rel = (lambda v: f"{100 * v / c.mu:.3g} %") if c.mu > 0 else (lambda v: "-")
+    lines = [f"combined {c.n} releases: mu = {c.mu:.6f} +- {c.mu_u:.2g} (u, {rel(c.mu_u)}), "
+             f"U = {c.U_mu:.2g} (k = {c.coverage_factor:g})"
+             + (f" -> {out}" if out is not None else ""),
+             f"  independent part {c.u_independent:.3g}"
+             + (f" (scaled by the Birge ratio from {c.u_independent_unscaled:.3g})"
+                if c.scale > 1 else "")
+             + f", shared part {c.u_shared:.3g} (setup: does not average down)",
+             f"  Birge ratio {c.birge_ratio:.3g} (95 % range at N = {c.n}: "
+             f"[{c.birge_range[0]:.3g}, {c.birge_range[1]:.3g}]"
+             + ("; below it: the runs agree better than their budgets expect"
+                if c.birge_ratio < c.birge_range[0] else "")
+             + f"); with the independent parts alone {c.birge_ratio_independent:.3g}"]
+    for r in c.runs:
+        lines.append(f"  {r['path']}: mu = {r['mu']:.6f} +- {r['u_independent']:.2g} "
+                     f"(independent), weight {r['weight']:.3f}")
+    for r in c.left_out:
+        lines.append(f"  {r['path']}: left out ({r['reason']})")
+    return "\n".join(lines)
