@@ -1,5 +1,5 @@
 """Small synthetic recordings for the measure tests: a ball on the equation of motion, drawn
-analytically (validation.drawn_frames), in a 360 x 240 frame with a 200 px trough."""
+analytically (synth.drawn.frames), in a 360 x 240 frame with a 200 px trough."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import numpy as np
 from rollfric.fit import eom
 from rollfric.io.readers import RecordingError
 from rollfric.setup.model import Setup
-from validation.drawn_frames import Scene, make_frames
+from synth.drawn.frames import Scene, make_frames
 
 R = 85.3e-3
 PIX = R / 200.0  # the trough's radius is 200 px

@@ -16,7 +16,7 @@ from rollfric.io import readers as io
 from rollfric.io.background import median, sample
 from rollfric.setup.model import Setup
 from rollfric.track.tracker import measure
-from validation.drawn_frames import Scene, make_frames
+from synth.drawn.frames import Scene, make_frames
 
 REAL = Path(__file__).parent / "data" / "real" / "ball_12bit.cihx"
 FULL_12 = 4095.0

@@ -20,7 +20,7 @@ from rollfric.io import readers as io
 from rollfric.locate import SubpixelOptions, locate_subpixel
 from rollfric.locate.thesis import locate_small_thesis
 from rollfric.setup.model import SetupError, setup_from_dict, thesis_setup
-from validation.drawn_frames import disk_coverage
+from synth.drawn.frames import disk_coverage
 
 REAL = Path(__file__).parent / "data" / "real"
 

@@ -1,15 +1,15 @@
 """A camera bumped or drifting during the recording: found from the static scene
 (rollfric.track.camera_motion), named, and the centres moved back (drawn recordings whose frames
-are shifted from a frame on, or steadily: validation.camera_faults)."""
+are shifted from a frame on, or steadily: validation.faults.camera)."""
 
 import numpy as np
 import pytest
 
 from rollfric.track import camera_motion as cm
 from rollfric.track.tracker import measure
+from synth.drawn.frames import Scene, make_frames
 from tests.measure_data import MemorySource, make_recording
-from validation.camera_faults import camera_shift, moved_frames
-from validation.drawn_frames import Scene, make_frames
+from validation.faults.camera import camera_shift, moved_frames
 
 MU = 0.01
 N = 400
@@ -42,7 +42,7 @@ def test_a_3px_bump_is_found_at_its_frame_and_corrected():
 def test_a_bump_among_glitched_frames():
     """The same bump in a recording with 1.5 % glitched frames of each kind (corrupt bands,
     swaps, repeats, flashes): the glitches are neither sampled as motion nor break it."""
-    from validation.glitches import glitch_frames
+    from validation.faults.glitches import glitch_frames
 
     rec = _rec()
     moved = moved_frames(rec.frames, camera_shift(N, bump_at=250, bump_px=(3.0, 0.0)))

@@ -2,7 +2,7 @@
 trough axis (rollfric.geometry.pathshape), found from the track, corrected when the period singles
 the
 camera out, left alone (and reported) for a bore. Drawn recordings with the exact path
-(validation.camera_faults)."""
+(validation.faults.camera)."""
 
 import dataclasses
 import math
@@ -14,10 +14,10 @@ import sim
 from rollfric.fit.estimate import fit_mu
 from rollfric.track.tracker import angles, measure
 from rollfric.uncertainty.budget import budget, measurement_from_track
+from synth.drawn import frames as dfm
+from synth.drawn.frames import make_frames
 from tests.measure_data import PIX, MemorySource, R, make_recording
-from validation import drawn_frames as dfm
-from validation.camera_faults import turned_centres, turned_image
-from validation.drawn_frames import make_frames
+from validation.faults.camera import turned_centres, turned_image
 
 MU = 0.01
 

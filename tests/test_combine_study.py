@@ -1,10 +1,10 @@
-"""validation.combine_study: its draws and its summary."""
+"""validation.studies.combine: its draws and its summary."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from validation.combine_study import draw_setup, summarize
+from validation.studies.combine import draw_setup, summarize
 
 
 def test_releases_share_the_setup_and_differ_in_angle():

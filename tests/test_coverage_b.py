@@ -48,7 +48,7 @@ def test_coverage_b_draws_are_not_the_first_studys():
 
 
 def test_misses_and_their_binomial_tails():
-    from validation.coverage import MISS_PROBABILITY, misses
+    from validation.studies.coverage import MISS_PROBABILITY, misses
 
     assert MISS_PROBABILITY[2.0] == pytest.approx(0.0455003, abs=1e-7)
     assert MISS_PROBABILITY[1.0] == pytest.approx(0.3173105, abs=1e-7)
@@ -76,7 +76,7 @@ def test_two_studies_reported_together(tmp_path):
     its own oracle run; the combined fractions' binomial standard error."""
     import json
 
-    from validation.coverage import main
+    from validation.studies.coverage import main
 
     za, zb = [0.5, -2.5, 0.1, 1.5], [0.2, 0.3, -0.4, 3.0, 0.9]
     for name, seed, z in (("a", 0, za), ("b", 3, zb)):
@@ -104,7 +104,7 @@ def test_blind_error_split_into_the_setups_part_and_the_rest_on_the_same_recordi
     """from_sweep with an oracle run: (blind mu - oracle mu) / u_mu is the setup's part of the
     blind error, (oracle mu - truth) / u_mu the rest; the summary compares the setup's part
     with the budget's own linear prediction (z_linear), case by case."""
-    from validation.coverage import from_sweep, summarize
+    from validation.studies.coverage import from_sweep, summarize
 
     n = 6
     seeds = list(range(n))

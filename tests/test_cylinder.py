@@ -1,6 +1,6 @@
 """The trough centre from its contour: drawn contours of exactly known centre.
 
-The contours are drawn with exact area coverage (validation.drawn_frames.disk_coverage), in linear
+The contours are drawn with exact area coverage (synth.drawn.frames.disk_coverage), in linear
 light, with a lighting gradient on both sides of the edge, optional blur and pixel noise: what
 a camera with a linear response records of a sharp edge.
 """
@@ -13,7 +13,7 @@ import pytest
 
 from rollfric.geometry import trough as cylinder
 from rollfric.geometry.trough import find_cylinder_center
-from validation.drawn_frames import disk_coverage
+from synth.drawn.frames import disk_coverage
 
 XC, YC, R = 640.3, 380.7, 635.0
 

@@ -1,11 +1,12 @@
-"""The fault generator (validation.faults) makes the faults it says, deterministically, and the
-fault study (validation.fault_study) judges a case."""
+"""The fault generator (validation.faults.recordings) makes the faults it says, deterministically,
+and the
+fault study (validation.studies.faults) judges a case."""
 
 import numpy as np
 import pytest
 
-from validation import faults as fl
-from validation.faults import Family, clean, faulty
+from validation.faults import recordings as fl
+from validation.faults.recordings import Family, clean, faulty
 
 QUIET = Family(noise=0.0, n=300)  # noiseless: a still ball draws identical frames
 
@@ -106,7 +107,7 @@ def test_unknown_fault_is_refused():
 
 
 def test_the_study_judges_a_held_start_and_a_clean_case():
-    from validation.fault_study import format_tables, run_study
+    from validation.studies.faults import format_tables, run_study
 
     study = run_study(seeds=1, clean_seeds=1, faults=["held"], families=["noise 1 DN"],
                       sizes={"held": (60,)}, log=lambda line: None)

@@ -11,7 +11,7 @@ from test_measure_roi import _Plain
 
 from rollfric.track import plausibility
 from rollfric.track.tracker import measure
-from validation.glitches import glitch_frames
+from validation.faults.glitches import glitch_frames
 
 
 def test_glitch_generator_is_seeded_and_does_what_it_says():

@@ -10,8 +10,8 @@ import pytest
 
 from rollfric.io.readers import open_recording
 from rollfric.locate import locate_subpixel
-from validation.bench_locate import edge_point_locator
-from validation.shadow_frames import ShadowScene, background, draw
+from synth.drawn.shadow import ShadowScene, background, draw
+from validation.bench.locate import edge_point_locator
 
 REAL = Path(__file__).parent / "data" / "real" / "ball_12bit.cihx"
 
@@ -90,7 +90,7 @@ def test_real_backlit_clip_no_noisier_than_the_edge_point_fit():
 def test_bench_shadowgraph_case_rows():
     # the bench's shadowgraph case: the default locator and the edge-point baseline both
     # within 0.01 px of the exact centres; RANSAC's Canny edges are not
-    from validation.bench_locate import run_case, shadow_case
+    from validation.bench.locate import run_case, shadow_case
 
     rows = {r["locator"]: r for r in run_case(shadow_case(4, seed=1))}
     assert rows["subpixel (ROI)"]["found"] == 1.0

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rollfric.locate import SubpixelOptions, locate_subpixel, silhouette_stretch
-from validation.drawn_frames import Scene, make_frames
+from synth.drawn.frames import Scene, make_frames
 
 R10 = 5.0 / 0.1343  # the thesis's 10 mm ball (px)
 R_BORE = 640.0

@@ -45,7 +45,7 @@ from rollfric.locate.subpixel import (
     silhouette_stretch,
     subpixel_locator,
 )
-from validation.drawn_frames import Scene, disk_coverage, make_frames
+from synth.drawn.frames import Scene, disk_coverage, make_frames
 
 _SELECT_FAIL = {
     1: "too few edge points (ball missing, occluded or at the border)",
@@ -471,7 +471,7 @@ def test_partial_arcs_to_the_bit(monkeypatch, shadow_frac):
                                   SubpixelOptions(pixel_fit=False, passes=1)])
 @pytest.mark.parametrize("pixel_mm", [0.1343, 0.2686])
 def test_mirror_balls_to_the_bit(monkeypatch, opts, pixel_mm):
-    from validation.mirror_frames import MirrorScene, make_mirror_frames
+    from synth.drawn.mirror import MirrorScene, make_mirror_frames
 
     rng = np.random.default_rng(3)
     count = _Count()

@@ -1,5 +1,5 @@
 """The default locator on a polished steel ball drawn as a curved mirror
-(validation.mirror_frames): the rim mirrors the bright backdrop above and the dark trough below,
+(synth.drawn.mirror): the rim mirrors the bright backdrop above and the dark trough below,
 and the centre must still be found where the sphere's centre is (known exactly)."""
 
 import dataclasses
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rollfric.locate import AUTO_MIRROR, MIRROR, NO_MIRROR, SubpixelOptions, locate_subpixel
-from validation.mirror_frames import (
+from synth.drawn.mirror import (
     MirrorScene,
     background,
     draw_ball,
@@ -130,7 +130,7 @@ def test_relative_fresnel_correction_leaves_a_matt_ball_alone():
     # a ball of one uniform level (no mirror): the correction for the level above the rim's
     # darkest moves no edge; the absolute one (MIRROR) moves every edge out by
     # kappa x level / contrast
-    from validation.drawn_frames import Scene, make_frames
+    from synth.drawn.frames import Scene, make_frames
     sc = Scene(width=200, height=200, center=(100.0, -500.0), R_px=640.0, r_px=37.23,
                spot=0.0, ball=0.4)
     bg, (f,) = make_frames(sc, [(100.31, 99.72)])
@@ -162,7 +162,7 @@ def _same_location(a, b):
 def test_auto_mirror_leaves_a_matt_ball_and_a_sliver_alone():
     # a matt ball of one level has no mirror signature: the same location as without the
     # mirror handling, to the last bit
-    from validation.drawn_frames import Scene, make_frames
+    from synth.drawn.frames import Scene, make_frames
     sc = Scene(width=200, height=200, center=(100.0, -500.0), R_px=640.0, r_px=37.23,
                spot=0.0, ball=0.4)
     bg, (f,) = make_frames(sc, [(100.31, 99.72)])

@@ -10,7 +10,7 @@ import numpy as np
 from rollfric.locate import locate_subpixel
 from rollfric.setup.model import Setup
 from rollfric.track.tracker import RadiusCalibration, track_recording
-from validation.drawn_frames import disk_coverage
+from synth.drawn.frames import disk_coverage
 
 R = 37.2  # the setup's radius (px)
 R_SEEN = 1.003 * R  # the radius of the drawn outline

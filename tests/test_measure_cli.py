@@ -15,7 +15,7 @@ from rollfric.cli.main import main
 from rollfric.geometry.trough import ContourError, find_cylinder_center
 from rollfric.setup.model import dumps_setup, save_setup
 from rollfric.track.tracker import angles, measure
-from validation.drawn_frames import Scene, background, to_dtype
+from synth.drawn.frames import Scene, background, to_dtype
 
 
 def _write(rec, tmp_path, name="rec.tif"):

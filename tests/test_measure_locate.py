@@ -12,7 +12,7 @@ from rollfric.locate import (
     locate_small_thesis,
     locate_subpixel,
 )
-from validation.drawn_frames import Scene, disk_coverage, make_frames
+from synth.drawn.frames import Scene, disk_coverage, make_frames
 
 R10, R12, R158 = 5.0 / 0.1343, 6.345 / 0.1343, 0.79 / 0.1343  # thesis balls in px
 

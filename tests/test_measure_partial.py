@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rollfric.locate import coarse_candidates, locate_subpixel
-from validation.drawn_frames import disk_coverage
+from synth.drawn.frames import disk_coverage
 
 R = 37.2
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rollfric.locate import coarse_find, locate_subpixel
-from validation.drawn_frames import Scene, make_frames
+from synth.drawn.frames import Scene, make_frames
 
 R10 = 5.0 / 0.1343  # the thesis's 10 mm ball in px
 

@@ -385,7 +385,7 @@ def test_validate_report_overwrite_keeps_other_files(tmp_path):
 
 
 def test_bench_refuses_and_overwrites_its_own_files_only(tmp_path, monkeypatch, capsys):
-    from validation import bench
+    from validation.bench import run as bench
 
     out = tmp_path / "bench"
     out.mkdir()

@@ -1,4 +1,5 @@
-"""validation.redraw: fresh lab draws on located centres (the coverage of the budget without the
+"""validation.studies.redraw: fresh lab draws on located centres (the coverage of the budget
+without the
 luck of one draw per case), checked against the known as-built setup and the measurement's
 own path at the track level (no rendering)."""
 
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 from validation.case import apply_overrides, case_from_dict, small_case_dict
-from validation.redraw import redraw_case, redrawn_lab, redrawn_setup, refit, summarize
+from validation.studies.redraw import redraw_case, redrawn_lab, redrawn_setup, refit, summarize
 
 
 def _case(seed=7, **over):
@@ -108,7 +109,7 @@ def test_summary_counts_the_misses_of_the_studys_and_the_fresh_draws():
 def test_cli_bad_input_and_report_of_earlier_runs(tmp_path, capsys):
     import pandas as pd
 
-    from validation.redraw import main
+    from validation.studies.redraw import main
 
     assert main(["--out", str(tmp_path / "a")]) == 2  # neither runs nor a report
     assert not (tmp_path / "a").exists()

@@ -10,7 +10,7 @@ from rollfric.fit import eom
 from rollfric.setup.model import Setup
 from rollfric.track import still
 from rollfric.track.tracker import measure
-from validation.drawn_frames import Scene, make_frames
+from synth.drawn.frames import Scene, make_frames
 
 
 def _recording(n_held, n_moving, n_rest=0, *, mu=0.02, theta0=0.5, fps=200.0, seed=0):

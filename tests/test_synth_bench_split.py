@@ -1,12 +1,13 @@
-"""synth.bench.schedule_split: a recording's time split into start-up and frames from its own
+"""validation.bench.render.schedule_split: a recording's time split into start-up and frames from
+its own
 batches' times (a made-up schedule whose split is known)."""
 
 import math
 
 import pytest
 
-from synth.bench import pool_restarted, schedule_split
 from synth.pipeline import BATCH
+from validation.bench.render import pool_restarted, schedule_split
 
 
 def _schedule(n_frames, to_first, first_extra, per_frame, tail=0.0):
@@ -65,7 +66,7 @@ def test_a_pool_restart_is_seen_in_the_schedule():
 
 def test_file_create_probe_leaves_nothing(tmp_path):
     """The bench's file-creation probe times real files and removes them and their folder."""
-    from synth.bench import file_create_ms
+    from validation.bench.render import file_create_ms
 
     ms = file_create_ms(tmp_path, n=20)
     assert 0 < ms < 1e4

@@ -1,4 +1,5 @@
-"""validation.systematics: the error-budget table from a small fixture of the study's rows, and
+"""validation.studies.systematics: the error-budget table from a small fixture of the study's rows,
+and
 the track-level sweep's plumbing (no rendering)."""
 
 import json
@@ -6,7 +7,7 @@ import json
 import pandas as pd
 import pytest
 
-from validation import systematics as st
+from validation.studies import systematics as st
 from validation.sweep import sweep_from_dict
 
 

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from validation import thesis_error
 from validation.case import apply_overrides, small_case_dict
+from validation.studies import thesis_error
 from validation.track_level import located_centres, measure_track, run_track_case
 
 

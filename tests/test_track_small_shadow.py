@@ -12,7 +12,7 @@ import numpy as np
 from rollfric.locate import locate_subpixel
 from rollfric.setup.model import Setup
 from rollfric.track.tracker import RadiusCalibration, track_recording
-from validation.drawn_frames import disk_coverage
+from synth.drawn.frames import disk_coverage
 
 R = 5.9  # the setup's radius (px)
 R_SEEN = 1.017 * R  # the drawn outline's

@@ -201,7 +201,7 @@ def test_lab_setup_on_a_drawn_recording(tmp_path):
     scale) of the as-built trough (85.3 mm) measured with the lab's setup (84.8 +- 0.5 mm,
     centre 2 px off +- 2 px, diameter +- 0.005 mm, fps +- 0.005 (0.05 at 1000 Hz), pixel size
     +- 0.0003 mm): the truth within U, U below 2 % of mu, at least 3 sources acting."""
-    from validation.drawn_frames import Scene, make_frames
+    from synth.drawn.frames import Scene, make_frames
 
     pix = 0.1343e-3
     true = Setup(cylinder_radius=85.3e-3, ball_diameter=10e-3, ball_mass=4.07612e-3,
@@ -241,7 +241,7 @@ def test_coverage_sweep_smoke(tmp_path):
     import tomllib
 
     from validation import sweep as S
-    from validation.coverage import from_sweep, summarize
+    from validation.studies.coverage import from_sweep, summarize
 
     spec = S.load_sweep("coverage")
     assert len(spec.cases) >= 200
@@ -265,7 +265,7 @@ def test_coverage_sweep_smoke(tmp_path):
 
 
 def test_coverage_report_matches_oracle_cases_by_their_parameters():
-    from validation.coverage import from_sweep, summarize
+    from validation.studies.coverage import from_sweep, summarize
 
     def rows(oracle, order):
         out = []
@@ -370,10 +370,10 @@ def test_lens_calibration_uncertainty_is_propagated():
 
 
 def test_track_level_coverage_case_with_the_contour_centre():
-    """One case of ``python -m validation.coverage --contour``: the lab gives no centre,
+    """One case of ``python -m validation.studies.coverage --contour``: the lab gives no centre,
     rollfric finds it (and its u) in the case's drawn background; the centre's error lies
     within 3 u, and both budgets (the lab's, and the exact setup's but the centre) are made."""
-    from validation.coverage import draw_case, run_case, summarize
+    from validation.studies.coverage import draw_case, run_case, summarize
 
     row = run_case(draw_case(1), contour=True, oracle=False)
     for axis in "xy":
@@ -539,7 +539,7 @@ def test_method_row_leaves_a_centre_error_to_the_centre_rows():
 def test_coverage_report_gives_binomial_errors_and_the_offset_groups():
     """The summary's binomial standard error sqrt(p (1 - p) / n) of each fraction, and the
     fractions split by whether the fit freed the angle offset."""
-    from validation.coverage import from_sweep, summarize
+    from validation.studies.coverage import from_sweep, summarize
 
     z = [0.5, -1.5, 2.5, 0.1, -0.2]
     rows = pd.DataFrame([{"case_id": f"c{i}", "status": "ok", "mu_recovered": 0.008,

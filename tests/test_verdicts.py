@@ -115,7 +115,7 @@ def test_removed_glitch_frames_raise_no_timing_reason(seed):
     # frames away spoiling their prediction
     from test_measure_roi import _Plain
 
-    from validation.glitches import glitch_frames
+    from validation.faults.glitches import glitch_frames
 
     rec = make_recording(600, fps=300.0, mu=0.01, theta0=0.5, noise=2.0, ball_mm=16.0,
                          with_center=True)

@@ -17,7 +17,7 @@ import re
 import statistics
 from pathlib import Path
 
-from validation.bench_table import fmt  # the bench's own number format
+from validation.bench.table import fmt  # the bench's own number format
 
 MARKER = "<!-- bench-tables -->"
 PAGE = "benchmarks.md"

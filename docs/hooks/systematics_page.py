@@ -1,11 +1,12 @@
 """MkDocs hook: the error-budget table of the ``systematics`` study, rendered from its JSON.
 
-``rollfric sweep systematics --out OUT`` then ``python -m validation.systematics OUT --json
+``rollfric sweep systematics --out OUT`` then ``python -m validation.studies.systematics OUT --json
 docs/data/systematics.json``; the next build shows it. The marker
 ``<!-- systematics-table -->`` in ``docs/lab-validation.md`` is replaced by
-:func:`validation.systematics.render_markdown` of that JSON (the table is computed, not typed);
-``<!-- thesis-error-table -->`` by :func:`validation.thesis_error.render_markdown` of
-``docs/data/thesis_error.json`` (``python -m validation.thesis_error``).
+:func:`validation.studies.systematics.render_markdown` of that JSON (the table is computed, not
+typed);
+``<!-- thesis-error-table -->`` by :func:`validation.studies.thesis_error.render_markdown` of
+``docs/data/thesis_error.json`` (``python -m validation.studies.thesis_error``).
 """
 
 from __future__ import annotations
@@ -13,8 +14,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from validation import thesis_error
-from validation.systematics import render_markdown
+from validation.studies import thesis_error
+from validation.studies.systematics import render_markdown
 
 MARKER = "<!-- systematics-table -->"
 THESIS_MARKER = "<!-- thesis-error-table -->"

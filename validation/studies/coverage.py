@@ -11,11 +11,12 @@ budget has |z| <= 1 in about 68 % and |z| <= 2 (truth within U_mu, k = 2) in abo
 the cases. The oracle mode (the exact as-built setup given, only the statistical part) is
 checked the same way, with the corrected and the ordinary standard error.
 
-``python -m validation.coverage --cases 200 --out DIR`` writes DIR/coverage.csv (one row a
+``python -m validation.studies.coverage --cases 200 --out DIR`` writes DIR/coverage.csv (one row a
 case), DIR/coverage.json (the fractions) and DIR/coverage.png (z histograms).
 
 The rendered study is the shipped sweep ``coverage`` (validation/sweeps/coverage.toml: blind
-cases with ``lab.draw`` and ``measure.budget``); ``python -m validation.coverage --from-sweep
+cases with ``lab.draw`` and ``measure.budget``); ``python -m validation.studies.coverage
+--from-sweep
 OUT`` reads its OUT/results.parquet and writes OUT/coverage.json and OUT/coverage.png the same
 way (its oracle columns come from an oracle run of the sweep, ``measure.oracle = true``, if
 given with ``--oracle-sweep``). ``--from-sweep OUT1 OUT2 --out DIR`` reports several studies
@@ -109,7 +110,7 @@ def contour_background(case: dict, true: Setup) -> np.ndarray:
     trough's contour circle (its centre and radius in px), the trough's face in a 70 px ring
     around it, drawn with exact area coverage in linear light; a lighting gradient, a blur
     and a sensor noise drawn with the case's seed (``contour_*`` keys of the case)."""
-    from validation.drawn_frames import disk_coverage
+    from synth.drawn.frames import disk_coverage
 
     w, h = FRAME
     xc, yc = true.center_px
@@ -412,7 +413,7 @@ def plot(df: pd.DataFrame, path: Path) -> None:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m validation.coverage", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m validation.studies.coverage", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--cases", type=int, default=200)
     p.add_argument("--seed", type=int, default=0, help="first case seed")

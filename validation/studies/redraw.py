@@ -18,7 +18,7 @@ u_mu is recorded. What is not redone: the locating itself (the ball's radius in 
 per-frame plausibility checks use the lab's setup; its draws move them by ~0.2 % and a few px
 of the centre, which the study's own draws also do).
 
-``python -m validation.redraw --from-recordings SRC [SRC ...] --draws K --out DIR`` (SRC: a
+``python -m validation.studies.redraw --from-recordings SRC [SRC ...] --draws K --out DIR`` (SRC: a
 sweep run with ``--keep-recordings``; ``--track-level``: its cases at the track level, same
 draws, for contrast) writes DIR/redraw.csv (one row per recording and draw),
 DIR/redraw.json (coverage of draw 0, of the fresh draws, of all; by study) and DIR/summary.md.
@@ -228,7 +228,7 @@ def _one(args) -> list[dict]:
 
 def summarize(df: pd.DataFrame) -> dict:
     """Coverage of draw 0 (the study's own draws), of the fresh draws and of all, as
-    :func:`validation.coverage.misses` reports it.
+    :func:`validation.studies.coverage.misses` reports it.
 
     Parameters
     ----------
@@ -241,7 +241,7 @@ def summarize(df: pd.DataFrame) -> dict:
         ``{"draw 0": ..., "fresh": ..., "all": ...}``, each with n, the fractions within
         u and U, the miss counts and their binomial tails, mean and sd of z.
     """
-    from validation.coverage import misses
+    from validation.studies.coverage import misses
 
     out = {}
     for name, sel in (("draw 0", df["draw"] == 0), ("fresh", df["draw"] > 0),
@@ -315,7 +315,7 @@ def report(df: pd.DataFrame, title: str, out: Path) -> str:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m validation.redraw", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m validation.studies.redraw", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--from-recordings", nargs="+", metavar="SRC",
                    help="sweeps run with --keep-recordings (blind cases with a [lab])")

@@ -2,14 +2,14 @@
 beside OpenCV HoughCircles, scikit-image CircleModel + RANSAC, a plain edge-point circle fit
 (scikit-image ``find_contours`` at the half level + ``CircleModel``), and the Cramer-Rao bound.
 
-Frames are drawn analytically (validation.drawn_frames: exact area coverage, the thesis's
-1280 x 1024 geometry with the 85.3 mm trough at 0.1343 mm/px; validation.shadow_frames: a
+Frames are drawn analytically (synth.drawn.frames: exact area coverage, the thesis's
+1280 x 1024 geometry with the 85.3 mm trough at 0.1343 mm/px; synth.drawn.shadow: a
 backlit ball as a shadowgraph rig records it) and rendered by ``synth``
 (the thesis scene with its lamps, specular spots and shadows; clean and with the realistic
 sensor model), each with its exact truth.
 
 ``bench_locators(quick)`` returns one dict per (case, locator); ``bench_recognition(quick)``
-the same as ``validation.bench.Row`` lines; ``throughput(...)`` the frames/s of the whole
+the same as ``validation.bench.run.Row`` lines; ``throughput(...)`` the frames/s of the whole
 streaming loop (prediction, ROI, locator) on in-memory 1280 x 1024 frames.
 """
 
@@ -24,8 +24,8 @@ import cv2
 import numpy as np
 
 from rollfric import locate
-from validation.bench_table import Row
-from validation.drawn_frames import Scene, make_frames
+from synth.drawn.frames import Scene, make_frames
+from validation.bench.table import Row
 
 BALLS = {"10mm": 5.0 / 0.1343, "12.69mm": 6.345 / 0.1343, "1.58mm": 0.79 / 0.1343}
 
@@ -58,9 +58,9 @@ def drawn_case(ball: str, n: int, *, noise: float = 0.0, shadow: float = 0.0,
 
 def mirror_case(n: int, *, noise: float = 2.0, seed: int = 0) -> Case:
     """``n`` full frames of the 10 mm ball drawn as a polished steel mirror
-    (:mod:`validation.mirror_frames`: its rim mirrors the backdrop above, the trough below),
+    (:mod:`synth.drawn.mirror`: its rim mirrors the backdrop above, the trough below),
     spread over +-0.35 rad of the track, with the sphere's exact centre."""
-    from validation.mirror_frames import MirrorScene, make_mirror_frames
+    from synth.drawn.mirror import MirrorScene, make_mirror_frames
 
     scene = MirrorScene(noise=noise)
     rng = np.random.default_rng(seed)
@@ -72,11 +72,11 @@ def mirror_case(n: int, *, noise: float = 2.0, seed: int = 0) -> Case:
 
 
 def shadow_case(n: int, *, noise: float = 8.0, seed: int = 0) -> Case:
-    """``n`` drawn shadowgraph frames (:mod:`validation.shadow_frames`: a backlit ball, a dark
+    """``n`` drawn shadowgraph frames (:mod:`synth.drawn.shadow`: a backlit ball, a dark
     disc with a bright central spot and a limb shading into its inside, blurred, on a bright
     field; about the real 12-bit clip's, r 63.6 px) at sub-pixel centres spread over a pixel,
     with their exact centres."""
-    from validation.shadow_frames import ShadowScene, background, draw
+    from synth.drawn.shadow import ShadowScene, background, draw
 
     scene = ShadowScene(noise=noise)
     rng = np.random.default_rng(seed)
@@ -345,7 +345,7 @@ def bench_locators(quick: bool = False) -> list[dict]:
 
 
 def bench_recognition(quick: bool = False) -> list:
-    """The recognition section of ``rollfric bench`` as validation.bench.Row lines: per case,
+    """The recognition section of ``rollfric bench`` as validation.bench.run.Row lines: per case,
     the default locator (ROI mode) beside each baseline (accuracy gain = baseline rms /
     default rms), the Cramer-Rao bound, and the streaming loop's frames/s."""
     rows = []

@@ -1,4 +1,4 @@
-"""``rollfric bench``: register the subcommand (argparse only; work in validation.bench)."""
+"""``rollfric bench``: register the subcommand (argparse only; work in validation.bench.run)."""
 
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from validation.bench import run_bench
+    from validation.bench.run import run_bench
 
     rows, meta = run_bench(args.out, quick=args.quick, sections=args.only,
                            overwrite=args.overwrite)

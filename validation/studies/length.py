@@ -7,7 +7,7 @@ uncertainty in the budget) and once with L fitted. Reported per grid point: the 
 mu and the median u_mu of each, the fitted L's median uncertainty against the nominal 0.5 mm,
 and the coverage of each (|z| <= 2).
 
-``python -m validation.length_study --out DIR`` writes DIR/length_study.csv and prints the
+``python -m validation.studies.length --out DIR`` writes DIR/length_study.csv and prints the
 table.
 """
 
@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from validation.coverage import draw_case, run_case
+from validation.studies.coverage import draw_case, run_case
 
 SECONDS = (0.5, 1.0, 2.0, 4.0)
 MUS = (0.005, 0.0079, 0.02, 0.05)
@@ -63,7 +63,7 @@ def table(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m validation.length_study", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m validation.studies.length", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seeds", type=int, default=5)
     p.add_argument("--out", required=True)

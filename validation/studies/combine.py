@@ -2,10 +2,11 @@
 
 Each **setup** draws, once, what every release of it shares: the ball and its true mu, the
 as-built trough radius, ball diameter, trough centre, frame rate and pixel size from the lab's
-tolerances (:data:`validation.coverage.TOLERANCE`, about the nominal setup), the locator's noise
+tolerances (:data:`validation.studies.coverage.TOLERANCE`, about the nominal setup), the locator's
+noise
 level and correlation and the record length. Its **releases** (``releases`` of them) each draw
 their own release angle (6-30 deg, to either side) and their own noise. As in
-:mod:`validation.coverage`, the ball's path is the reference ODE on the as-built trough,
+:mod:`validation.studies.coverage`, the ball's path is the reference ODE on the as-built trough,
 sampled at the as-built frame rate and projected with the as-built scale and centre; the
 measurement sees only the nominal setup with its ``_u`` keys, fits and runs the budget
 (:func:`rollfric.uncertainty.budget.budget`) of each release, and the releases' fit.json keys are
@@ -16,7 +17,7 @@ truth within U (k = 2) in about 95 % of the setups and within u in about 68 %. T
 ratios are compared with their distribution for consistent releases (chi2 with N - 1 degrees
 of freedom: 2.5 % above the 95 % range).
 
-``python -m validation.combine_study --setups 200 --releases 5 --out DIR`` writes
+``python -m validation.studies.combine --setups 200 --releases 5 --out DIR`` writes
 DIR/combine_study.csv (one row a setup), DIR/combine_study.json (the fractions) and
 DIR/combine_study.png (z and the Birge ratios); :func:`run_study` does the same in Python.
 """
@@ -37,7 +38,7 @@ from rollfric.fit.estimate import fit_mu
 from rollfric.setup.model import THESIS_BALLS, Setup
 from rollfric.uncertainty.budget import Measurement, budget
 from rollfric.uncertainty.combine import birge_range, combine, run_from_fit
-from validation.coverage import _centres, drawn_as_built, drawn_setups, misses
+from validation.studies.coverage import _centres, drawn_as_built, drawn_setups, misses
 
 RELEASE_SEEDS = 1000  # release k of setup s draws its noise with seed s * RELEASE_SEEDS + k
 
@@ -288,7 +289,7 @@ def run_study(setups: int, releases: int, out: Path | None = None, seed: int = 0
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m validation.combine_study", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m validation.studies.combine", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--setups", type=int, default=200)
     p.add_argument("--releases", type=int, default=5)

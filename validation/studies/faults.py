@@ -1,6 +1,6 @@
-"""The verdicts' hit and false-alarm rates: ``python -m validation.fault_study``.
+"""The verdicts' hit and false-alarm rates: ``python -m validation.studies.faults``.
 
-For each of the lab's faults (:mod:`validation.faults`), over a few sizes and seeds,
+For each of the lab's faults (:mod:`validation.faults.recordings`), over a few sizes and seeds,
 :func:`rollfric.measure` on the faulty drawn recording: mu's error against the truth in units
 of the budget's U(mu) (:func:`rollfric.uncertainty.budget.budget`), the verdict ("ok", "suspect" or
 "refused": an InputError / SetupError, the command's exit 2) and whether the fault was named
@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from validation.faults import Family, Recording, clean, faulty
+from validation.faults.recordings import Family, Recording, clean, faulty
 
-# fault -> the sizes studied (units in validation.faults)
+# fault -> the sizes studied (units in validation.faults.recordings)
 SIZES = {
     "held": (20, 60, 200),  # frames at 200 Hz: 0.1, 0.3, 1 s
     "rest": (0.5, 0.75),  # the rest's start, share of the recording
@@ -287,10 +287,10 @@ def run_study(*, seeds: int = 3, clean_seeds: int = 15, faults=None, families=No
             clean_rows.append(row)
             log(f"[{fam}] " + _line(row))
     return {
-        "what": ("rollfric.measure on drawn recordings (validation.drawn_frames: 480 x 280 px, "
+        "what": ("rollfric.measure on drawn recordings (synth.drawn.frames: 480 x 280 px, "
                  "200 px trough, 400 frames at 200 Hz, mu 0.01 from 0.3 rad unless the family "
                  "says otherwise; the lab's center_px in the setup, no _u keys: U(mu) is the "
-                 "statistical part and the air's), faults from validation.faults"),
+                 "statistical part and the air's), faults from validation.faults.recordings"),
         "seeds": seeds, "clean_seeds": clean_seeds,
         "faults": fault_summary(fault_rows), "clean": clean_summary(clean_rows),
         "fault_rows": fault_rows, "clean_rows": clean_rows,
@@ -306,7 +306,7 @@ def _line(r) -> str:
 
 def main(argv=None) -> int:
     """The command line: run the study, print the tables, write the JSON."""
-    p = argparse.ArgumentParser(prog="python -m validation.fault_study",
+    p = argparse.ArgumentParser(prog="python -m validation.studies.faults",
                                 description=__doc__.split("\n\n")[0])
     p.add_argument("--seeds", type=int, default=3, help="seeds per fault size (default 3)")
     p.add_argument("--clean-seeds", type=int, default=15,

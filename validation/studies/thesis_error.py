@@ -12,7 +12,7 @@ the magnitude, 1 % tolerance). Then a combination at a lab's typical magnitudes.
 Assumed, as the thesis does not say: release at rest from 20 deg, 4 s of 1000 Hz frames (its
 "typical sequence"), the full 1280 x 1024 camera.
 
-``python -m validation.thesis_error --json docs/data/thesis_error.json --plots docs/img``
+``python -m validation.studies.thesis_error --json docs/data/thesis_error.json --plots docs/img``
 writes the JSON the docs render (:func:`render_markdown`, docs hook) and the residual plots.
 """
 
@@ -342,12 +342,12 @@ def render_markdown(data: dict) -> str:
 
 
 def main(argv=None) -> int:
-    """``python -m validation.thesis_error --json PATH [--plots DIR]``."""
+    """``python -m validation.studies.thesis_error --json PATH [--plots DIR]``."""
     import argparse
 
     from rollfric.output.atomic import write_text
 
-    ap = argparse.ArgumentParser(prog="python -m validation.thesis_error",
+    ap = argparse.ArgumentParser(prog="python -m validation.studies.thesis_error",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--json", required=True, help="where to write the JSON")
     ap.add_argument("--plots", default=None, help="folder for the residual plots")

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from validation.bench_table import Row
-from validation.bench_table import fmt as _fmt
+from validation.bench.table import Row
+from validation.bench.table import fmt as _fmt
 
 
 def median_time(fn, repeats: int, warmup: bool = True) -> tuple[float, object]:
@@ -149,8 +149,8 @@ def bench_sim(quick: bool) -> list[Row]:
 def bench_render(quick: bool) -> list[Row]:
     """synth's tile frames (lean path, pyrender's path) vs stock pyrender's full frame of the
     same scene, where a frame's time goes, a whole recording, its size and reads
-    (synth.bench)."""
-    from synth.bench import render_benchmark
+    (validation.bench.render)."""
+    from validation.bench.render import render_benchmark
 
     r = render_benchmark(quick=quick)
     frame = f"{r['frame']} {r['projection']}, {r['lamps']} lamps, shadows {r['shadows']}"
@@ -310,7 +310,7 @@ def _pixels(frame: str) -> int:
 
 # ----------------------------------------------------------------------------- recognition
 def bench_recognition(quick: bool) -> list[Row]:
-    from validation.bench_locate import bench_recognition as rows
+    from validation.bench.locate import bench_recognition as rows
 
     return rows(quick)
 
@@ -404,7 +404,7 @@ def bench_e2e(quick: bool) -> list[Row]:
     if quick:
         case["scenario"]["motion"]["seconds"] = 0.3
         note = "the default validate case cut to 0.3 s (--quick), in a new process"
-    from synth.bench import stock_frame_times
+    from validation.bench.render import stock_frame_times
 
     # the baseline beside each run: stock frames just before and just after it (the machine's
     # speed drifts within minutes, by more than 10 %: one run's ratio ranged 92.6-124x over
@@ -429,7 +429,7 @@ def bench_e2e(quick: bool) -> list[Row]:
             for k, v in sorted(m.items()) if k.startswith("t_") and k.endswith("_s")
             and k != "t_total_s"]
     if m.get("t_measure_s", 0) > 0:
-        from validation.bench_locate import throughput
+        from validation.bench.locate import throughput
 
         fps = m["n_frames"] / m["t_measure_s"]
         rows.append(Row("end-to-end", "measure a synth recording end to end, open to fit, "
@@ -509,7 +509,7 @@ def to_markdown(rows: list[Row], meta: dict) -> str:
 
 
 def bench_sweeps(quick: bool) -> list[Row]:
-    from validation.bench_sweep import bench_sweeps as rows
+    from validation.bench.sweep import bench_sweeps as rows
 
     return rows(quick)
 
@@ -521,7 +521,7 @@ SECTIONS = {
     "recognition": bench_recognition,
     "end-to-end": bench_e2e,
     "sweeps": bench_sweeps,
-}  # keys match validation.cli_bench.SECTION_NAMES
+}  # keys match validation.bench.cli.SECTION_NAMES
 
 
 # what bench writes into its folder (--overwrite replaces only these)

@@ -1,7 +1,7 @@
 """The error budget of the ``systematics`` study: what each lab error source does to mu.
 
 ``rollfric sweep systematics --out OUT`` runs each source alone over its range (blind mode);
-``python -m validation.systematics OUT --json docs/data/systematics.json`` turns its results
+``python -m validation.studies.systematics OUT --json docs/data/systematics.json`` turns its results
 into the study's JSON (one row a case: the source, its magnitude, whether rollfric's correction
 was on, how the case was run, mu bias, the thesis's relative error, theta rms), and
 :func:`budget_table` / :func:`render_markdown` turn that JSON into the docs' error-budget table
@@ -483,12 +483,12 @@ def study_json(out: str | Path, note: str = "") -> dict:
 
 
 def main(argv=None) -> int:
-    """``python -m validation.systematics OUT --json PATH [--note TEXT]``."""
+    """``python -m validation.studies.systematics OUT --json PATH [--note TEXT]``."""
     import argparse
 
     from rollfric.output.atomic import write_text
 
-    ap = argparse.ArgumentParser(prog="python -m validation.systematics",
+    ap = argparse.ArgumentParser(prog="python -m validation.studies.systematics",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("out", help="the systematics sweep's --out folder")
     ap.add_argument("--json", required=True, help="where to write the study JSON")

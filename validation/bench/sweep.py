@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from validation.bench_table import Row
+from validation.bench.table import Row
 
 WORKERS = 2
 

@@ -1,4 +1,5 @@
-"""Benchmarks of the synth renderer (called by ``rollfric bench``; also ``python -m synth.bench``).
+"""Benchmarks of the synth renderer (called by ``rollfric bench``; also ``python -m
+validation.bench.render``).
 
 Compares, side by side in one run on the same scene: the plain pyrender full-frame render (the
 "stock" way: one OffscreenRenderer.render of the whole 1280 x 1024 frame with the ball, with
@@ -420,7 +421,7 @@ def main(argv=None) -> int:
     import argparse
     import json
 
-    p = argparse.ArgumentParser(prog="python -m synth.bench", description=__doc__)
+    p = argparse.ArgumentParser(prog="python -m validation.bench.render", description=__doc__)
     p.add_argument("--full", action="store_true", help="4000-frame sequence (minutes)")
     p.add_argument("--workers", type=int, default=2)
     args = p.parse_args(argv)

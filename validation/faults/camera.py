@@ -4,7 +4,7 @@
   an orthographic camera yawed (turned about the vertical) or pitched (about the horizontal)
   against the trough axis: the path's image is an ellipse, the ball's silhouette stays a disc
   of radius r (orthographic), so frames are drawn analytically
-  (:func:`validation.drawn_frames.make_frames`).
+  (:func:`synth.drawn.frames.make_frames`).
 - :func:`moved_frames`: frames shifted by a camera bump (a step from one frame on) or a drift
   (a shift growing linearly), sub-pixel by bilinear resampling (``cv2.warpAffine``), the edges
   replicated.

@@ -1,7 +1,7 @@
 """The lab's faults with a known truth: drawn recordings (fast, no renderer) made faulty as a
-lab's are, for the fault study (:mod:`validation.fault_study`) and the tests.
+lab's are, for the fault study (:mod:`validation.studies.faults`) and the tests.
 
-:func:`clean` draws a ball on the equation of motion (:mod:`validation.drawn_frames`) in a
+:func:`clean` draws a ball on the equation of motion (:mod:`synth.drawn.frames`) in a
 480 x 280 frame with a 200 px trough whose walls show on both sides (the static scene a
 camera's motion is measured on); :func:`faulty` makes one of :data:`FAULTS` of it:
 
@@ -19,7 +19,7 @@ camera's motion is measured on); :func:`faulty` makes one of :data:`FAULTS` of i
 - ``fps``, ``radius``: the setup's camera.fps or cylinder radius ``magnitude`` times the true;
 - ``gravity``: the setup's gravity ``magnitude`` m/s^2 (the motion has the standard g);
 - ``glitches``: ``magnitude`` of the frames each corrupt, swapped, repeated and flashed
-  (:func:`validation.glitches.glitch_frames`).
+  (:func:`validation.faults.glitches.glitch_frames`).
 
 Each returns a :class:`Recording`: the frames as a FrameSource, the setup as the lab would give
 it (wrong where the fault is the setup), the background, the true mu and what the fault is
@@ -36,8 +36,8 @@ import numpy as np
 from rollfric.fit import eom
 from rollfric.io.source import BaseSource
 from rollfric.setup.model import Setup
-from validation import camera_faults
-from validation.drawn_frames import Scene, make_frames
+from synth.drawn.frames import Scene, make_frames
+from validation.faults import camera as camera_faults
 
 R = 85.3e-3  # the trough's radius (m), 200 px
 PIX = R / 200.0
@@ -85,7 +85,7 @@ class Recording:
         The fault's size (its unit in :data:`FAULTS`' description).
     truth : dict
         What the fault is (e.g. ``held_frames``, ``bump_frame``, ``shift_px``).
-    scene : validation.drawn_frames.Scene
+    scene : synth.drawn.frames.Scene
         The drawn scene.
     """
 
@@ -269,7 +269,7 @@ def faulty(fault: str, magnitude: float, *, seed: int = 0,
         return _with(rec, fault, magnitude, true_setup=s, **{k: float(v)
                                                               for k, v in wrong.items()})
     # glitches
-    from validation.glitches import glitch_frames
+    from validation.faults.glitches import glitch_frames
 
     frames, glitches = glitch_frames(np.stack(rec.source.frames), seed=seed, rate=magnitude,
                                      centers=rec.centers, r_px=rec.scene.r_px)
