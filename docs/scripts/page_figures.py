@@ -356,6 +356,86 @@ def setup_quantities(df, setup, src, out):
     plt.close(fig)
 
 
+# -- the physics in the fit ------------------------------------------------------------------
+
+PHYSICS_BALLS = (("1.58mm", 0.0117), ("10mm", 0.0079), ("12.69mm", 0.0065))
+PHYSICS_ANGLES = (10, 20, 35)
+
+
+def physics_terms(setup, mu, theta, theta_dot):
+    """The terms of theta'' (rad/s^2) in rollfric's equation of motion with room air
+    (:mod:`rollfric.fit.air`): gravity, the rolling resistance's two parts, the drag, and
+    what buoyancy and added mass change in the gravity term."""
+    from rollfric.fit.air import ADDED_MASS_COEFFICIENT, air_of
+
+    air = air_of(setup)
+    beta, _, kd, *_ = air.coefficients(setup.ball_diameter / 2, setup.ball_mass)
+    L, g = setup.track_radius, setup.gravity
+    den = (1.4 + ADDED_MASS_COEFFICIENT * beta) * L
+    v = L * np.abs(theta_dot)
+    re = np.maximum(air.reynolds(v, setup.ball_diameter), 1e-9)
+    return {
+        "gravity, g sin(theta)": (1 - beta) * g * np.abs(np.sin(theta)) / den,
+        "rolling resistance, mu g cos(theta)": mu * (1 - beta) * g * np.cos(theta) / den,
+        "rolling resistance, mu L theta'^2": mu * (1 + ADDED_MASS_COEFFICIENT * beta) * L
+        * theta_dot**2 / den,
+        "air drag": kd * air.drag_coefficient(re) * v**2 / den,
+        "buoyancy and added mass": np.abs(g * np.sin(theta) * (1 / (1.4 * L)
+                                                               - (1 - beta) / den)),
+    }
+
+
+def physics(out, seconds=4.0):
+    """The physics in the fit: (a) the size of each term of the equation of motion over a
+    swing of the 10 mm ball, (b) what leaving the air out does to mu, against the u(mu)
+    that the drag law's own uncertainty leaves when it is in; fitted, not estimated."""
+    import rollfric
+    from rollfric.fit import eom
+    from rollfric.fit.air import ROOM_AIR_DENSITY, WALL_FACTOR_U, coefficients_of
+
+    t = np.arange(int(seconds * 1000)) / 1000.0
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11.5, 4.2),
+                                 gridspec_kw={"width_ratios": [1.15, 1]})
+    rows = []
+    for ball, mu in PHYSICS_BALLS:
+        s = rollfric.thesis_setup(ball, air_density=ROOM_AIR_DENSITY)
+        for deg in PHYSICS_ANGLES:
+            th, om, _ = eom.solve(np.radians(deg), 0.0, mu, t, track_radius=s.track_radius,
+                                  air=coefficients_of(s))
+            if ball == "10mm" and deg == 20:
+                span = t < 1.2
+                colours = ("0.2", "#34659c", "#6d9fd6", "#c0504d", "#8a8a8a")
+                terms = physics_terms(s, mu, th, om)
+                for (name, term), c in zip(terms.items(), colours, strict=True):
+                    ax.plot(t[span], np.maximum(term[span], 1e-9), color=c, lw=1.2, label=name)
+            fit = {}
+            for name, su in (("none", s.replace(air_density=0.0)), ("model", s),
+                             ("hi", s.replace(air_wall_factor=s.air_wall_factor + WALL_FACTOR_U)),
+                             ("lo", s.replace(air_wall_factor=s.air_wall_factor - WALL_FACTOR_U))):
+                fit[name] = rollfric.fit_mu(t, th, su, checks=False).mu
+            rows.append((ball, deg, 100 * (fit["none"] / mu - 1), 100 * (fit["model"] / mu - 1),
+                         100 * abs(fit["hi"] - fit["lo"]) / 2 / mu))
+    ax.set_yscale("log")
+    ax.set_ylim(1e-6, 30)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("|term of theta''| (rad/s$^2$)")
+    ax.set_title("(a) the 10 mm ball released at 20 deg, room air", fontsize=10)
+    ax.legend(fontsize=7.5, loc="lower right", framealpha=0.9)
+    x = np.arange(len(rows))
+    bx.bar(x - 0.2, [r[2] for r in rows], 0.4, color="#c0504d", label="mu if the air is left out")
+    bx.bar(x + 0.2, [r[4] for r in rows], 0.4, color="#6d9fd6",
+           label="u(mu) of the drag law when it is in")
+    bx.set_yscale("log")
+    bx.set_xticks(x, [f"{r[0][:-2]} mm\n{r[1]} deg" for r in rows], fontsize=6.5)
+    bx.set_ylabel("% of mu")
+    bx.set_title("(b) the drag in mu: left out, and modelled", fontsize=10)
+    bx.legend(fontsize=7.5, loc="upper left")
+    fig.tight_layout()
+    fig.savefig(out, dpi=DPI)
+    plt.close(fig)
+    return rows
+
+
 def main() -> int:
     t0 = time.perf_counter()
     IMG.mkdir(parents=True, exist_ok=True)
@@ -367,7 +447,10 @@ def main() -> int:
     df, setup, src = _sample_track()
     track_columns(df, IMG / "track.png")
     setup_quantities(df, setup, src, IMG / "setup.png")
-    print(f"wrote 5 figures to {IMG.relative_to(ROOT)} in {time.perf_counter() - t0:.0f} s")
+    for ball, deg, none, model, u in physics(IMG / "physics.png"):
+        print(f"physics: {ball} at {deg} deg: mu {none:+.3f} % without the air, "
+              f"{model:+.4f} % with it, u(mu) of the drag law {u:.3f} %")
+    print(f"wrote 6 figures to {IMG.relative_to(ROOT)} in {time.perf_counter() - t0:.0f} s")
     return 0
 
 
