@@ -232,6 +232,106 @@ def architecture(out):
     plt.close(fig)
 
 
+# rollfric's own packages in the order the data passes through them
+INSIDE = ("cli", "measurement", "io", "locate", "track", "geometry", "fit", "uncertainty",
+          "output", "setup", "core")
+
+
+def _rollfric_part(path, root=ROOT) -> str:
+    """The part of rollfric a module belongs to: its subpackage, else "core" (errors, registry,
+    jit, parallel, sample, the package itself), "measurement" for the recipe module."""
+    parts = path.relative_to(root / "rollfric").with_suffix("").parts
+    if len(parts) > 1:
+        return parts[0]
+    return "measurement" if parts[0] == "measurement" else "core"
+
+
+def rollfric_modules(root=ROOT) -> dict[str, list[str]]:
+    """part -> its modules' names (no __init__), sorted."""
+    out: dict[str, list[str]] = {}
+    for p in sorted((root / "rollfric").rglob("*.py")):
+        if p.stem != "__init__":
+            out.setdefault(_rollfric_part(p, root), []).append(p.stem)
+    return out
+
+
+def rollfric_edges(root=ROOT) -> dict[tuple[str, str], int]:
+    """(importing part, imported part) -> number of import statements, inside rollfric."""
+    index = {}
+    for p in (root / "rollfric").rglob("*.py"):
+        parts = list(p.relative_to(root).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        index[".".join(parts)] = _rollfric_part(p, root)
+    edges: dict[tuple[str, str], int] = {}
+    for p in (root / "rollfric").rglob("*.py"):
+        me = _rollfric_part(p, root)
+        for node in ast.walk(ast.parse(p.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module \
+                    and node.module.startswith("rollfric"):
+                targets = [f"{node.module}.{a.name}" for a in node.names] + [node.module]
+            elif isinstance(node, ast.Import):
+                targets = [a.name for a in node.names if a.name.startswith("rollfric")]
+            else:
+                continue
+            for t in targets:
+                while t and t not in index:
+                    t = t.rpartition(".")[0]
+                if t and t != "rollfric" and index[t] != me:
+                    edges[(me, index[t])] = edges.get((me, index[t]), 0) + 1
+                    break
+    return edges
+
+
+def rollfric_inside(out):
+    """rollfric's packages in the data's order with their modules (left), and which imports
+    which, counted from the code (right: a row imports from a column)."""
+    mods = rollfric_modules()
+    parts = [p for p in INSIDE if p in mods]
+    edges = rollfric_edges()
+    fig = plt.figure(figsize=(12, 5.6))
+    ax = fig.add_axes([0.01, 0.02, 0.55, 0.9])
+    ax.set_xlim(0, 10)
+    ax.set_ylim(0, 10)
+    ax.axis("off")
+    flow = [p for p in ("io", "locate", "track", "geometry", "fit", "uncertainty", "output")
+            if p in mods]
+    boxes = {}
+    for i, part in enumerate(flow):
+        x = 0.75 + i * 1.4
+        text = part + "/\n" + "\n".join(mods[part])
+        boxes[part] = _box(ax, x, 5.2, 1.3, 5.6, text, fs=6.6)
+    for a, b in zip(flow, flow[1:], strict=False):
+        _arrow(ax, boxes[a], boxes[b])
+    top = "  ".join(f"{p}: {', '.join(mods[p])}" for p in ("cli", "measurement") if p in mods)
+    _box(ax, 5.0, 9.1, 9.6, 0.75, top, fc="#fff4e0", ec="#b8860b", fs=6.8)
+    bottom = "  ".join(f"{p}: {', '.join(mods[p])}" for p in ("setup", "core") if p in mods)
+    _box(ax, 5.0, 1.15, 9.6, 0.75, bottom, fc="white", ec="0.45", fs=6.8)
+    ax.text(0.1, 9.75, "the commands and the recipe (rollfric.measure) call the steps",
+            fontsize=8)
+    ax.text(0.1, 0.3, "used by every step: the setup, errors, the registries, the threads",
+            fontsize=8)
+    bx = fig.add_axes([0.64, 0.16, 0.34, 0.7])
+    m = np.zeros((len(parts), len(parts)))
+    for (a, b), n in edges.items():
+        if a in parts and b in parts:
+            m[parts.index(a), parts.index(b)] = n
+    bx.imshow(np.where(m > 0, np.log1p(m), np.nan), cmap="Blues", vmin=0,
+              vmax=np.log1p(m.max() or 1))
+    for (i, j), n in np.ndenumerate(m):
+        if n:
+            bx.text(j, i, int(n), ha="center", va="center", fontsize=6.5)
+    bx.set_xticks(range(len(parts)), parts, rotation=60, ha="right", fontsize=7.5)
+    bx.set_yticks(range(len(parts)), parts, fontsize=7.5)
+    bx.set_xlabel("imported", fontsize=8)
+    bx.set_ylabel("importing", fontsize=8)
+    bx.set_title("import statements between rollfric's parts\n(read from the code)",
+                 fontsize=9)
+    fig.suptitle("rollfric inside: the data's way through its packages", fontsize=10)
+    fig.savefig(out, dpi=DPI)
+    plt.close(fig)
+
+
 # -- formats ------------------------------------------------------------------------------------
 
 def _sample_track():
@@ -443,6 +543,7 @@ def main() -> int:
     print(f"combine: mu = {c.mu:.6g}, u = {c.mu_u:.2g}, Birge ratio {c.birge_ratio:.3g}")
     safety(IMG / "safety.png")
     architecture(IMG / "architecture.png")
+    rollfric_inside(IMG / "rollfric.png")
     print(f"imports between the packages: {sorted(import_edges())}")
     df, setup, src = _sample_track()
     track_columns(df, IMG / "track.png")
@@ -450,7 +551,7 @@ def main() -> int:
     for ball, deg, none, model, u in physics(IMG / "physics.png"):
         print(f"physics: {ball} at {deg} deg: mu {none:+.3f} % without the air, "
               f"{model:+.4f} % with it, u(mu) of the drag law {u:.3f} %")
-    print(f"wrote 6 figures to {IMG.relative_to(ROOT)} in {time.perf_counter() - t0:.0f} s")
+    print(f"wrote 7 figures to {IMG.relative_to(ROOT)} in {time.perf_counter() - t0:.0f} s")
     return 0
 
 
