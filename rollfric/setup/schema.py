@@ -178,10 +178,12 @@ class Messages:
     unknown_key: str = "{source}: unknown key {section}.{key} (known: {known})"
     missing_key: str = "{source}: missing key {section}.{key}"
     kind: str = "{source}: {section}.{key} must be {kind}, got {value!r}"
-    finite: str = "{source}: {section}.{key} must be finite, got {value!r}"
+    finite: str | None = "{source}: {section}.{key} must be finite, got {value!r}"  # None:
+    # any float is taken (a later check of the value decides)
     sign: str = "{source}: {section}.{key} must be positive, got {value!r}"
     choice: str = "{source}: {section}.{key} must be one of {known}, got {value!r}"
     hint: str = "{source}: {section}.{key} {hint}, got {value!r}"
+    label: str = "{source}: {section}.{key}"  # how a range's message names the key
     kind_names: tuple = (("number", "a number"), ("str", "a string"))
 
 
@@ -191,7 +193,7 @@ class Schema:
 
     ``required``: the sections a file must have; ``tables``: the sections that are free tables
     (checked by their own reader); ``uncertain_note``: what an unknown key's message adds when
-    the file's keys take ``K_u`` partners.
+    the file's keys take ``K_u`` partners (empty: they take none, and a ``K_u`` key is unknown).
     """
 
     sections: dict
@@ -261,18 +263,19 @@ def check_value(schema: Schema, section: str, key: Key, value: Any, source: str)
             return _fail(schema, m.hint, hint=key.hint, **where)
         return _fail(schema, template, **where, **more)
 
-    if "any" in key.kinds:
-        return value  # read by its own reader
     if not any(_is_kind(value, k) for k in key.kinds):
         raise bad(m.kind, kind=_kind_name(schema, key.kinds))
     if key.kinds == ("float",) and isinstance(value, int):
         value = float(value)
     if key.choices and value not in key.choices:
         raise bad(m.choice, known=", ".join(map(str, key.choices)))
+    if "any" in key.kinds:
+        return value  # read by its own reader
     if key.kinds == ("pair",):
         return tuple(float(v) for v in value)
     numeric = isinstance(value, (int, float)) and not isinstance(value, bool)
-    if numeric and key.kinds != ("int",) and not math.isfinite(value):
+    if numeric and m.finite is not None and key.kinds != ("int",) \
+            and not math.isfinite(value):
         raise bad(m.finite)
     if numeric and ((key.sign == ">0" and value <= 0) or (key.sign == ">=0" and value < 0)):
         raise bad(m.sign)
@@ -282,7 +285,7 @@ def check_value(schema: Schema, section: str, key: Key, value: Any, source: str)
         return value
     si = key.unit.to_si(value)
     if key.plausible is not None:
-        check_plausible(key.plausible, si, schema.error, f"{source}: {section}.{key.name}",
+        check_plausible(key.plausible, si, schema.error, m.label.format(**where),
                         key.unit.per, key.unit.name or PLAUSIBLE[key.plausible][2])
     return si
 
@@ -315,7 +318,7 @@ def check_table(schema: Schema, section: str, table: dict, source: str) -> None:
     keys = schema.keys(section)
     for name in table:
         base = name[:-2] if name.endswith("_u") else None
-        if base is not None and base in keys:
+        if base is not None and base in keys and schema.uncertain_note:
             check_partner(schema, section, keys[base], table, source)
             continue
         if name not in keys:
