@@ -313,9 +313,10 @@ SETUP_SCHEMA = Schema(
                 uncertain=True),
             Key("pixel_size_mm", field="pixel_size", unit=MM, required=True, sign=">0",
                 plausible="pixel_size", uncertain=True),
-            Key("matrix", "any", uncertain="own"),  # the lens (rollfric.setup.lens)
-            Key("distortion", "any", uncertain="own"),
-            Key("image_size_px", "any"),
+            # the lens, read by rollfric.setup.lens
+            Key("matrix", "any", uncertain="own", read=False),
+            Key("distortion", "any", uncertain="own", read=False),
+            Key("image_size_px", "any", read=False),
             Key("working_distance_mm", field="working_distance", unit=MM, sign=">0"),
             Key("bit_depth", "int", bounds=(1, 16),
                 hint="must be the camera's effective bit depth, a whole number of bits 1..16 "

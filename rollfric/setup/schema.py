@@ -138,6 +138,9 @@ class Key:
     hint : str or None
         How every message about a bad value says what is wanted (``"must be [x, y] in
         pixels"``), instead of the :class:`Messages` wording.
+    read : bool
+        False: only its name is checked here; another reader reads its value (and it is left
+        out of what :func:`read_section` returns).
     """
 
     name: str
@@ -152,6 +155,7 @@ class Key:
     choices: tuple = ()
     uncertain: bool | str = False
     hint: str | None = None
+    read: bool = True
 
     @property
     def target(self) -> str:
@@ -307,7 +311,7 @@ def check_names(schema: Schema, data: dict, source: str, extra: tuple = ()) -> N
             raise _fail(schema, m.missing_section, source=source, section=section)
     for section, table in data.items():
         if not isinstance(table, dict):
-            raise _fail(schema, m.not_table, source=source, section=section)
+            raise _fail(schema, m.not_table, source=source, section=section, value=table)
         if section in schema.sections:
             check_table(schema, section, table, source)
 
@@ -381,11 +385,23 @@ def read_section(schema: Schema, section: str, table: dict, source: str) -> dict
     and in SI units, under their :attr:`Key.target` names, in the order declared."""
     out = {}
     for key in schema.sections[section]:
+        if not key.read:
+            continue
         if key.name in table:
             out[key.target] = check_value(schema, section, key, table[key.name], source)
         elif key.default is not MISSING:
             out[key.target] = key.default
     return out
+
+
+def check_section(schema: Schema, section: str, table: Any, source: str) -> dict:
+    """One section checked (a table, its keys known and present as required) and read
+    (:func:`read_section`)."""
+    if not isinstance(table, dict):
+        raise _fail(schema, schema.messages.not_table, source=source, section=section,
+                    value=table)
+    check_table(schema, section, table, source)
+    return read_section(schema, section, table, source)
 
 
 def check_file(schema: Schema, data: dict, source: str, extra: tuple = ()) -> dict:
