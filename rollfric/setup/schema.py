@@ -172,7 +172,8 @@ class Messages:
     """A file's wording of each fault, as ``str.format`` templates.
 
     The fields ``{source}`` (where the file came from), ``{section}``, ``{key}``, ``{value}``,
-    ``{known}`` (the names allowed) and ``{kind}`` (what was wanted) are filled in.
+    ``{known}`` (the names allowed), ``{kind}`` (what was wanted) and ``{sign}`` (the range
+    wanted: ``sign_words``) are filled in.
     ``kind_names``: how ``{kind}`` names a kind (absent: the Python type's name).
     """
 
@@ -189,6 +190,7 @@ class Messages:
     hint: str = "{source}: {section}.{key} {hint}, got {value!r}"
     label: str = "{source}: {section}.{key}"  # how a range's message names the key
     kind_names: tuple = (("number", "a number"), ("str", "a string"))
+    sign_words: tuple = ((">0", "positive"), (">=0", ">= 0"))  # {sign} in the sign message
 
 
 @dataclasses.dataclass(frozen=True)
@@ -282,9 +284,9 @@ def check_value(schema: Schema, section: str, key: Key, value: Any, source: str)
             and not math.isfinite(value):
         raise bad(m.finite)
     if numeric and ((key.sign == ">0" and value <= 0) or (key.sign == ">=0" and value < 0)):
-        raise bad(m.sign)
+        raise bad(m.sign, sign=dict(m.sign_words)[key.sign])
     if numeric and key.bounds is not None and not key.bounds[0] <= value <= key.bounds[1]:
-        raise bad(m.sign)
+        raise bad(m.sign, sign=f"{key.bounds[0]}..{key.bounds[1]}")
     if not numeric or key.kinds == ("int",) or "bool" in key.kinds:
         return value
     si = key.unit.to_si(value)
