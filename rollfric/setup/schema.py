@@ -183,8 +183,8 @@ class Messages:
     unknown_key: str = "{source}: unknown key {section}.{key} (known: {known})"
     missing_key: str = "{source}: missing key {section}.{key}"
     kind: str = "{source}: {section}.{key} must be {kind}, got {value!r}"
-    finite: str | None = "{source}: {section}.{key} must be finite, got {value!r}"  # None:
-    # any float is taken (a later check of the value decides)
+    # None: any float is taken (a later check of the value decides)
+    finite: str | None = "{source}: {section}.{key} must be finite, got {value!r}"
     sign: str = "{source}: {section}.{key} must be positive, got {value!r}"
     choice: str = "{source}: {section}.{key} must be one of {known}, got {value!r}"
     hint: str = "{source}: {section}.{key} {hint}, got {value!r}"
@@ -197,9 +197,9 @@ class Messages:
 class Schema:
     """A file's sections (name -> its keys, in the order they are checked) and its wording.
 
-    ``required``: the sections a file must have; ``tables``: the sections that are free tables
-    (checked by their own reader); ``uncertain_note``: what an unknown key's message adds when
-    the file's keys take ``K_u`` partners (empty: they take none, and a ``K_u`` key is unknown).
+    ``required``: the sections a file must have; ``uncertain_note``: what an unknown key's
+    message adds when the file's keys take ``K_u`` partners (empty: they take none, and a
+    ``K_u`` key is unknown).
     """
 
     sections: dict
