@@ -49,6 +49,7 @@ from rollfric.setup.schema import (
     BENCH_GRAM,
     BENCH_MM,
     DEG,
+    NONE,
     PLAUSIBLE,
     Key,
     Messages,
@@ -329,11 +330,7 @@ class Scenario:
 
 def to_si(value: float, unit: str) -> float:
     """Bench unit -> SI: mm and g divide by 1000 (exact for typed decimals), deg -> rad."""
-    if unit in ("mm", "g"):
-        return float(value) / 1000.0
-    if unit == "deg":
-        return math.radians(value)
-    return float(value)
+    return {"mm": BENCH_MM, "g": BENCH_GRAM, "deg": DEG}.get(unit, NONE).to_si(value)
 
 
 # The TOML form (bench units): section -> keys; [engine]'s values are checked by Scenario
