@@ -12,6 +12,7 @@ by default, or on the naive faceted surfaces a user would build first: ``mesh``,
 
 from __future__ import annotations
 
+from rollfric.io.limits import check_memory
 from sim.scenario import (
     ENGINES,
     SURFACES,
@@ -32,8 +33,6 @@ def simulate(scenario: Scenario, progress: bool = False) -> Trajectory:
     """Run one scenario on its engine and return the ground truth at the camera rate."""
     if not isinstance(scenario, Scenario):
         raise ScenarioError(f"simulate() needs a sim.Scenario, got {type(scenario).__name__}")
-    from rollfric.io.limits import check_memory
-
     # the trajectory's 15 columns, the engine's own arrays and the CSV text: ~4 copies
     check_memory(4 * 15 * 8 * scenario.n_samples,
                  f"a trajectory of {scenario.n_samples:,} samples")

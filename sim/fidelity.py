@@ -19,6 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
+import sim
+from rollfric.fit.estimate import fit_mu
+from rollfric.output.atomic import write_text
 from sim.engines import ENGINES
 
 BALLS = ("1.58mm", "10mm", "12.69mm")
@@ -51,9 +54,6 @@ def fidelity_table(engines=tuple(ENGINES), *, balls=BALLS, mus=MUS,
     """
     import pandas as pd
     from tqdm import tqdm
-
-    import sim
-    from rollfric.fit.estimate import fit_mu
 
     if naive not in ("subset", "all", "none"):
         raise sim.ScenarioError(f"naive must be subset, all or none, got {naive!r}")
@@ -131,8 +131,6 @@ def to_markdown(table, duration: float = 4.0) -> str:
 
 
 def write_report(table, out_dir, duration: float = 4.0) -> tuple[Path, Path]:
-    from rollfric.output.atomic import write_text
-
     out_dir = Path(out_dir)
     return (write_text(out_dir / "sim_fidelity.csv",
                        table.to_csv(index=False, float_format="%.10g")),

@@ -47,7 +47,7 @@ import math
 
 import numpy as np
 
-from rollfric.fit.air import Air
+from rollfric.fit.air import ADDED_MASS_COEFFICIENT, Air
 from rollfric.fit.eom import drag_accel, solve_segments
 
 AIR_VISCOSITY = 1.81e-5  # Pa s, air at 20 C (for the Reynolds number only)
@@ -186,8 +186,6 @@ def _law_accel(mu, losses: Losses, L, ball_radius, ball_mass, gravity):
     """theta''(theta, theta', s) with rollfric.fit.air's drag law, buoyancy and added mass,
     written out (not the fitter's compiled kernel): (7/5 m + C_a rho V) L theta'' =
     -[(m - rho V) g sin + s (mu((m - rho V) g cos + (m + C_a rho V) L theta'^2) + D)]."""
-    from rollfric.fit.air import ADDED_MASS_COEFFICIENT
-
     a = losses.air().coefficients(ball_radius, ball_mass)
     beta = a[0]
     ca = ADDED_MASS_COEFFICIENT * beta

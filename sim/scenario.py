@@ -40,19 +40,27 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
-from typing import Any
+
+import numpy as np
 
 from rollfric.io.limits import MAX_SAMPLES
-from rollfric.setup.model import (
+from rollfric.setup.model import THESIS_BALLS, THESIS_TROUGH_RADIUS, Setup
+from rollfric.setup.schema import (
+    BENCH_GRAM,
+    BENCH_MM,
+    DEG,
+    NONE,
     PLAUSIBLE,
-    THESIS_BALLS,
-    THESIS_TROUGH_RADIUS,
-    Setup,
-    check_plausible,
+    Key,
+    Messages,
+    Schema,
+    check_file,
+    read_section,
 )
 from rollfric.setup.tomlfile import read_toml
 from sim.engines import ENGINES
 from sim.errors import ScenarioError
+from sim.section import Section
 
 SURFACES = {
     "reference": ("tangent",),
@@ -71,6 +79,108 @@ _OPTIONAL_FIELDS = ("ovality", "ovality_angle", "tilt")
 
 def _option_defaults(engine: str) -> dict:
     return ENGINES.load(engine).DEFAULTS
+
+
+_POSITIVE, _FINITE = "must be a positive number", "must be a finite number"
+_NONNEG = "must be a finite number >= 0"
+# The Python form's fields, in the order they are checked (rollfric.setup.schema)
+FIELDS = Schema(
+    sections={"fields": (
+        *(Key(name, sign=">0", plausible=name if name in PLAUSIBLE else None, hint=_POSITIVE)
+          for name in ("ball_diameter", "ball_mass", "cylinder_radius", "duration", "fps",
+                       "gravity", "pixel_size")),
+        *(Key(name, hint=_FINITE) for name in ("mu", "theta0", "theta_dot0")),
+        *(Key(name, sign=">=0", hint=_NONNEG) for name in ("mu_speed", "air_density",
+                                                           "air_cd")),
+        Key("air_drag", "any", choices=AIR_DRAGS),
+        *(Key(name, hint=_FINITE) for name in ("ovality", "ovality_angle", "tilt")),
+        Key("seed", "int", sign=">=0", hint="must be a non-negative integer"),
+        Key("engine_options", "table", hint="must be a table"))},
+    error=ScenarioError,
+    messages=Messages(hint="{key} {hint}, got {value!r}", label="{key}",
+                      choice="{key} must be one of {known}, got {value!r}"),
+)
+
+
+def _check_trough(s: Scenario) -> None:
+    """The bore's ovality and tilt within their ranges; the ball fits the trough."""
+    if not 0 <= s.ovality <= MAX_OVALITY * s.cylinder_radius:
+        raise ScenarioError(
+            f"ovality ({s.ovality * 1e3:g} mm) must be between 0 and "
+            f"{MAX_OVALITY:g} x the radius ({MAX_OVALITY * s.cylinder_radius * 1e3:g} mm)")
+    if abs(s.tilt) > math.radians(MAX_TILT_DEG):
+        raise ScenarioError(f"tilt ({math.degrees(s.tilt):g} deg) is beyond "
+                            f"+-{MAX_TILT_DEG:g} deg")
+    if s.ball_diameter >= 2 * s.cylinder_radius:
+        raise ScenarioError(
+            f"ball_diameter ({s.ball_diameter * 1e3:g} mm) must be smaller than the "
+            f"trough diameter (2 x cylinder_radius = {s.cylinder_radius * 2e3:g} mm)")
+
+
+def _check_swing(s: Scenario) -> None:
+    """The release angle, and the highest angle its speed reaches, within the trough wall."""
+    if abs(s.theta0) > math.radians(MAX_THETA0_DEG):
+        raise ScenarioError(
+            f"theta0 ({math.degrees(s.theta0):g} deg) is beyond +-{MAX_THETA0_DEG:g} deg: "
+            "the ball would leave the trough wall or slip")
+    # energy of rolling without slipping, (7/10) m (L theta')^2 = m g L (cos th - cos th0):
+    # the highest angle the release speed reaches without friction
+    try:
+        cos_max = math.cos(s.theta0) - 0.7 * s.track_radius * s.theta_dot0 ** 2 / s.gravity
+    except OverflowError:
+        cos_max = -math.inf
+    if cos_max < math.cos(math.radians(MAX_THETA0_DEG)):
+        reach = "over the top" if cos_max < -1 else \
+            f"to {math.degrees(math.acos(cos_max)):.4g} deg"
+        raise ScenarioError(
+            f"theta_dot0 ({math.degrees(s.theta_dot0):g} deg/s) at theta0 "
+            f"{math.degrees(s.theta0):g} deg would swing the ball {reach}, beyond "
+            f"+-{MAX_THETA0_DEG:g} deg: it would leave the trough wall or slip")
+
+
+def _check_engine(s: Scenario) -> None:
+    """A known engine, a surface it offers, and a trough and losses it can simulate."""
+    if s.engine not in ENGINES:
+        raise ScenarioError(f"unknown engine {s.engine!r} (known: {', '.join(ENGINES)})")
+    if s.surface not in SURFACES[s.engine]:
+        raise ScenarioError(
+            f"surface {s.surface!r} is not offered by engine {s.engine!r} "
+            f"(known: {', '.join(SURFACES[s.engine])})")
+    if s.tilt != 0.0 and s.engine == "reference":
+        raise ScenarioError(
+            "the reference engine integrates the planar equation of motion: a trough "
+            "tilted along its length (cylinder.tilt_deg) makes the ball also roll along "
+            "it, a 3D motion; simulate it with engine mujoco or pybullet")
+    if s.ovality != 0.0 and s.engine == "reference" and (
+            s.mu_speed != 0.0 or s.air_density != 0.0):
+        raise ScenarioError(
+            "the reference's out-of-round trough (cylinder.ovality_mm) has no "
+            "speed-dependent friction or air drag (sim.losses): use one or the other, or "
+            "engine mujoco or pybullet")
+    if (s.tilt != 0.0 or s.ovality != 0.0) and s.surface != "tangent":
+        raise ScenarioError(
+            f"surface {s.surface!r} is a round trough of limited length; an "
+            "out-of-round (cylinder.ovality_mm) or tilted (cylinder.tilt_deg) trough needs "
+            "surface \"tangent\"")
+
+
+def _check_engine_options(s: Scenario) -> dict:
+    """The engine settings, each known to the engine and of its default's type (> 0)."""
+    defaults = _option_defaults(s.engine)
+    for key, value in s.engine_options.items():
+        if key not in defaults:
+            raise ScenarioError(
+                f"unknown option {key!r} for engine {s.engine!r} "
+                f"(known: {', '.join(defaults) or 'none'})")
+        want = type(defaults[key])
+        if want is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if not isinstance(value, want) or (want is int and isinstance(value, bool)):
+            raise ScenarioError(f"engine option {key} must be {want.__name__}, "
+                                f"got {value!r}")
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and value <= 0:
+            raise ScenarioError(f"engine option {key} must be positive, got {value!r}")
+    return dict(sorted(s.engine_options.items()))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -107,106 +217,16 @@ class Scenario:
     # along +z, towards the camera
 
     def __post_init__(self) -> None:
-        for name in ("ball_diameter", "ball_mass", "cylinder_radius", "duration", "fps",
-                     "gravity", "pixel_size"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
-                    or v <= 0:
-                raise ScenarioError(f"{name} must be a positive number, got {v!r}")
-            if name in PLAUSIBLE:
-                check_plausible(name, float(v), ScenarioError)
-            object.__setattr__(self, name, float(v))
-        for name in ("mu", "theta0", "theta_dot0"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ScenarioError(f"{name} must be a finite number, got {v!r}")
-            object.__setattr__(self, name, float(v))
+        for name, value in read_section(FIELDS, "fields", {
+                key.name: getattr(self, key.name) for key in FIELDS.sections["fields"]},
+                "scenario").items():
+            object.__setattr__(self, name, value)
         if self.mu < 0:
             raise ScenarioError(f"mu must not be negative, got {self.mu!r}")
-        for name in ("mu_speed", "air_density", "air_cd"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
-                    or v < 0:
-                raise ScenarioError(f"{name} must be a finite number >= 0, got {v!r}")
-            object.__setattr__(self, name, float(v))
-        if self.air_drag not in AIR_DRAGS:
-            raise ScenarioError(f"air_drag must be one of {', '.join(AIR_DRAGS)}, "
-                                f"got {self.air_drag!r}")
-        for name in ("ovality", "ovality_angle", "tilt"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ScenarioError(f"{name} must be a finite number, got {v!r}")
-            object.__setattr__(self, name, float(v))
-        if not 0 <= self.ovality <= MAX_OVALITY * self.cylinder_radius:
-            raise ScenarioError(
-                f"ovality ({self.ovality * 1e3:g} mm) must be between 0 and "
-                f"{MAX_OVALITY:g} x the radius ({MAX_OVALITY * self.cylinder_radius * 1e3:g} mm)")
-        if abs(self.tilt) > math.radians(MAX_TILT_DEG):
-            raise ScenarioError(f"tilt ({math.degrees(self.tilt):g} deg) is beyond "
-                                f"+-{MAX_TILT_DEG:g} deg")
-        if self.ball_diameter >= 2 * self.cylinder_radius:
-            raise ScenarioError(
-                f"ball_diameter ({self.ball_diameter * 1e3:g} mm) must be smaller than the "
-                f"trough diameter (2 x cylinder_radius = {self.cylinder_radius * 2e3:g} mm)")
-        if abs(self.theta0) > math.radians(MAX_THETA0_DEG):
-            raise ScenarioError(
-                f"theta0 ({math.degrees(self.theta0):g} deg) is beyond +-{MAX_THETA0_DEG:g} deg: "
-                "the ball would leave the trough wall or slip")
-        # energy of rolling without slipping, (7/10) m (L theta')^2 = m g L (cos th - cos th0):
-        # the highest angle the release speed reaches without friction
-        try:
-            cos_max = math.cos(self.theta0) - 0.7 * self.track_radius * self.theta_dot0 ** 2 \
-                / self.gravity
-        except OverflowError:
-            cos_max = -math.inf
-        if cos_max < math.cos(math.radians(MAX_THETA0_DEG)):
-            reach = "over the top" if cos_max < -1 else \
-                f"to {math.degrees(math.acos(cos_max)):.4g} deg"
-            raise ScenarioError(
-                f"theta_dot0 ({math.degrees(self.theta_dot0):g} deg/s) at theta0 "
-                f"{math.degrees(self.theta0):g} deg would swing the ball {reach}, beyond "
-                f"+-{MAX_THETA0_DEG:g} deg: it would leave the trough wall or slip")
-        if self.engine not in ENGINES:
-            raise ScenarioError(f"unknown engine {self.engine!r} (known: {', '.join(ENGINES)})")
-        if self.surface not in SURFACES[self.engine]:
-            raise ScenarioError(
-                f"surface {self.surface!r} is not offered by engine {self.engine!r} "
-                f"(known: {', '.join(SURFACES[self.engine])})")
-        if self.tilt != 0.0 and self.engine == "reference":
-            raise ScenarioError(
-                "the reference engine integrates the planar equation of motion: a trough "
-                "tilted along its length (cylinder.tilt_deg) makes the ball also roll along "
-                "it, a 3D motion; simulate it with engine mujoco or pybullet")
-        if self.ovality != 0.0 and self.engine == "reference" and (
-                self.mu_speed != 0.0 or self.air_density != 0.0):
-            raise ScenarioError(
-                "the reference's out-of-round trough (cylinder.ovality_mm) has no "
-                "speed-dependent friction or air drag (sim.losses): use one or the other, or "
-                "engine mujoco or pybullet")
-        if (self.tilt != 0.0 or self.ovality != 0.0) and self.surface != "tangent":
-            raise ScenarioError(
-                f"surface {self.surface!r} is a round trough of limited length; an "
-                "out-of-round (cylinder.ovality_mm) or tilted (cylinder.tilt_deg) trough needs "
-                "surface \"tangent\"")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ScenarioError(f"seed must be a non-negative integer, got {self.seed!r}")
-        if not isinstance(self.engine_options, dict):
-            raise ScenarioError(f"engine_options must be a table, got {self.engine_options!r}")
-        defaults = _option_defaults(self.engine)
-        for key, value in self.engine_options.items():
-            if key not in defaults:
-                raise ScenarioError(
-                    f"unknown option {key!r} for engine {self.engine!r} "
-                    f"(known: {', '.join(defaults) or 'none'})")
-            want = type(defaults[key])
-            if want is float and isinstance(value, int) and not isinstance(value, bool):
-                value = float(value)
-            if not isinstance(value, want) or (want is int and isinstance(value, bool)):
-                raise ScenarioError(f"engine option {key} must be {want.__name__}, "
-                                    f"got {value!r}")
-            if isinstance(value, (int, float)) and not isinstance(value, bool) and value <= 0:
-                raise ScenarioError(f"engine option {key} must be positive, got {value!r}")
-        object.__setattr__(self, "engine_options", dict(sorted(self.engine_options.items())))
+        _check_trough(self)
+        _check_swing(self)
+        _check_engine(self)
+        object.__setattr__(self, "engine_options", _check_engine_options(self))
         n = self.duration * self.fps
         if n > MAX_SAMPLES:
             raise ScenarioError(f"duration x fps = {self.duration:g} s x {self.fps:g} Hz = "
@@ -227,8 +247,6 @@ class Scenario:
     @property
     def section(self):
         """The trough's cross-section (:class:`sim.section.Section`)."""
-        from sim.section import Section
-
         return Section(self.cylinder_radius, self.ovality, self.ovality_angle)
 
     @property
@@ -236,8 +254,6 @@ class Scenario:
         return int(math.floor(self.duration * self.fps + 1e-9)) + 1
 
     def times(self):
-        import numpy as np
-
         return np.arange(self.n_samples, dtype=float) / self.fps
 
     def options(self) -> dict:
@@ -314,62 +330,38 @@ class Scenario:
 
 def to_si(value: float, unit: str) -> float:
     """Bench unit -> SI: mm and g divide by 1000 (exact for typed decimals), deg -> rad."""
-    if unit in ("mm", "g"):
-        return float(value) / 1000.0
-    if unit == "deg":
-        return math.radians(value)
-    return float(value)
+    return {"mm": BENCH_MM, "g": BENCH_GRAM, "deg": DEG}.get(unit, NONE).to_si(value)
 
 
-_SCHEMA: dict[str, dict[str, tuple[str, str]]] = {
-    # section -> key -> (field, unit name: "mm"/"g" divide by 1000, "deg" to radians)
-    "cylinder": {"radius_mm": ("cylinder_radius", "mm"), "ovality_mm": ("ovality", "mm"),
-                 "ovality_angle_deg": ("ovality_angle", "deg"), "tilt_deg": ("tilt", "deg")},
-    "ball": {"diameter_mm": ("ball_diameter", "mm"), "mass_g": ("ball_mass", "g")},
-    "camera": {"fps": ("fps", ""), "pixel_size_mm": ("pixel_size", "mm")},
-    "environment": {"gravity_m_s2": ("gravity", ""),
-                    "air_density_kg_m3": ("air_density", ""), "air_cd": ("air_cd", ""),
-                    "air_drag": ("air_drag", "text")},
-    "motion": {"mu": ("mu", ""), "theta0_deg": ("theta0", "deg"),
-               "theta_dot0_deg_s": ("theta_dot0", "deg"),
-               "seconds": ("duration", ""), "mu_speed_s_m": ("mu_speed", "")},
-}
-_ENGINE_KEYS = ("name", "surface", "seed", "options")
+# The TOML form (bench units): section -> keys; [engine]'s values are checked by Scenario
+SCHEMA = Schema(
+    sections={
+        "cylinder": (Key("radius_mm", field="cylinder_radius", unit=BENCH_MM),
+                     Key("ovality_mm", field="ovality", unit=BENCH_MM),
+                     Key("ovality_angle_deg", field="ovality_angle", unit=DEG),
+                     Key("tilt_deg", field="tilt", unit=DEG)),
+        "ball": (Key("diameter_mm", field="ball_diameter", unit=BENCH_MM),
+                 Key("mass_g", field="ball_mass", unit=BENCH_GRAM)),
+        "camera": (Key("fps"), Key("pixel_size_mm", field="pixel_size", unit=BENCH_MM)),
+        "environment": (Key("gravity_m_s2", field="gravity"),
+                        Key("air_density_kg_m3", field="air_density"), Key("air_cd"),
+                        Key("air_drag", "str")),
+        "motion": (Key("mu"), Key("theta0_deg", field="theta0", unit=DEG),
+                   Key("theta_dot0_deg_s", field="theta_dot0", unit=DEG),
+                   Key("seconds", field="duration"), Key("mu_speed_s_m", field="mu_speed")),
+        "engine": (Key("name", "any", field="engine"), Key("surface", "any"),
+                   Key("seed", "any"), Key("options", "any", field="engine_options")),
+    },
+    error=ScenarioError,
+    messages=Messages(finite=None),
+)
 
 
 def scenario_from_dict(data: dict, source: str = "scenario") -> Scenario:
     """Build a Scenario from its TOML form, refusing unknown keys and non-numbers."""
     if not isinstance(data, dict):
         raise ScenarioError(f"{source}: must be a table of sections, got {data!r}")
-    kwargs: dict[str, Any] = {}
-    for section, table in data.items():
-        if section not in _SCHEMA and section != "engine":
-            raise ScenarioError(f"{source}: unknown section [{section}] "
-                                f"(known: {', '.join([*_SCHEMA, 'engine'])})")
-        if not isinstance(table, dict):
-            raise ScenarioError(f"{source}: [{section}] must be a table")
-        if section == "engine":
-            for key, value in table.items():
-                if key not in _ENGINE_KEYS:
-                    raise ScenarioError(f"{source}: unknown key engine.{key} "
-                                        f"(known: {', '.join(_ENGINE_KEYS)})")
-                field = {"name": "engine", "options": "engine_options"}.get(key, key)
-                kwargs[field] = value
-            continue
-        for key, value in table.items():
-            if key not in _SCHEMA[section]:
-                raise ScenarioError(f"{source}: unknown key {section}.{key} "
-                                    f"(known: {', '.join(_SCHEMA[section])})")
-            field, unit = _SCHEMA[section][key]
-            if unit == "text":
-                if not isinstance(value, str):
-                    raise ScenarioError(f"{source}: {section}.{key} must be a string, got "
-                                        f"{value!r}")
-                kwargs[field] = value
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ScenarioError(f"{source}: {section}.{key} must be a number, got {value!r}")
-            kwargs[field] = to_si(value, unit)
+    kwargs = check_file(SCHEMA, data, source)
     try:
         return Scenario(**kwargs)
     except ScenarioError as exc:

@@ -23,7 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
+from rollfric.io.limits import MAX_SAMPLES
 from rollfric.output.atomic import write_text
+from rollfric.setup.tomlfile import decode_utf8, read_text
 from sim.scenario import Scenario, ScenarioError, scenario_from_dict
 
 COLUMNS = ("t_s", "theta_rad", "theta_dot_rad_s", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz",
@@ -132,9 +134,6 @@ def read_trajectory(path: str | Path) -> Trajectory:
     non-numeric rows, NaN where a value is needed, times not increasing, a sidecar that is not
     the JSON object Trajectory.to_csv writes.
     """
-    from rollfric.io.limits import MAX_SAMPLES
-    from rollfric.setup.tomlfile import decode_utf8, read_text
-
     path = Path(path)
     side = sidecar_path(path)
     if not path.is_file():

@@ -81,6 +81,7 @@ import math
 from pathlib import Path
 
 from rollfric.errors import InputError
+from rollfric.setup.schema import Key, Messages, Schema, check_section
 from rollfric.setup.tomlfile import read_toml
 
 
@@ -88,12 +89,6 @@ class CaseError(InputError):
     """A validation case that cannot be run (the message names the bad key)."""
 
 
-RENDER_KEYS = {
-    "lighting": str, "intensity_scale": float, "lamp_spread": float, "lamp_dy_mm": float,
-    "lamp_dz_mm": float, "ambient": float, "noise": str, "motion_blur": int,
-    "supersample": int, "shadows": bool, "seed": int, "sensor": dict, "camera": dict,
-    "scene": dict, "lamps": list, "renderer": str, "timing": dict, "video": dict,
-}
 # render.camera angles in lab units: roll_deg (the trough bottom appears at +roll_deg), yaw_deg
 # and pitch_deg (the optical axis turned towards +x / +y about the ball plane's axis point)
 ANGLE_KEYS = {"roll_deg": "roll", "yaw_deg": "yaw", "pitch_deg": "pitch"}
@@ -101,15 +96,36 @@ ANGLE_KEYS = {"roll_deg": "roll", "yaw_deg": "yaw", "pitch_deg": "pitch"}
 # distance in focus from the lens (default: the working distance, the ball's plane) and the
 # lens's focal length (default 50 mm), both in mm
 MM_KEYS = {"focus_distance_mm": "focus_distance", "focal_length_mm": "focal_length"}
-# render.timing (synth.timing.FrameTiming in lab units) and render.video (synth.video)
-TIMING_KEYS = {"jitter_us": float, "drop_rate": float, "dropped": list, "timestamps": bool}
-VIDEO_KEYS = {"codec": str, "quality": int}
-MEASURE_KEYS = {"locator": str, "fit": str, "offset": (bool, str), "oracle": bool,
-                "budget": bool, "second_order": bool}
 LOCATORS = ("subpixel", "thesis-large", "thesis-small")
 FITS = ("lsq", "paper1_eps", "paper2_grid")
 TOP_KEYS = ("name", "scenario", "render", "lab", "measure")
 SCENARIO_SECTIONS = ("cylinder", "ball", "camera", "environment", "motion", "engine")
+
+# The case's own tables (rollfric.setup.schema); [scenario] and [lab] have their own readers,
+# render.sensor/camera/scene override synth's dataclasses (checked against their fields)
+CASE_SCHEMA = Schema(
+    sections={
+        "render": (
+            Key("lighting", "str"), Key("intensity_scale", "float"),
+            Key("lamp_spread", "float"), Key("lamp_dy_mm", "float"), Key("lamp_dz_mm", "float"),
+            Key("ambient", "float"), Key("noise", "str"), Key("motion_blur", "int"),
+            Key("supersample", "int"), Key("shadows", "bool"), Key("seed", "int"),
+            Key("sensor", "table"), Key("camera", "table"), Key("scene", "table"),
+            Key("lamps", "list"), Key("renderer", "str"), Key("timing", "table"),
+            Key("video", "table")),
+        # synth.timing.FrameTiming in lab units
+        "render.timing": (Key("jitter_us", "float"), Key("drop_rate", "float"),
+                          Key("dropped", "list"), Key("timestamps", "bool")),
+        "render.video": (Key("codec", "str"), Key("quality", "int")),  # synth.video
+        "measure": (Key("locator", "str", choices=LOCATORS), Key("fit", "str", choices=FITS),
+                    Key("offset", ("bool", "str")), Key("oracle", "bool"),
+                    Key("budget", "bool"), Key("second_order", "bool")),
+    },
+    error=CaseError,
+    messages=Messages(not_table="{source}: {section} must be a table, got {value!r}",
+                      unknown_key="unknown key {source}: {section}.{key} (known: {known})",
+                      kind_names=()),
+)
 
 DEFAULT_SECONDS = 2.0
 ROOM_AIR_DENSITY = 1.204  # kg/m^3, dry air at 20 C and 1013 hPa (sim.losses)
@@ -396,27 +412,6 @@ def _case_seeded_lab(d: dict) -> dict:
     return {**lab, "seed": int(case_id(rest), 16)}
 
 
-def _check_types(table: dict, schema: dict, where: str) -> dict:
-    if not isinstance(table, dict):
-        raise CaseError(f"{where} must be a table, got {table!r}")
-    out = {}
-    for k, v in table.items():
-        if k not in schema:
-            raise CaseError(f"unknown key {where}.{k} (known: {', '.join(schema)})")
-        want = schema[k]
-        if want is float and isinstance(v, int) and not isinstance(v, bool):
-            v = float(v)
-        ok = isinstance(v, want) and not (want in (int, float) and isinstance(v, bool))
-        if not ok:
-            name = " or ".join(w.__name__ for w in want) if isinstance(want, tuple) \
-                else want.__name__
-            raise CaseError(f"{where}.{k} must be {name}, got {v!r}")
-        if want is float and not math.isfinite(v):
-            raise CaseError(f"{where}.{k} must be finite, got {v!r}")
-        out[k] = v
-    return out
-
-
 def case_from_dict(d: dict, source: str = "case") -> Case:
     """Validate a case dict (as from TOML, merged over the defaults) into a :class:`Case`.
 
@@ -436,80 +431,26 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
     CaseError
         An unknown or bad key, named in the message.
     """
-    import sim
     from synth import config as sc
     from synth.camera import CameraModel
-    from validation.lab import apply_asbuilt, parse_lab
 
     d = merge_case(default_case_dict(), d, source)
-    r = _check_types(d.get("render", {}), RENDER_KEYS, f"{source}: render")
+    r = check_section(CASE_SCHEMA, "render", d.get("render", {}), source)
     try:
-        scenario = sim.scenario_from_dict(d.get("scenario", {}), source=f"{source} [scenario]")
-        as_toml = scenario.to_toml_dict()
-        cam_px = dict(r.get("camera", {})).get("pixel_size")
-        if isinstance(cam_px, (int, float)) and not isinstance(cam_px, bool):
-            as_toml["camera"]["pixel_size_mm"] = float(cam_px) * 1e3  # the camera's own
-        seed0 = r.get("seed", 0)
-        lab, drawn = parse_lab(_case_seeded_lab(d), as_toml, source=source,
-                               default_seed=seed0 if isinstance(seed0, int) else 0)
-        if drawn:
-            scenario = sim.scenario_from_dict(apply_asbuilt(d.get("scenario", {}), drawn),
-                                              source=f"{source} [scenario] (as built)")
+        scenario, lab, drawn = _scenario_and_lab(d, r, source)
     except InputError as exc:
         raise CaseError(str(exc)) from None
-    m = _check_types(d.get("measure", {}), MEASURE_KEYS, f"{source}: measure")
-    if m.get("locator", "subpixel") not in LOCATORS:
-        raise CaseError(f"{source}: measure.locator must be one of {', '.join(LOCATORS)}, "
-                        f"got {m['locator']!r}")
+    m = check_section(CASE_SCHEMA, "measure", d.get("measure", {}), source)
     if m.get("offset", "auto") not in (True, False, "auto"):
         raise CaseError(f"{source}: measure.offset must be true, false or \"auto\", "
                         f"got {m['offset']!r}")
-    if m.get("fit", "lsq") not in FITS:
-        raise CaseError(f"{source}: measure.fit must be one of {', '.join(FITS)}, "
-                        f"got {m['fit']!r}")
     try:
-        lighting = sc.lighting_preset(r.get("lighting", "thesis"))
-        lamps = r.get("lamps")
-        if lamps is not None:
-            lamps = tuple(sc.Lamp(**_lamp_si(lp, source)) for lp in lamps)
-        else:
-            lamps = lighting.lamps
-        scale = r.get("intensity_scale", 1.0)
-        spread = r.get("lamp_spread", 1.0)
-        dy = r.get("lamp_dy_mm", 0.0) / 1000.0
-        dz = r.get("lamp_dz_mm", 0.0) / 1000.0
-        if scale < 0:
-            raise CaseError(f"{source}: render.intensity_scale must be >= 0, got {scale!r}")
-        lamps = tuple(dataclasses.replace(
-            lp, intensity=lp.intensity * scale,
-            position=(lp.position[0] * spread, lp.position[1] + dy, lp.position[2] + dz))
-            for lp in lamps)
-        lighting = dataclasses.replace(lighting, lamps=lamps,
-                                       ambient=r.get("ambient", lighting.ambient))
+        lighting = _lighting(r, source)
         sensor = sc.noise_preset(r.get("noise", "realistic"))
         sensor_over = dict(r.get("sensor", {}))
         _known(sensor_over, sensor, f"{source}: render.sensor")
         sensor = dataclasses.replace(sensor, **sensor_over)
-        cam_over = dict(r.get("camera", {}))
-        cam = CameraModel(pixel_size=scenario.pixel_size)
-        if "camera.pixel_size_mm" in drawn:
-            cam_over.pop("pixel_size", None)  # the drawn as-built pixel size
-        _known({k: v for k, v in cam_over.items() if k not in ANGLE_KEYS and k not in MM_KEYS},
-               cam, f"{source}: render.camera")
-        if "center_px" in cam_over:
-            cam_over["center_px"] = tuple(cam_over["center_px"])
-        for key, field in ANGLE_KEYS.items():  # lab units (deg) -> the camera's radians
-            if key in cam_over:
-                cam_over[field] = math.radians(_finite(cam_over.pop(key),
-                                                       f"{source}: render.camera.{key}"))
-        for key, field in MM_KEYS.items():  # lab units (mm) -> the camera's metres
-            if key in cam_over:
-                cam_over[field] = _finite(cam_over.pop(key),
-                                          f"{source}: render.camera.{key}") / 1000.0
-        if "f_number" in cam_over:
-            cam_over["f_number"] = _finite(cam_over["f_number"],
-                                           f"{source}: render.camera.f_number")
-        cam = dataclasses.replace(cam, **cam_over)
+        cam = _camera(r, CameraModel(pixel_size=scenario.pixel_size), drawn, source)
         scene_over = dict(r.get("scene", {}))
         scene = sc.SceneConfig(camera=cam, lighting=lighting)
         _known(scene_over, scene, f"{source}: render.scene")
@@ -544,13 +485,78 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
     return case
 
 
+def _scenario_and_lab(d: dict, r: dict, source: str) -> tuple:
+    """The as-built scenario, the lab's side and the draws it made ("section.key" -> value):
+    the [scenario] read, the [lab] read against it, the scenario rebuilt with the draws."""
+    import sim
+    from validation.lab import apply_asbuilt, parse_lab
+
+    scenario = sim.scenario_from_dict(d.get("scenario", {}), source=f"{source} [scenario]")
+    as_toml = scenario.to_toml_dict()
+    cam_px = dict(r.get("camera", {})).get("pixel_size")
+    if isinstance(cam_px, (int, float)) and not isinstance(cam_px, bool):
+        as_toml["camera"]["pixel_size_mm"] = float(cam_px) * 1e3  # the camera's own
+    seed0 = r.get("seed", 0)
+    lab, drawn = parse_lab(_case_seeded_lab(d), as_toml, source=source,
+                           default_seed=seed0 if isinstance(seed0, int) else 0)
+    if drawn:
+        scenario = sim.scenario_from_dict(apply_asbuilt(d.get("scenario", {}), drawn),
+                                          source=f"{source} [scenario] (as built)")
+    return scenario, lab, drawn
+
+
+def _lighting(r: dict, source: str):
+    """render's lighting preset with its lamps (or render.lamps) scaled, spread and moved."""
+    from synth import config as sc
+
+    lighting = sc.lighting_preset(r.get("lighting", "thesis"))
+    lamps = r.get("lamps")
+    if lamps is not None:
+        lamps = tuple(sc.Lamp(**_lamp_si(lp, source)) for lp in lamps)
+    else:
+        lamps = lighting.lamps
+    scale = r.get("intensity_scale", 1.0)
+    spread = r.get("lamp_spread", 1.0)
+    dy = r.get("lamp_dy_mm", 0.0) / 1000.0
+    dz = r.get("lamp_dz_mm", 0.0) / 1000.0
+    if scale < 0:
+        raise CaseError(f"{source}: render.intensity_scale must be >= 0, got {scale!r}")
+    lamps = tuple(dataclasses.replace(
+        lp, intensity=lp.intensity * scale,
+        position=(lp.position[0] * spread, lp.position[1] + dy, lp.position[2] + dz))
+        for lp in lamps)
+    return dataclasses.replace(lighting, lamps=lamps, ambient=r.get("ambient", lighting.ambient))
+
+
+def _camera(r: dict, cam, drawn: dict, source: str):
+    """The camera ``cam`` with render.camera's overrides (angles in deg, lens distances in mm)."""
+    cam_over = dict(r.get("camera", {}))
+    if "camera.pixel_size_mm" in drawn:
+        cam_over.pop("pixel_size", None)  # the drawn as-built pixel size
+    _known({k: v for k, v in cam_over.items() if k not in ANGLE_KEYS and k not in MM_KEYS},
+           cam, f"{source}: render.camera")
+    if "center_px" in cam_over:
+        cam_over["center_px"] = tuple(cam_over["center_px"])
+    for key, field in ANGLE_KEYS.items():  # lab units (deg) -> the camera's radians
+        if key in cam_over:
+            cam_over[field] = math.radians(_finite(cam_over.pop(key),
+                                                   f"{source}: render.camera.{key}"))
+    for key, field in MM_KEYS.items():  # lab units (mm) -> the camera's metres
+        if key in cam_over:
+            cam_over[field] = _finite(cam_over.pop(key),
+                                      f"{source}: render.camera.{key}") / 1000.0
+    if "f_number" in cam_over:
+        cam_over["f_number"] = _finite(cam_over["f_number"], f"{source}: render.camera.f_number")
+    return dataclasses.replace(cam, **cam_over)
+
+
 def _timing(table, source: str):
     """render.timing (lab units) -> synth.timing.FrameTiming, or None."""
     if table is None:
         return None
     from synth.timing import FrameTiming
 
-    t = _check_types(table, TIMING_KEYS, f"{source}: render.timing")
+    t = check_section(CASE_SCHEMA, "render.timing", table, source)
     dropped = t.get("dropped", [])
     if not all(isinstance(v, int) and not isinstance(v, bool) for v in dropped):
         raise CaseError(f"{source}: render.timing.dropped must be a list of frame numbers, "
@@ -569,7 +575,7 @@ def _video(table, source: str):
         return None
     from synth.video import VideoSpec
 
-    v = _check_types(table, VIDEO_KEYS, f"{source}: render.video")
+    v = check_section(CASE_SCHEMA, "render.video", table, source)
     try:
         return VideoSpec(**v)
     except InputError as exc:

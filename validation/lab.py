@@ -46,6 +46,7 @@ import math
 import numpy as np
 
 from rollfric.errors import InputError
+from rollfric.setup.schema import Key, Messages, Schema, check_section, check_value
 
 # the lab-file keys a case may state as nominal values (section -> keys); the same keys name
 # the as-built value in the [scenario] (sim.scenario's TOML form)
@@ -65,6 +66,34 @@ STATED_KEYS = {"camera": ("working_distance_mm",), "cylinder": ("contour_depth_m
 
 class LabError(InputError):
     """A [lab] table that cannot describe a lab's setup (the message names the key)."""
+
+
+def _lab_section(sec: str, keys: tuple) -> tuple:
+    """The keys of ``[lab.<sec>]``: the nominal values, their ``_u``, the lens, the stated."""
+    return (*(Key(k, sign=">=0" if k == "air_density_kg_m3" else ">0") for k in keys),
+            *(Key(f"{k}_u", sign=">=0") for k in keys),
+            *(Key(k, "any", read=False) for k in (CALIBRATION_KEYS if sec == "camera" else ())),
+            # a depth may lie in front of or behind the ball's plane
+            *(Key(k, sign="" if k == "contour_depth_mm" else ">0")
+              for k in STATED_KEYS.get(sec, ())))
+
+
+# The [lab] table and its sections (rollfric.setup.schema), in lab units
+LAB_SCHEMA = Schema(
+    sections={
+        "lab": (Key("draw", "bool", hint="must be true or false"),
+                Key("seed", "int", sign=">=0", hint="must be a non-negative integer or \"case\""),
+                Key("center_error_px", "any", read=False), Key("center_px_u", "any", read=False),
+                Key("lens_calibrated", "bool", hint="must be true or false"),
+                *(Key(sec, "any", read=False) for sec in NOMINAL_KEYS)),
+        **{f"lab.{sec}": _lab_section(sec, keys) for sec, keys in NOMINAL_KEYS.items()},
+    },
+    error=LabError,
+    messages=Messages(not_table="{source}: {section} must be a table",
+                      kind="{source}: {section}.{key} must be a finite number, got {value!r}",
+                      finite="{source}: {section}.{key} must be a finite number, got {value!r}",
+                      sign="{source}: {section}.{key} must be {sign}, got {value!r}"),
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -166,17 +195,43 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
     """
     if not isinstance(table, dict):
         raise LabError(f"{source}: [lab] must be a table")
-    for k in table:
-        if k not in TOP_KEYS and k not in NOMINAL_KEYS:
-            raise LabError(f"{source}: unknown key lab.{k} (known: "
-                           f"{', '.join([*TOP_KEYS, *NOMINAL_KEYS])})")
-    draw = table.get("draw", False)
-    if not isinstance(draw, bool):
-        raise LabError(f"{source}: lab.draw must be true or false, got {draw!r}")
-    seed = table.get("seed", default_seed)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise LabError(f"{source}: lab.seed must be a non-negative integer or \"case\", "
-                       f"got {seed!r}")
+    top = check_section(LAB_SCHEMA, "lab", table, source)
+    draw, seed = top.get("draw", False), top.get("seed", default_seed)
+    if "seed" not in table:  # the case's seed, checked as the lab's
+        check_value(LAB_SCHEMA, "lab", LAB_SCHEMA.keys("lab")["seed"], seed, source)
+    ce, cu = _center(table, draw, seed, source)
+    nominal, tol, asbuilt, overrides, stated = {}, {}, {}, {}, {}
+    for sec, keys in NOMINAL_KEYS.items():
+        t = check_section(LAB_SCHEMA, f"lab.{sec}", table.get(sec, {}), source)
+        for k in keys:
+            dotted = f"{sec}.{k}"
+            # a lab may state no air (0) over a truth in air: its fit then leaves the drag out
+            truth = float(scenario_toml[sec][k])
+            nom = nominal[dotted] = t.get(k, truth)
+            if f"{k}_u" in t:
+                tol[dotted] = t[f"{k}_u"]
+            if draw and dotted in tol:
+                truth = nom + tol[dotted] * standard_normal(seed, dotted)
+                if truth <= 0:
+                    raise LabError(f"{source}: the draw of {dotted} from {nom:g} +- "
+                                   f"{tol[dotted]:g} is not positive")
+                overrides[dotted] = truth
+            asbuilt[dotted] = truth
+        stated.update({f"{sec}.{k}": t[k] for k in STATED_KEYS.get(sec, ()) if k in t})
+    lens_cal = top.get("lens_calibrated", False)
+    cam = table.get("camera", {})
+    calibration = {k: cam[k] for k in CALIBRATION_KEYS if k in cam} or None
+    if calibration is not None and lens_cal:
+        raise LabError(f"{source}: lab.lens_calibrated and lab.camera.matrix/distortion "
+                       "both give the lab's calibration: keep one")
+    return Lab(nominal=nominal, tolerance=tol, asbuilt=asbuilt, center_error_px=ce,
+               draw=draw, seed=seed, center_u=cu, calibration=calibration,
+               lens_calibrated=lens_cal, stated=stated), overrides
+
+
+def _center(table: dict, draw: bool, seed: int, source: str) -> tuple:
+    """The error of the lab's trough-centre measurement (px; drawn from its stated u with
+    ``draw``) and that stated u, each None when not given."""
     ce = table.get("center_error_px")
     if ce is not None:
         if not isinstance(ce, (list, tuple)) or len(ce) != 2:
@@ -201,51 +256,7 @@ def parse_lab(table: dict, scenario_toml: dict, *, default_seed: int = 0,
         elif ce is None:
             raise LabError(f"{source}: lab.center_px_u needs lab.center_error_px (the lab "
                            "measured the centre) or lab.draw = true (its error drawn)")
-    nominal, tol, asbuilt, overrides, stated = {}, {}, {}, {}, {}
-    for sec, keys in NOMINAL_KEYS.items():
-        t = table.get(sec, {})
-        if not isinstance(t, dict):
-            raise LabError(f"{source}: lab.{sec} must be a table")
-        known = [*keys, *(f"{k}_u" for k in keys),
-                 *(CALIBRATION_KEYS if sec == "camera" else ()), *STATED_KEYS.get(sec, ())]
-        for k in t:
-            if k not in known:
-                raise LabError(f"{source}: unknown key lab.{sec}.{k} (known: "
-                               f"{', '.join(known)})")
-        for k in keys:
-            dotted = f"{sec}.{k}"
-            truth = float(scenario_toml[sec][k])
-            # a lab may state no air (0) over a truth in air: its fit then leaves the drag out
-            nom = _number(t[k], f"{source}: lab.{dotted}",
-                          positive=k != "air_density_kg_m3") if k in t else truth
-            nominal[dotted] = nom
-            if f"{k}_u" in t:
-                tol[dotted] = _number(t[f"{k}_u"], f"{source}: lab.{dotted}_u", positive=False)
-            if draw and dotted in tol:
-                truth = nom + tol[dotted] * standard_normal(seed, dotted)
-                if truth <= 0:
-                    raise LabError(f"{source}: the draw of {dotted} from {nom:g} +- "
-                                   f"{tol[dotted]:g} is not positive")
-                overrides[dotted] = truth
-            asbuilt[dotted] = truth
-        for k in STATED_KEYS.get(sec, ()):
-            if k in t:  # a depth may lie in front of or behind the ball's plane
-                v = t[k] if k == "contour_depth_mm" else _number(t[k], f"{source}: lab.{sec}.{k}")
-                if isinstance(v, bool) or not isinstance(v, (int, float)) \
-                        or not math.isfinite(v):
-                    raise LabError(f"{source}: lab.{sec}.{k} must be a finite number, got {v!r}")
-                stated[f"{sec}.{k}"] = float(v)
-    lens_cal = table.get("lens_calibrated", False)
-    if not isinstance(lens_cal, bool):
-        raise LabError(f"{source}: lab.lens_calibrated must be true or false, got {lens_cal!r}")
-    cam = table.get("camera", {})
-    calibration = {k: cam[k] for k in CALIBRATION_KEYS if k in cam} or None
-    if calibration is not None and lens_cal:
-        raise LabError(f"{source}: lab.lens_calibrated and lab.camera.matrix/distortion "
-                       "both give the lab's calibration: keep one")
-    return Lab(nominal=nominal, tolerance=tol, asbuilt=asbuilt, center_error_px=ce,
-               draw=draw, seed=seed, center_u=cu, calibration=calibration,
-               lens_calibrated=lens_cal, stated=stated), overrides
+    return ce, cu
 
 
 def apply_asbuilt(scenario_dict: dict, overrides: dict) -> dict:

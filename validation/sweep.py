@@ -54,6 +54,7 @@ from pathlib import Path
 
 from rollfric.errors import InputError
 from rollfric.output.atomic import replacing, write_text
+from rollfric.setup.schema import Key, Schema, read_section
 from validation.case import (
     apply_overrides,
     case_from_dict,
@@ -172,7 +173,19 @@ def _check_count(n: int, source: str) -> None:
                          f"{MAX_CASES:,}")
 
 
-def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepSpec:
+# The [sweep] table's checked values (rollfric.setup.schema); name, description and metrics
+# are checked by _sweep_head
+SWEEP_SCHEMA = Schema(sections={"sweep": (
+    Key("mode", "str", choices=("grid", "list"), hint="must be 'grid' or 'list'",
+        default="grid"),
+    Key("stages", "str", choices=STAGES, hint=f"must be one of {STAGES}", default="full"),
+    Key("seeds", "int", sign=">0", hint="must be a positive integer", default=1),
+)}, error=SweepError)
+
+
+def _sweep_head(data: dict, source: str) -> dict:
+    """The file's sections and its [sweep] table checked: name, description, mode, stages,
+    seeds and metrics (defaults filled in)."""
     unknown = sorted(set(data) - {"sweep", "base", "grid", "cases"})
     if unknown:
         raise SweepError(f"{source}: unknown section(s) {unknown} (sweep, base, grid, cases)")
@@ -184,30 +197,27 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
     if bad:
         raise SweepError(f"{source}: unknown key(s) sweep.{bad} (known: {', '.join(SWEEP_KEYS)})")
     name = head.get("name", Path(source).stem)
-    mode = head.get("mode", "grid")
-    stages = head.get("stages", "full")
-    seeds = head.get("seeds", 1)
     metrics = head.get("metrics", DEFAULT_METRICS)
     if not isinstance(name, str) or not isinstance(head.get("description", ""), str):
         raise SweepError(f"{source}: sweep.name and sweep.description must be strings")
     if not isinstance(metrics, (list, tuple)) or not all(isinstance(m, str) for m in metrics):
         raise SweepError(f"{source}: sweep.metrics must be a list of metric names")
-    metrics = tuple(metrics)
-    if not isinstance(mode, str) or mode not in ("grid", "list"):
-        raise SweepError(f"{source}: sweep.mode must be 'grid' or 'list', got {mode!r}")
-    if not isinstance(stages, str) or stages not in STAGES:
-        raise SweepError(f"{source}: sweep.stages must be one of {STAGES}, got {stages!r}")
-    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
-        raise SweepError(f"{source}: sweep.seeds must be a positive integer, got {seeds!r}")
+    values = read_section(SWEEP_SCHEMA, "sweep", head, source)
     from validation.e2e import METRICS, is_metric
 
     unknown_m = [m for m in metrics if not is_metric(m)]
     if unknown_m:
         raise SweepError(f"{source}: unknown metric(s) {unknown_m} in sweep.metrics (known: "
                          f"{', '.join(sorted(METRICS))}, t_<stage>_s)")
-    base = merge_case(default_case_dict(), data.get("base", {}), f"{source} [base]")
-    combos: list[dict] = []
-    if mode == "grid":
+    return dict(values, name=name, description=head.get("description", ""),
+                metrics=tuple(metrics))
+
+
+def _sweep_combos(data: dict, head: dict, source: str) -> tuple[list[dict], list[str]]:
+    """The swept keys' combinations ("dotted.key" -> value; a list's case may set its stages)
+    of a grid or a list, each repeated for sweep.seeds render seeds; and the swept keys."""
+    seeds, stages = head["seeds"], head["stages"]
+    if head["mode"] == "grid":
         grid = _flatten_keys(data.get("grid", {}))
         if "cases" in data:
             raise SweepError(f"{source}: [[cases]] given but sweep.mode is 'grid'")
@@ -239,6 +249,16 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
             raise SweepError(f"{source}: sweep.seeds and a swept render.seed exclude each other")
         combos = [dict(c, **{"render.seed": s}) for c in combos for s in range(seeds)]
         swept = [*swept, "render.seed"]
+    return combos, swept
+
+
+def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepSpec:
+    """The sweep a parsed sweep file describes (each case checked); SweepError naming the
+    fault."""
+    head = _sweep_head(data, source)
+    name, stages = head["name"], head["stages"]
+    combos, swept = _sweep_combos(data, head, source)
+    base = merge_case(default_case_dict(), data.get("base", {}), f"{source} [base]")
     out, seen = [], set()
     for params in combos:
         params = dict(params)
@@ -262,8 +282,8 @@ def sweep_from_dict(data: dict, source: str = "sweep", text: str = "") -> SweepS
             continue  # the same case twice (e.g. a list repeating itself)
         seen.add(cid)
         out.append(SweepCase(case_id=cid, params=params, case=d, stages=st))
-    return SweepSpec(name=name, description=head.get("description", ""), stages=stages,
-                     metrics=metrics, swept=tuple(swept), cases=tuple(out), source=source,
+    return SweepSpec(name=name, description=head["description"], stages=stages,
+                     metrics=head["metrics"], swept=tuple(swept), cases=tuple(out), source=source,
                      text=text)
 
 

@@ -76,6 +76,19 @@ from rollfric.fit.air import (
     WALL_FACTOR,
 )
 from rollfric.setup.lens import Calibration, CalibrationError, calibration_from_dict
+from rollfric.setup.schema import (
+    GRAM,
+    MM,
+    PLAUSIBLE,  # noqa: F401  (re-exported: the ranges are declared with the schema)
+    Key,
+    Messages,
+    Schema,
+    Unit,
+    check_file,
+    check_plausible,
+    check_uncertainty,
+    uncertain_keys,
+)
 from rollfric.setup.tomlfile import read_toml
 
 STANDARD_GRAVITY = 9.81  # m/s^2, the value the thesis uses
@@ -83,52 +96,6 @@ STANDARD_GRAVITY = 9.81  # m/s^2, the value the thesis uses
 
 class SetupError(InputError):
     """A setup file or value that cannot describe a real trough, ball and camera."""
-
-
-# The range of each quantity (SI) that a real trough, ball and camera can have: generous, but a
-# value outside it is a typing or unit mistake (1e300 for the gravity, fps in kHz, ...) that
-# would only overflow the fit. sim's scenarios use the same ranges.
-PLAUSIBLE = {  # name -> (lowest, highest, SI unit)
-    "cylinder_radius": (1e-4, 100.0, "m"),
-    "ball_diameter": (1e-6, 100.0, "m"),
-    "ball_mass": (1e-12, 1e6, "kg"),
-    "fps": (1e-3, 1e8, "Hz"),
-    "pixel_size": (1e-9, 1.0, "m"),
-    "gravity": (0.01, 1000.0, "m/s^2"),  # the Moon's 1.62, Jupiter's 24.8
-    "air_density": (0.0, 10.0, "kg/m^3"),  # a vacuum .. pressurised air; not a liquid
-    "air_viscosity": (1e-6, 1e-3, "Pa s"),
-    "air_cd": (1e-3, 100.0, "1"),
-}
-
-
-def check_plausible(name: str, value: float, error: type[InputError] = InputError,
-                    label: str | None = None, scale: float = 1.0, unit: str | None = None
-                    ) -> float:
-    """``value`` if it lies in the plausible range of ``name`` (:data:`PLAUSIBLE`, SI).
-
-    Parameters
-    ----------
-    name : str
-        The quantity (a key of :data:`PLAUSIBLE`).
-    value : float
-        Its value in SI units.
-    error : type
-        The InputError subclass raised when the value is outside the range.
-    label, scale, unit : str, float, str
-        How the message names the quantity, and the factor and unit it is shown in (default:
-        ``name`` in SI units).
-
-    Returns
-    -------
-    float
-        ``value``.
-    """
-    lo, hi, si = PLAUSIBLE[name]
-    if not lo <= value <= hi:
-        u = si if unit is None else unit
-        raise error(f"{label or name} = {value * scale:g} {u} is outside the plausible range "
-                    f"{lo * scale:g}..{hi * scale:g} {u}")
-    return value
 
 
 @dataclasses.dataclass(frozen=True)
@@ -327,20 +294,51 @@ class Setup:
         return out
 
 
-# Setup field -> (section, lab key, factor from SI to the lab unit)
-LAB_KEYS = {
-    "cylinder_radius": ("cylinder", "radius_mm", 1e3),
-    "center_px": ("cylinder", "center_px", 1.0),
-    "ball_diameter": ("ball", "diameter_mm", 1e3),
-    "ball_mass": ("ball", "mass_g", 1e3),
-    "fps": ("camera", "fps", 1.0),
-    "pixel_size": ("camera", "pixel_size_mm", 1e3),
-    "gravity": ("environment", "gravity_m_s2", 1.0),
-    "air_density": ("environment", "air_density_kg_m3", 1.0),
-    "air_viscosity": ("environment", "air_viscosity_pa_s", 1.0),
-    "air_cd": ("environment", "air_cd", 1.0),
-}
+# What a setup file may hold, in the order it is read (rollfric.setup.schema)
+SETUP_SCHEMA = Schema(
+    sections={
+        "cylinder": (
+            Key("radius_mm", field="cylinder_radius", unit=MM, required=True, sign=">0",
+                plausible="cylinder_radius", uncertain=True),
+            Key("center_px", "pair", hint="must be [x, y] in pixels", uncertain=True),
+            Key("contour_depth_mm", field="contour_depth", unit=MM,
+                hint="must be a number (mm)")),
+        "ball": (
+            Key("diameter_mm", field="ball_diameter", unit=MM, required=True, sign=">0",
+                plausible="ball_diameter", uncertain=True),
+            Key("mass_g", field="ball_mass", unit=GRAM, required=True, sign=">0",
+                plausible="ball_mass", uncertain=True)),
+        "camera": (
+            Key("fps", unit=Unit("Hz"), required=True, sign=">0", plausible="fps",
+                uncertain=True),
+            Key("pixel_size_mm", field="pixel_size", unit=MM, required=True, sign=">0",
+                plausible="pixel_size", uncertain=True),
+            # the lens, read by rollfric.setup.lens
+            Key("matrix", "any", uncertain="own", read=False),
+            Key("distortion", "any", uncertain="own", read=False),
+            Key("image_size_px", "any", read=False),
+            Key("working_distance_mm", field="working_distance", unit=MM, sign=">0"),
+            Key("bit_depth", "int", bounds=(1, 16),
+                hint="must be the camera's effective bit depth, a whole number of bits 1..16 "
+                     "(12 for a 12-bit camera)")),
+        "environment": (
+            Key("gravity_m_s2", field="gravity", unit=Unit("m/s^2"), sign=">0",
+                plausible="gravity", default=STANDARD_GRAVITY, uncertain=True),
+            Key("air_density_kg_m3", field="air_density", unit=Unit("kg/m^3"), sign=">=0",
+                plausible="air_density", default=ROOM_AIR_DENSITY, uncertain=True),
+            Key("air_viscosity_pa_s", field="air_viscosity", unit=Unit("Pa s"), sign=">0",
+                plausible="air_viscosity", default=AIR_VISCOSITY, uncertain=True),
+            Key("air_cd", unit=Unit("1"), sign=">0", plausible="air_cd", uncertain=True)),
+    },
+    error=SetupError,
+    messages=Messages(finite="{source}: {section}.{key} must be positive, got {value!r}"),
+    required=("cylinder", "ball", "camera"),
+    uncertain_note=", each with an optional _u: its standard uncertainty",
+)
 
+# Setup field -> (section, lab key, factor from SI to the lab unit): the keys with a K_u
+LAB_KEYS = {key.target: (section, key.name, key.unit.per)
+            for section, key in uncertain_keys(SETUP_SCHEMA)}
 
 def _check_uncertainty(setup: Setup) -> tuple:
     """The uncertainty pairs validated (known field, finite, >= 0; center_px: a pair, only
@@ -365,18 +363,6 @@ def _check_uncertainty(setup: Setup) -> tuple:
             raise SetupError(f"{name} uncertainty must be finite and >= 0, got {u!r}")
         out.append((name, vals if name == "center_px" else vals[0]))
     return tuple(out)
-
-
-# What a setup file may hold: section -> {key: required?}
-_SCHEMA = {
-    "cylinder": {"radius_mm": True, "center_px": False, "contour_depth_mm": False},
-    "ball": {"diameter_mm": True, "mass_g": True},
-    "camera": {"fps": True, "pixel_size_mm": True, "matrix": False, "distortion": False,
-               "image_size_px": False, "working_distance_mm": False, "bit_depth": False},
-    "environment": {"gravity_m_s2": False, "air_density_kg_m3": False,
-                    "air_viscosity_pa_s": False, "air_cd": False},
-}
-_REQUIRED_SECTIONS = ("cylinder", "ball", "camera")
 
 
 def setup_from_dict(data: dict, source: str = "setup") -> Setup:
@@ -414,119 +400,29 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
     >>> sorted(dict(setup.uncertainty))  # room air by default, with its uncertainties
     ['air_density', 'air_viscosity', 'cylinder_radius']
     """
-    for section in data:
-        if section not in _SCHEMA:
-            raise SetupError(f"{source}: unknown section [{section}] "
-                             f"(known: {', '.join(_SCHEMA)})")
-    for section in _REQUIRED_SECTIONS:
-        if section not in data:
-            raise SetupError(f"{source}: missing section [{section}]")
-    for section, table in data.items():
-        if not isinstance(table, dict):
-            raise SetupError(f"{source}: [{section}] must be a table")
-        for key in table:
-            base = key[:-2] if key.endswith("_u") else None
-            if base is not None and base in _SCHEMA[section]:
-                if section == "camera" and base in ("matrix", "distortion"):
-                    if base not in table:
-                        raise SetupError(f"{source}: camera.{key} (its standard uncertainties)"
-                                         f" is given without camera.{base}")
-                    continue  # the lens calibration's, read with it (rollfric.setup.lens)
-                if base not in table:
-                    raise SetupError(f"{source}: {section}.{key} (a standard uncertainty) is "
-                                     f"given without {section}.{base}")
-                if (section, base) not in {(sec, k) for sec, k, _ in LAB_KEYS.values()}:
-                    raise SetupError(f"{source}: {section}.{key}: no standard uncertainty is "
-                                     f"taken for {section}.{base} (only for "
-                                     + ", ".join(f"{sec}.{k}" for sec, k, _ in LAB_KEYS.values())
-                                     + ")")
-                continue
-            if key not in _SCHEMA[section]:
-                raise SetupError(f"{source}: unknown key {section}.{key} "
-                                 f"(known: {', '.join(_SCHEMA[section])}, each with an "
-                                 "optional _u: its standard uncertainty)")
-        for key, required in _SCHEMA[section].items():
-            if required and key not in table:
-                raise SetupError(f"{source}: missing key {section}.{key}")
+    values = check_file(SETUP_SCHEMA, data, source)
+    _check_ball_fits(values, source)
+    _check_contour_depth(data, values, source)
+    uncertainty = _read_uncertainties(data, values, source)
+    try:
+        calibration = calibration_from_dict(data["camera"], source)
+    except CalibrationError as exc:
+        raise SetupError(str(exc)) from None
+    return Setup(calibration=calibration, uncertainty=uncertainty, **values)
 
-    # key -> (Setup field, factor lab unit -> SI, lab unit)
-    fields = {"radius_mm": ("cylinder_radius", 1e-3, "mm"),
-              "diameter_mm": ("ball_diameter", 1e-3, "mm"), "mass_g": ("ball_mass", 1e-3, "g"),
-              "fps": ("fps", 1.0, "Hz"), "pixel_size_mm": ("pixel_size", 1e-3, "mm"),
-              "gravity_m_s2": ("gravity", 1.0, "m/s^2"),
-              "air_density_kg_m3": ("air_density", 1.0, "kg/m^3"),
-              "air_viscosity_pa_s": ("air_viscosity", 1.0, "Pa s"), "air_cd": ("air_cd", 1.0, "1")}
 
-    def number(section: str, key: str) -> float:
-        value = data[section][key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise SetupError(f"{source}: {section}.{key} must be a number, got {value!r}")
-        if not math.isfinite(value) or value < 0 or (value == 0 and key != "air_density_kg_m3"):
-            raise SetupError(f"{source}: {section}.{key} must be positive, got {value!r}")
-        if key in fields:
-            field, factor, unit = fields[key]
-            check_plausible(field, float(value) * factor, SetupError,
-                            f"{source}: {section}.{key}", 1.0 / factor, unit)
-        return float(value)
-
-    center = data["cylinder"].get("center_px")
-    if center is not None:
-        if (not isinstance(center, list) or len(center) != 2
-                or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                           and math.isfinite(v) for v in center)):
-            raise SetupError(f"{source}: cylinder.center_px must be [x, y] in pixels, "
-                             f"got {center!r}")
-    radius = number("cylinder", "radius_mm") * 1e-3
-    diameter = number("ball", "diameter_mm") * 1e-3
+def _check_ball_fits(values: dict, source: str) -> None:
+    """The ball must be smaller than the trough's bore."""
+    diameter, radius = values["ball_diameter"], values["cylinder_radius"]
     if diameter >= 2 * radius:
         raise SetupError(f"{source}: ball.diameter_mm ({diameter * 1e3:g}) must be smaller "
                          f"than the cylinder diameter (2 x cylinder.radius_mm = "
                          f"{2e3 * radius:g})")
-    gravity = (number("environment", "gravity_m_s2")
-               if "gravity_m_s2" in data.get("environment", {}) else STANDARD_GRAVITY)
-    uncertainty = []
-    for name, (section, key, scale) in LAB_KEYS.items():
-        value = data.get(section, {}).get(key + "_u")
-        if value is None:
-            continue
-        where = f"{source}: {section}.{key}_u"
-        if name == "center_px":
-            if isinstance(value, (int, float)) and not isinstance(value, bool):
-                value = [value, value]
-            if (not isinstance(value, list) or len(value) != 2
-                    or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                               for v in value)):
-                raise SetupError(f"{where} must be [ux, uy] in pixels, got {value!r}")
-            vals = [float(v) for v in value]
-        else:
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise SetupError(f"{where} must be a number, got {value!r}")
-            vals = [float(value)]
-        if not all(math.isfinite(v) and v >= 0 for v in vals):
-            raise SetupError(f"{where} (a standard uncertainty) must be finite and >= 0, "
-                             f"got {value!r}")
-        uncertainty.append((name, tuple(vals) if name == "center_px" else vals[0] / scale))
-    env = data.get("environment", {})
-    air = {}
-    for key, field, default, default_u in (
-            ("air_density_kg_m3", "air_density", ROOM_AIR_DENSITY, ROOM_AIR_DENSITY_U),
-            ("air_viscosity_pa_s", "air_viscosity", AIR_VISCOSITY, AIR_VISCOSITY_U)):
-        if key in env:
-            air[field] = number("environment", key)
-        else:  # room air, with the spread of a room's
-            air[field] = default
-            uncertainty.append((field, default_u))
-    if "air_cd" in env:
-        air["air_cd"] = number("environment", "air_cd")
-    if air["air_density"] == 0.0:  # no air: its viscosity acts on nothing
-        uncertainty = [(n, u) for n, u in uncertainty if n != "air_viscosity"]
-    wd = (number("camera", "working_distance_mm") * 1e-3
-          if "working_distance_mm" in data["camera"] else None)
-    zc = data["cylinder"].get("contour_depth_mm")
-    if zc is not None and (isinstance(zc, bool) or not isinstance(zc, (int, float))
-                           or not math.isfinite(zc)):
-        raise SetupError(f"{source}: cylinder.contour_depth_mm must be a number (mm), "
-                         f"got {zc!r}")
+
+
+def _check_contour_depth(data: dict, values: dict, source: str) -> None:
+    """The contour's depth needs a perspective camera, and lies nearer than half its distance."""
+    wd, zc = values.get("working_distance"), data["cylinder"].get("contour_depth_mm")
     if wd is None and zc is not None:  # an orthographic camera sees every depth alike
         raise SetupError(f"{source}: cylinder.contour_depth_mm is used only with "
                          "camera.working_distance_mm (the perspective of a camera at that "
@@ -534,30 +430,24 @@ def setup_from_dict(data: dict, source: str = "setup") -> Setup:
     if wd is not None and zc is not None and not abs(zc) * 1e-3 < 0.5 * wd:
         raise SetupError(f"{source}: cylinder.contour_depth_mm ({zc:g}) must be nearer the "
                          f"ball's plane than half of camera.working_distance_mm")
-    bits = data["camera"].get("bit_depth")
-    if bits is not None and (isinstance(bits, bool) or not isinstance(bits, int)
-                             or not 1 <= bits <= 16):
-        raise SetupError(f"{source}: camera.bit_depth must be the camera's effective bit depth, "
-                         f"a whole number of bits 1..16 (12 for a 12-bit camera), got {bits!r}")
-    try:
-        calibration = calibration_from_dict(data["camera"], source)
-    except CalibrationError as exc:
-        raise SetupError(str(exc)) from None
-    return Setup(
-        calibration=calibration,
-        cylinder_radius=radius,
-        ball_diameter=diameter,
-        ball_mass=number("ball", "mass_g") * 1e-3,
-        fps=number("camera", "fps"),
-        pixel_size=number("camera", "pixel_size_mm") * 1e-3,
-        center_px=None if center is None else (float(center[0]), float(center[1])),
-        gravity=gravity,
-        uncertainty=tuple(uncertainty),
-        working_distance=wd,
-        contour_depth=None if zc is None else float(zc) * 1e-3,
-        bit_depth=bits,
-        **air,
-    )
+
+
+def _read_uncertainties(data: dict, values: dict, source: str) -> tuple:
+    """The ``K_u`` keys as (field, u) in SI; room air, when not given, with a room's spread."""
+    uncertainty = []
+    for section, key in uncertain_keys(SETUP_SCHEMA):
+        value = data.get(section, {}).get(key.name + "_u")
+        if value is not None:
+            uncertainty.append((key.target, check_uncertainty(SETUP_SCHEMA, section, key, value,
+                                                              source)))
+    env = data.get("environment", {})
+    for key, field, default_u in (("air_density_kg_m3", "air_density", ROOM_AIR_DENSITY_U),
+                                  ("air_viscosity_pa_s", "air_viscosity", AIR_VISCOSITY_U)):
+        if key not in env:
+            uncertainty.append((field, default_u))
+    if values["air_density"] == 0.0:  # no air: its viscosity acts on nothing
+        uncertainty = [(n, u) for n, u in uncertainty if n != "air_viscosity"]
+    return tuple(uncertainty)
 
 
 def load_setup(path: str | Path) -> Setup:

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from sim.losses import ROOM_AIR_DENSITY, losses_of, reynolds
 
 
 def centre_from_theta(theta, track_radius):
@@ -45,8 +49,6 @@ def losses_meta(scenario, theta_dot) -> dict:
     """The trajectory's meta entries of the losses the fitter does not assume (sim.losses):
     ``losses`` (their settings) and the ball's largest speed and Reynolds number; empty
     without losses (the meta of such a trajectory stays what it was)."""
-    from sim.losses import ROOM_AIR_DENSITY, losses_of, reynolds
-
     losses = losses_of(scenario)
     if not losses.active:
         return {}
@@ -74,8 +76,6 @@ def initial_state(scenario):
     """Ball centre (x, y) and velocity (vx, vy) at release, and the spin about +z, for the
     scenario's theta0 and theta_dot0 (round trough: L (sin, -cos) theta0 and L theta_dot0
     (cos, sin) theta0; out-of-round: on the offset curve of :mod:`sim.section`)."""
-    import math
-
     th0, w0, r = scenario.theta0, scenario.theta_dot0, scenario.ball_radius
     sec = scenario.section
     if sec.round:

@@ -47,9 +47,13 @@ import math
 import time
 
 import numpy as np
+from scipy.spatial.transform import Rotation
+from tqdm import tqdm
 
 from sim.engines.common import initial_state, losses_meta, slip_speed, theta_from_centre
+from sim.errors import ScenarioError
 from sim.losses import applied_force, losses_of, mu_at
+from sim.trajectory import Trajectory
 
 DEFAULTS: dict = {
     "timestep_s": 1e-4,
@@ -72,6 +76,58 @@ _PAD_HALF_THICKNESS = 1.0  # mm
 def _steps_per_frame(timestep: float, fps: float) -> tuple[int, float]:
     n = max(1, round(1.0 / (fps * timestep)))
     return n, 1.0 / (fps * n)
+
+
+def _mesh_xml(R: float, half_w: float, opts: dict) -> tuple[str, list[str]]:
+    """The trough as flat box facets of ``mesh_facet_deg`` over +-``surface_extent_deg``."""
+    ext = math.radians(opts["surface_extent_deg"])
+    n = max(2, math.ceil(2 * ext / math.radians(opts["mesh_facet_deg"])))
+    edges = np.linspace(-ext, ext, n + 1)
+    parts, names = [], []
+    for i in range(n):
+        a0, a1 = float(edges[i]), float(edges[i + 1])
+        mid, half = 0.5 * (a0 + a1), 0.5 * (a1 - a0)
+        half_chord = R * math.sin(half)
+        dist = R * math.cos(half) + _PAD_HALF_THICKNESS  # box centre from the axis
+        parts.append(
+            f'<geom name="f{i}" type="box" size="{half_chord!r} {_PAD_HALF_THICKNESS} '
+            f'{half_w}" pos="{dist * math.sin(mid)!r} {-dist * math.cos(mid)!r} 0" '
+            f'euler="0 0 {mid!r}" contype="0" conaffinity="0"/>')
+        names.append(f"f{i}")
+    return "\n".join(parts), names
+
+
+def _heightfield_xml(R: float, half_w: float, opts: dict) -> tuple[str, str]:
+    """The trough as a heightfield of ``heightfield_cell_mm`` cells: its asset and its geom."""
+    ext = math.radians(opts["surface_extent_deg"])
+    X = R * math.sin(ext)
+    ncol = max(3, int(round(2 * X / opts["heightfield_cell_mm"])) + 1)
+    x = np.linspace(-X, X, ncol)
+    h = R - np.sqrt(R * R - x * x)
+    top = float(h.max())
+    elev = np.tile(h / top, (3, 1))  # nrow = 3 rows along the cylinder axis
+    data = " ".join(repr(float(v)) for v in elev.ravel())
+    asset = (f'<hfield name="trough" nrow="3" ncol="{ncol}" '
+             f'size="{X!r} {half_w} {top!r} {_PAD_HALF_THICKNESS}" elevation="{data}"/>')
+    # local z (elevation) -> world +y, local y -> world -z
+    geom = (f'<geom name="hf" type="hfield" hfield="trough" pos="0 {-R!r} 0" '
+            f'quat="{math.cos(-math.pi / 4)!r} {math.sin(-math.pi / 4)!r} 0 0" '
+            f'contype="0" conaffinity="0"/>')
+    return asset, geom
+
+
+def _surface_xml(scenario, opts: dict, R: float, half_w: float) -> tuple[str, str, list[str]]:
+    """The trough's surface (tangent pad, mesh facets or heightfield): its assets, its bodies
+    and the names of the geoms the ball touches."""
+    if scenario.surface == "tangent":
+        return "", (f'<body name="pad" mocap="true" pos="0 {-(R + _PAD_HALF_THICKNESS)} 0">'
+                    f'<geom name="pad" type="box" size="{half_w} {_PAD_HALF_THICKNESS} '
+                    f'{half_w}" contype="0" conaffinity="0"/></body>'), ["pad"]
+    if scenario.surface == "mesh":
+        trough, names = _mesh_xml(R, half_w, opts)
+        return "", trough, names
+    asset, geom = _heightfield_xml(R, half_w, opts)
+    return asset, geom, ["hf"]
 
 
 def build_xml(scenario, opts: dict) -> str:
@@ -105,47 +161,7 @@ def build_xml(scenario, opts: dict) -> str:
         if scenario.tilt else f"0 {-g!r} 0"
     width = opts["solimp_width_mm"]
     f0 = opts["sliding_friction"]
-    half_w = max(2.0 * r, 5.0)
-    surface = scenario.surface
-    assets, trough = "", ""
-    pair_geoms = []
-    if surface == "tangent":
-        trough = (f'<body name="pad" mocap="true" pos="0 {-(R + _PAD_HALF_THICKNESS)} 0">'
-                  f'<geom name="pad" type="box" size="{half_w} {_PAD_HALF_THICKNESS} {half_w}" '
-                  f'contype="0" conaffinity="0"/></body>')
-        pair_geoms = ["pad"]
-    elif surface == "mesh":
-        ext = math.radians(opts["surface_extent_deg"])
-        n = max(2, math.ceil(2 * ext / math.radians(opts["mesh_facet_deg"])))
-        edges = np.linspace(-ext, ext, n + 1)
-        parts = []
-        for i in range(n):
-            a0, a1 = float(edges[i]), float(edges[i + 1])
-            mid, half = 0.5 * (a0 + a1), 0.5 * (a1 - a0)
-            half_chord = R * math.sin(half)
-            dist = R * math.cos(half) + _PAD_HALF_THICKNESS  # box centre from the axis
-            parts.append(
-                f'<geom name="f{i}" type="box" size="{half_chord!r} {_PAD_HALF_THICKNESS} '
-                f'{half_w}" pos="{dist * math.sin(mid)!r} {-dist * math.cos(mid)!r} 0" '
-                f'euler="0 0 {mid!r}" contype="0" conaffinity="0"/>')
-            pair_geoms.append(f"f{i}")
-        trough = "\n".join(parts)
-    else:  # heightfield
-        ext = math.radians(opts["surface_extent_deg"])
-        X = R * math.sin(ext)
-        ncol = max(3, int(round(2 * X / opts["heightfield_cell_mm"])) + 1)
-        x = np.linspace(-X, X, ncol)
-        h = R - np.sqrt(R * R - x * x)
-        top = float(h.max())
-        elev = np.tile(h / top, (3, 1))  # nrow = 3 rows along the cylinder axis
-        data = " ".join(repr(float(v)) for v in elev.ravel())
-        assets = (f'<hfield name="trough" nrow="3" ncol="{ncol}" '
-                  f'size="{X!r} {half_w} {top!r} {_PAD_HALF_THICKNESS}" elevation="{data}"/>')
-        # local z (elevation) -> world +y, local y -> world -z
-        trough = (f'<geom name="hf" type="hfield" hfield="trough" pos="0 {-R!r} 0" '
-                  f'quat="{math.cos(-math.pi / 4)!r} {math.sin(-math.pi / 4)!r} 0 0" '
-                  f'contype="0" conaffinity="0"/>')
-        pair_geoms = ["hf"]
+    assets, trough, pair_geoms = _surface_xml(scenario, opts, R, max(2.0 * r, 5.0))
     pairs = "\n".join(
         f'<pair geom1="ball" geom2="{gname}" condim="6" '
         f'friction="{f0!r} {f0!r} {mur!r} {mur!r} {mur!r}" '
@@ -172,6 +188,90 @@ def build_xml(scenario, opts: dict) -> str:
 """
 
 
+def _set_initial_velocity(scenario, data) -> None:
+    """The ball's release velocity and spin (rolling without slipping), mm/s and rad/s."""
+    R = scenario.cylinder_radius * 1e3
+    r = scenario.ball_radius * 1e3
+    L = R - r
+    th0, w0 = scenario.theta0, scenario.theta_dot0
+    if scenario.section.round:
+        data.qvel[0:3] = [L * w0 * math.cos(th0), L * w0 * math.sin(th0), 0.0]
+        data.qvel[3:6] = [0.0, 0.0, -(L / r) * w0]  # body frame = world frame at identity
+    else:
+        _p, (vx0, vy0), spin0 = initial_state(scenario)
+        data.qvel[0:3] = [vx0 * 1e3, vy0 * 1e3, 0.0]
+        data.qvel[3:6] = [0.0, 0.0, spin0]
+
+
+def _pad_placer(scenario, data):
+    """The function that moves the tangent pad (a mocap body) under the ball: tangent to the
+    bore at the point nearest the ball's centre."""
+    section = scenario.section
+    tilted = scenario.tilt != 0.0
+    pad_dist = scenario.cylinder_radius * 1e3 + _PAD_HALF_THICKNESS
+    mocap_pos, mocap_quat = data.mocap_pos, data.mocap_quat
+    q = data.qpos
+    last_phi = [math.atan2(q[0], -q[1])]
+
+    def place_pad():
+        if section.round:
+            phi = math.atan2(q[0], -q[1])
+            mocap_pos[0, 0] = pad_dist * math.sin(phi)
+            mocap_pos[0, 1] = -pad_dist * math.cos(phi)
+        else:  # tangent to the ellipse at the point nearest the ball (sim.section, metres)
+            phi = last_phi[0] = section.phi_of_point(q[0] * 1e-3, q[1] * 1e-3, last_phi[0])
+            px, py = section.contact(phi)
+            mocap_pos[0, 0] = px * 1e3 + _PAD_HALF_THICKNESS * math.sin(phi)
+            mocap_pos[0, 1] = py * 1e3 - _PAD_HALF_THICKNESS * math.cos(phi)
+        if tilted:
+            mocap_pos[0, 2] = q[2]
+        mocap_quat[0, 0] = math.cos(0.5 * phi)
+        mocap_quat[0, 3] = math.sin(0.5 * phi)
+
+    return place_pad
+
+
+def _loss_applier(mujoco, scenario, model, data, losses):
+    """The function that sets the losses (sim.losses) for the ball's current speed: the drag
+    as an applied force, mu(v) r as the pairs' rolling and torsional coefficients."""
+    ball_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "ball")
+    m_ball, r_m = scenario.ball_mass, scenario.ball_radius
+    r = scenario.ball_radius * 1e3
+
+    def apply_losses():
+        v = data.qvel[0:3] * 1e-3  # m/s
+        data.xfrc_applied[ball_id, 0:3] = applied_force(v, losses, r_m, m_ball) * 1e3
+        model.pair_friction[:, 2:5] = mu_at(float(np.linalg.norm(v)), scenario.mu,
+                                            losses) * r
+
+    return apply_losses
+
+
+class _Record:
+    """The ball's state at each camera frame: qpos, qvel, the contacts' count and their
+    normal force summed (N; NaN without contact)."""
+
+    def __init__(self, mujoco, model, data, n: int):
+        self.mujoco, self.model, self.data = mujoco, model, data
+        self.qpos = np.empty((n, 7))
+        self.qvel = np.empty((n, 6))
+        self.normal = np.full(n, np.nan)
+        self.ncon = np.zeros(n, dtype=int)
+        self.f6 = np.zeros(6)
+
+    def __call__(self, i: int) -> None:
+        data = self.data
+        self.qpos[i] = data.qpos
+        self.qvel[i] = data.qvel
+        self.ncon[i] = data.ncon
+        if data.ncon:
+            total = 0.0
+            for k in range(data.ncon):
+                self.mujoco.mj_contactForce(self.model, data, k, self.f6)
+                total += self.f6[0]
+            self.normal[i] = total * 1e-3  # kg mm / s^2 -> N
+
+
 def run(scenario, progress: bool = False):
     """Simulate ``scenario`` with MuJoCo (condim 6 rolling friction, millimetre units).
 
@@ -190,89 +290,27 @@ def run(scenario, progress: bool = False):
         ``meta``.
     """
     import mujoco
-    from scipy.spatial.transform import Rotation
-    from tqdm import tqdm
-
-    from sim.trajectory import Trajectory
 
     opts = scenario.options()
     if opts["cone"] not in ("elliptic", "pyramidal"):
-        from sim.errors import ScenarioError
-
         raise ScenarioError(f"mujoco option cone must be elliptic or pyramidal, "
                             f"got {opts['cone']!r}")
     start = time.perf_counter()
     model = mujoco.MjModel.from_xml_string(build_xml(scenario, opts))
     data = mujoco.MjData(model)
-    R = scenario.cylinder_radius * 1e3
-    r = scenario.ball_radius * 1e3
-    L = R - r
-    th0, w0 = scenario.theta0, scenario.theta_dot0
-    if scenario.section.round:
-        data.qvel[0:3] = [L * w0 * math.cos(th0), L * w0 * math.sin(th0), 0.0]
-        data.qvel[3:6] = [0.0, 0.0, -(L / r) * w0]  # body frame = world frame at identity
-    else:
-        _p, (vx0, vy0), spin0 = initial_state(scenario)
-        data.qvel[0:3] = [vx0 * 1e3, vy0 * 1e3, 0.0]
-        data.qvel[3:6] = [0.0, 0.0, spin0]
+    _set_initial_velocity(scenario, data)
     n_sub, dt = _steps_per_frame(opts["timestep_s"], scenario.fps)
     n = scenario.n_samples
-    qpos = np.empty((n, 7))
-    qvel = np.empty((n, 6))
-    normal = np.full(n, np.nan)
-    ncon = np.zeros(n, dtype=int)
+    record = _Record(mujoco, model, data, n)
     tangent = scenario.surface == "tangent"
-    pad_dist = R + _PAD_HALF_THICKNESS
-    mocap_pos, mocap_quat = data.mocap_pos, data.mocap_quat
-    q = data.qpos
-    f6 = np.zeros(6)
-
-    section = scenario.section
-    tilted = scenario.tilt != 0.0
-    last_phi = [math.atan2(q[0], -q[1])]
-
-    def place_pad():
-        if section.round:
-            phi = math.atan2(q[0], -q[1])
-            mocap_pos[0, 0] = pad_dist * math.sin(phi)
-            mocap_pos[0, 1] = -pad_dist * math.cos(phi)
-        else:  # tangent to the ellipse at the point nearest the ball (sim.section, metres)
-            phi = last_phi[0] = section.phi_of_point(q[0] * 1e-3, q[1] * 1e-3, last_phi[0])
-            px, py = section.contact(phi)
-            mocap_pos[0, 0] = px * 1e3 + _PAD_HALF_THICKNESS * math.sin(phi)
-            mocap_pos[0, 1] = py * 1e3 - _PAD_HALF_THICKNESS * math.cos(phi)
-        if tilted:
-            mocap_pos[0, 2] = q[2]
-        mocap_quat[0, 0] = math.cos(0.5 * phi)
-        mocap_quat[0, 3] = math.sin(0.5 * phi)
-
+    place_pad = _pad_placer(scenario, data)
     if tangent:
         place_pad()
     mujoco.mj_forward(model, data)
-
-    def record(i):
-        qpos[i] = data.qpos
-        qvel[i] = data.qvel
-        ncon[i] = data.ncon
-        if data.ncon:
-            total = 0.0
-            for k in range(data.ncon):
-                mujoco.mj_contactForce(model, data, k, f6)
-                total += f6[0]
-            normal[i] = total * 1e-3  # kg mm / s^2 -> N
-
     record(0)
     step = mujoco.mj_step
     losses = losses_of(scenario)
-    ball_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "ball")
-    m_ball, r_m = scenario.ball_mass, scenario.ball_radius
-
-    def apply_losses():
-        v = data.qvel[0:3] * 1e-3  # m/s
-        data.xfrc_applied[ball_id, 0:3] = applied_force(v, losses, r_m, m_ball) * 1e3
-        model.pair_friction[:, 2:5] = mu_at(float(np.linalg.norm(v)), scenario.mu,
-                                            losses) * r
-
+    apply_losses = _loss_applier(mujoco, scenario, model, data, losses)
     for i in tqdm(range(1, n), disable=not progress, desc="mujoco", unit="frame",
                   mininterval=0.5):
         if tangent or losses.active:
@@ -286,25 +324,33 @@ def run(scenario, progress: bool = False):
             step(model, data, nstep=n_sub)
         record(i)
     wall = time.perf_counter() - start
+    return _trajectory(scenario, opts, record, f"mujoco {mujoco.__version__}", dt, n_sub, wall)
 
+
+def _trajectory(scenario, opts: dict, record: _Record, version: str, dt: float, n_sub: int,
+                wall: float):
+    """The recorded states (mm) as the SI trajectory, with the engine's settings in meta."""
+    qpos, qvel = record.qpos, record.qvel
     pos = qpos[:, 0:3] * 1e-3
     vel = qvel[:, 0:3] * 1e-3
     quat = qpos[:, 3:7] / np.linalg.norm(qpos[:, 3:7], axis=1, keepdims=True)
     omega = Rotation.from_quat(quat, scalar_first=True).apply(qvel[:, 3:6])
     theta, theta_dot = theta_from_centre(pos, vel)
+    r = scenario.ball_radius * 1e3
     meta = {
         "engine": "mujoco",
-        "engine_version": f"mujoco {mujoco.__version__}",
+        "engine_version": version,
         "surface": scenario.surface,
         "settings": {**opts, "timestep_s": dt, "steps_per_frame": n_sub, "units": "mm, kg, s",
                      "condim": 6, "friction": [1, 1, scenario.mu * r, scenario.mu * r,
                                                scenario.mu * r]},
-        "n_geoms": int(model.ngeom),
-        "max_contacts": int(ncon.max()),
+        "n_geoms": int(record.model.ngeom),
+        "max_contacts": int(record.ncon.max()),
         "wall_time_s": wall,
         **losses_meta(scenario, theta_dot),
     }
     return Trajectory(t=scenario.times(), theta=theta, theta_dot=theta_dot, position=pos,
-                      quaternion=quat, angular_velocity=omega, normal_force=normal,
-                      slip_speed=slip_speed(pos, vel, omega, scenario.ball_radius, section),
+                      quaternion=quat, angular_velocity=omega, normal_force=record.normal,
+                      slip_speed=slip_speed(pos, vel, omega, scenario.ball_radius,
+                                            scenario.section),
                       scenario=scenario, meta=meta)

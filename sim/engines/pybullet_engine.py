@@ -27,11 +27,14 @@ from __future__ import annotations
 
 import math
 import time
+from importlib.metadata import PackageNotFoundError, version
 
 import numpy as np
+from tqdm import tqdm
 
 from sim.engines.common import initial_state, losses_meta, slip_speed, theta_from_centre
 from sim.losses import applied_force, losses_of, mu_at
+from sim.trajectory import Trajectory
 
 DEFAULTS: dict = {
     "timestep_s": 2.5e-4,
@@ -105,12 +108,119 @@ def _build_trough(p, client, scenario, opts):
 
 
 def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         return version("pybullet")
     except PackageNotFoundError:
         return "unknown"
+
+
+def _set_world(p, client: int, scenario, opts: dict, dt: float) -> None:
+    """Gravity (the trough tilted: along its axis too) and the solver's settings."""
+    if scenario.tilt:
+        p.setGravity(0, -scenario.gravity * math.cos(scenario.tilt),
+                     scenario.gravity * math.sin(scenario.tilt), physicsClientId=client)
+    else:
+        p.setGravity(0, -scenario.gravity, 0, physicsClientId=client)
+    p.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0,
+                                numSolverIterations=int(opts["solver_iterations"]),
+                                contactSlop=0.0, deterministicOverlappingPairs=1,
+                                physicsClientId=client)
+
+
+def _release_ball(p, client: int, scenario, opts: dict) -> tuple[int, list]:
+    """The ball at its release angle, rolling without slipping at its release speed; its body
+    id and start position."""
+    R, r = scenario.cylinder_radius, scenario.ball_radius
+    L = R - r
+    th0, w0 = scenario.theta0, scenario.theta_dot0
+    if scenario.section.round:
+        start_pos = [L * math.sin(th0), -L * math.cos(th0), 0]
+        start_v = [L * w0 * math.cos(th0), L * w0 * math.sin(th0), 0.0]
+        start_w = [0.0, 0.0, -(L / r) * w0]
+    else:
+        (x0, y0), (vx0, vy0), spin0 = initial_state(scenario)
+        start_pos, start_v, start_w = [x0, y0, 0.0], [vx0, vy0, 0.0], [0.0, 0.0, spin0]
+    sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=r, physicsClientId=client)
+    ball = p.createMultiBody(scenario.ball_mass, sphere, basePosition=start_pos,
+                             physicsClientId=client)
+    p.changeDynamics(ball, -1, lateralFriction=1.0,
+                     rollingFriction=scenario.mu * r / opts["lateral_friction"],
+                     spinningFriction=0.0, restitution=0.0, linearDamping=0.0,
+                     angularDamping=0.0,
+                     maxJointVelocity=float(opts["max_angular_velocity_rad_s"]),
+                     activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING,
+                     physicsClientId=client)
+    p.resetBaseVelocity(ball, start_v, start_w, physicsClientId=client)
+    return ball, start_pos
+
+
+def _plane_placer(p, client: int, scenario, ball: int, trough: int, start_pos: list):
+    """The function that moves the tangent plane under the ball: tangent to the bore at the
+    point nearest the ball's centre."""
+    section = scenario.section
+    R = scenario.cylinder_radius
+    get_pose, reset_pose = p.getBasePositionAndOrientation, p.resetBasePositionAndOrientation
+    last_phi = [math.atan2(start_pos[0], -start_pos[1])]
+
+    def place_plane():
+        (x, y, _), _q = get_pose(ball, physicsClientId=client)
+        if section.round:
+            phi = math.atan2(x, -y)
+            at = [R * math.sin(phi), -R * math.cos(phi), 0.0]
+        else:  # tangent to the ellipse at the point nearest the ball
+            phi = last_phi[0] = section.phi_of_point(x, y, last_phi[0])
+            at = [*(float(v) for v in section.contact(phi)), 0.0]
+        qz = (0.0, 0.0, math.sin(0.5 * phi), math.cos(0.5 * phi))
+        reset_pose(trough, at, _quat_mul(qz, _Z_TO_Y), physicsClientId=client)
+
+    return place_plane
+
+
+def _loss_applier(p, client: int, scenario, ball: int, losses, lat: float):
+    """The function that sets the losses (sim.losses) for the ball's current speed: the drag
+    as an external force, mu(v) r as its rolling friction."""
+    r = scenario.ball_radius
+    get_pose = p.getBasePositionAndOrientation
+
+    def apply_losses():
+        (bx, by, bz), _q = get_pose(ball, physicsClientId=client)
+        v, _w = p.getBaseVelocity(ball, physicsClientId=client)
+        f = applied_force(v, losses, r, scenario.ball_mass)
+        p.applyExternalForce(ball, -1, f.tolist(), [bx, by, bz], p.WORLD_FRAME,
+                             physicsClientId=client)
+        if losses.mu_speed:
+            mu_v = mu_at(float(np.linalg.norm(v)), scenario.mu, losses)
+            p.changeDynamics(ball, -1, rollingFriction=mu_v * r / lat,
+                             physicsClientId=client)
+
+    return apply_losses
+
+
+class _Record:
+    """The ball's state at each camera frame: pose, velocities, the contacts' count and their
+    normal force summed (N; NaN without contact)."""
+
+    def __init__(self, p, client: int, ball: int, n: int):
+        self.p, self.client, self.ball = p, client, ball
+        self.pos = np.empty((n, 3))
+        self.quat = np.empty((n, 4))
+        self.vel = np.empty((n, 3))
+        self.omega = np.empty((n, 3))
+        self.normal = np.full(n, np.nan)
+        self.ncon = np.zeros(n, dtype=int)
+
+    def __call__(self, i: int) -> None:
+        p, client, ball = self.p, self.client, self.ball
+        pp, qq = p.getBasePositionAndOrientation(ball, physicsClientId=client)
+        v, w = p.getBaseVelocity(ball, physicsClientId=client)
+        self.pos[i] = pp
+        self.quat[i] = (qq[3], qq[0], qq[1], qq[2])
+        self.vel[i] = v
+        self.omega[i] = w
+        contacts = p.getContactPoints(bodyA=ball, physicsClientId=client)
+        self.ncon[i] = len(contacts)
+        if contacts:
+            self.normal[i] = sum(c[9] for c in contacts)
 
 
 def run(scenario, progress: bool = False):
@@ -131,103 +241,29 @@ def run(scenario, progress: bool = False):
         and settings in ``meta``.
     """
     import pybullet as p
-    from tqdm import tqdm
-
-    from sim.trajectory import Trajectory
 
     opts = scenario.options()
     start = time.perf_counter()
     client = p.connect(p.DIRECT)
     try:
         n_sub, dt = _steps_per_frame(opts["timestep_s"], scenario.fps)
-        if scenario.tilt:
-            p.setGravity(0, -scenario.gravity * math.cos(scenario.tilt),
-                         scenario.gravity * math.sin(scenario.tilt), physicsClientId=client)
-        else:
-            p.setGravity(0, -scenario.gravity, 0, physicsClientId=client)
-        p.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0,
-                                    numSolverIterations=int(opts["solver_iterations"]),
-                                    contactSlop=0.0, deterministicOverlappingPairs=1,
-                                    physicsClientId=client)
-        R, r = scenario.cylinder_radius, scenario.ball_radius
-        L = R - r
-        th0, w0 = scenario.theta0, scenario.theta_dot0
+        _set_world(p, client, scenario, opts, dt)
         lat = opts["lateral_friction"]
         trough = _build_trough(p, client, scenario, opts)
         p.changeDynamics(trough, -1, lateralFriction=lat, rollingFriction=0.0,
                          spinningFriction=0.0, restitution=0.0, physicsClientId=client)
-        section = scenario.section
-        if section.round:
-            start_pos = [L * math.sin(th0), -L * math.cos(th0), 0]
-            start_v = [L * w0 * math.cos(th0), L * w0 * math.sin(th0), 0.0]
-            start_w = [0.0, 0.0, -(L / r) * w0]
-        else:
-            (x0, y0), (vx0, vy0), spin0 = initial_state(scenario)
-            start_pos, start_v, start_w = [x0, y0, 0.0], [vx0, vy0, 0.0], [0.0, 0.0, spin0]
-        sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=r, physicsClientId=client)
-        ball = p.createMultiBody(scenario.ball_mass, sphere, basePosition=start_pos,
-                                 physicsClientId=client)
-        p.changeDynamics(ball, -1, lateralFriction=1.0, rollingFriction=scenario.mu * r / lat,
-                         spinningFriction=0.0, restitution=0.0, linearDamping=0.0,
-                         angularDamping=0.0,
-                         maxJointVelocity=float(opts["max_angular_velocity_rad_s"]),
-                         activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING,
-                         physicsClientId=client)
-        p.resetBaseVelocity(ball, start_v, start_w, physicsClientId=client)
-        n = scenario.n_samples
-        pos = np.empty((n, 3))
-        quat = np.empty((n, 4))
-        vel = np.empty((n, 3))
-        omega = np.empty((n, 3))
-        normal = np.full(n, np.nan)
-        ncon = np.zeros(n, dtype=int)
+        ball, start_pos = _release_ball(p, client, scenario, opts)
+        record = _Record(p, client, ball, scenario.n_samples)
         tangent = scenario.surface == "tangent"
-        get_pose, reset_pose = p.getBasePositionAndOrientation, p.resetBasePositionAndOrientation
-        step = p.stepSimulation
-
-        last_phi = [math.atan2(start_pos[0], -start_pos[1])]
-
-        def place_plane():
-            (x, y, _), _q = get_pose(ball, physicsClientId=client)
-            if section.round:
-                phi = math.atan2(x, -y)
-                at = [R * math.sin(phi), -R * math.cos(phi), 0.0]
-            else:  # tangent to the ellipse at the point nearest the ball
-                phi = last_phi[0] = section.phi_of_point(x, y, last_phi[0])
-                at = [*(float(v) for v in section.contact(phi)), 0.0]
-            qz = (0.0, 0.0, math.sin(0.5 * phi), math.cos(0.5 * phi))
-            reset_pose(trough, at, _quat_mul(qz, _Z_TO_Y), physicsClientId=client)
-
-        def record(i):
-            pp, qq = get_pose(ball, physicsClientId=client)
-            v, w = p.getBaseVelocity(ball, physicsClientId=client)
-            pos[i] = pp
-            quat[i] = (qq[3], qq[0], qq[1], qq[2])
-            vel[i] = v
-            omega[i] = w
-            contacts = p.getContactPoints(bodyA=ball, physicsClientId=client)
-            ncon[i] = len(contacts)
-            if contacts:
-                normal[i] = sum(c[9] for c in contacts)
-
+        place_plane = _plane_placer(p, client, scenario, ball, trough, start_pos)
         losses = losses_of(scenario)
-
-        def apply_losses():
-            (bx, by, bz), _q = get_pose(ball, physicsClientId=client)
-            v, _w = p.getBaseVelocity(ball, physicsClientId=client)
-            f = applied_force(v, losses, r, scenario.ball_mass)
-            p.applyExternalForce(ball, -1, f.tolist(), [bx, by, bz], p.WORLD_FRAME,
-                                 physicsClientId=client)
-            if losses.mu_speed:
-                mu_v = mu_at(float(np.linalg.norm(v)), scenario.mu, losses)
-                p.changeDynamics(ball, -1, rollingFriction=mu_v * r / lat,
-                                 physicsClientId=client)
-
+        apply_losses = _loss_applier(p, client, scenario, ball, losses, lat)
+        step = p.stepSimulation
         if tangent:
             place_plane()
         record(0)
-        for i in tqdm(range(1, n), disable=not progress, desc="pybullet", unit="frame",
-                      mininterval=0.5):
+        for i in tqdm(range(1, scenario.n_samples), disable=not progress, desc="pybullet",
+                      unit="frame", mininterval=0.5):
             for _ in range(n_sub):
                 if tangent:
                     place_plane()
@@ -238,20 +274,30 @@ def run(scenario, progress: bool = False):
     finally:
         p.disconnect(physicsClientId=client)
     wall = time.perf_counter() - start
+    version = f"pybullet {_version()} (API {p.getAPIVersion()})"
+    return _trajectory(scenario, opts, record, version, dt, n_sub, wall)
+
+
+def _trajectory(scenario, opts: dict, record: _Record, version: str, dt: float, n_sub: int,
+                wall: float):
+    """The recorded states as the trajectory, with the engine's settings in meta."""
     # before the first step there are no contact points yet: the sample at t = 0 has none
+    pos, vel, omega = record.pos, record.vel, record.omega
+    r, lat = scenario.ball_radius, opts["lateral_friction"]
     theta, theta_dot = theta_from_centre(pos, vel)
     meta = {
         "engine": "pybullet",
-        "engine_version": f"pybullet {_version()} (API {p.getAPIVersion()})",
+        "engine_version": version,
         "surface": scenario.surface,
         "settings": {**opts, "timestep_s": dt, "steps_per_frame": n_sub, "units": "m, kg, s",
                      "ball_rolling_friction_m": scenario.mu * r / lat,
                      "combined_rolling_friction_m": scenario.mu * r},
-        "max_contacts": int(ncon.max()),
+        "max_contacts": int(record.ncon.max()),
         "wall_time_s": wall,
         **losses_meta(scenario, theta_dot),
     }
     return Trajectory(t=scenario.times(), theta=theta, theta_dot=theta_dot, position=pos,
-                      quaternion=quat, angular_velocity=omega, normal_force=normal,
+                      quaternion=record.quat, angular_velocity=omega,
+                      normal_force=record.normal,
                       slip_speed=slip_speed(pos, vel, omega, r, scenario.section),
                       scenario=scenario, meta=meta)

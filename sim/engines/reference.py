@@ -25,9 +25,10 @@ import scipy
 from scipy.integrate import solve_ivp
 
 from rollfric.fit.eom import solve_reference, sticks
-from sim.engines.common import centre_from_theta, losses_meta, rolling_spin
+from sim.engines.common import centre_from_theta, losses_meta, rolling_spin, theta_from_centre
 from sim.losses import losses_of
 from sim.losses import solve as solve_losses
+from sim.trajectory import Trajectory
 
 DEFAULTS: dict = {"rtol": 1e-10}
 
@@ -48,8 +49,6 @@ def run(scenario, progress: bool = False):
         The ground truth at the camera rate: rolling without slipping, the normal force
         m g cos(theta) + m L theta'^2, slip 0, and the time the ball came to rest in ``meta``.
     """
-    from sim.trajectory import Trajectory
-
     opts = scenario.options()
     if not scenario.section.round:
         return _run_section(scenario, opts)
@@ -182,9 +181,6 @@ def solve_section(section, ball_radius: float, phi0: float, phi_dot0: float, mu:
 
 def _run_section(scenario, opts):
     """The reference run of an out-of-round trough (:func:`solve_section`)."""
-    from sim.engines.common import theta_from_centre
-    from sim.trajectory import Trajectory
-
     t = scenario.times()
     start = time.perf_counter()
     sec, r = scenario.section, scenario.ball_radius
