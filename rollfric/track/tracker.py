@@ -38,11 +38,11 @@ from rollfric.io import ballfree, bitdepth
 from rollfric.io import readers as io
 from rollfric.io.background import sample
 from rollfric.io.background_choice import resolve_background
+from rollfric.locate.tile import ring_gain, same_pixels
 from rollfric.registry import LOCATORS
 from rollfric.setup.model import Setup, SetupError
 from rollfric.track import dropped_frames as timing
 from rollfric.track import plausibility
-from rollfric.track.frame_checks import ring_gain, same_pixels
 from rollfric.track.radius import CAL_MIN_INLIER, RadiusCalibration
 from rollfric.track.setup_checks import (
     ball_radius_px,

@@ -1,9 +1,9 @@
-"""Per-frame figures of the ball's surroundings: the light around it and a repeated tile.
+"""Per-frame figures of the ball's tile: the light around the ball and a repeated frame.
 
 :func:`ring_gain` (the frame's brightness against the background in a ring about the ball: a
 flash or a dropped exposure moves it) and :func:`same_pixels` (the ball's tile the same as the
-previous frame's: a repeated frame) feed the plausibility checks
-(:mod:`rollfric.track.plausibility`).
+previous frame's: a repeated frame) feed the tracker's plausibility checks
+(:mod:`rollfric.track.plausibility`); both run on the locator's kernels.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from rollfric import locate
 from rollfric.locate.kernels import _ring_sums, _same_values
+from rollfric.locate.regions import _crop
 
 
 def ring_gain(frame, background, x: float, y: float, r: float) -> float:
@@ -22,7 +22,7 @@ def ring_gain(frame, background, x: float, y: float, r: float) -> float:
     the frame or dark). A flash or a dropped exposure moves it; the ball does not."""
     m = int(math.ceil(r + 7))
     x0, y0 = int(math.floor(x)) - m, int(math.floor(y)) - m
-    fr, x0c, y0c = locate.regions._crop(frame, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
+    fr, x0c, y0c = _crop(frame, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
     if fr is None:
         return math.nan
     bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
@@ -39,7 +39,7 @@ def same_pixels(frame, prev, x: float, y: float, r: float) -> bool:
     differ by the sensor's noise)."""
     m = int(math.ceil(r + 4))
     x0, y0 = int(math.floor(x)) - m, int(math.floor(y)) - m
-    a, _, _ = locate.regions._crop(frame, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
-    b, _, _ = locate.regions._crop(prev, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
+    a, _, _ = _crop(frame, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
+    b, _, _ = _crop(prev, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
     return (a is not None and b is not None and a.shape == b.shape
             and _same_values(np.asarray(a), np.asarray(b)))
