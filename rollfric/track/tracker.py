@@ -198,8 +198,8 @@ class Tracker:
         self.rows = np.full((n, 7), np.nan)  # x, y, r, sigma, inlier_frac, found, ring gain
         self.lost = np.zeros(n, dtype=bool)  # a ball located, but off the trough's circle
         self.identical = np.zeros(n, dtype=bool)  # the ball's tile equals the previous frame's
-        self.gate = 0.25 * self.r_px + 2.0  # px: a tracked ball moves less than this from its
-        # prediction
+        # px: a tracked ball moves less than this from its prediction
+        self.gate = 0.25 * self.r_px + 2.0
         self._read = getattr(source, "read", None)
         self.opts, self.opts_cal, self.cal_known = self._options(opts, bit_depth)
         self.locator = LOCATORS.load(method)  # as locate_frame, looked up once (not a frame)
@@ -212,14 +212,11 @@ class Tracker:
         calibrated, and whether the calibration is of a known-radius fit."""
         base_radius = (opts if opts is not None else locate.SubpixelOptions()).radius
         # a small ball (known radius only): its apparent radius from its full rims' edge
-        # points; the 1.58 mm ball (5.9 px) under a harsh side lamp measured 1.7 % (0.10 px)
-        # larger than the setup's in synth's renders, which put its half-shadowed arcs
-        # 0.15-0.3 px off
+        # points (it differs from the setup's by a fraction of a pixel)
         cal_known = self.method == "subpixel" and (
             base_radius == "known" or (base_radius == "auto" and self.r_px < 12))
         # once calibrated, a free radius only on (nearly) the full rim: on a partial arc the
-        # free radius and the centre are confounded (centres 0.1-0.15 px off on the harsh
-        # lamp's arcs over half of the rim), the calibrated one pins the centre
+        # free radius and the centre are confounded, the calibrated one pins the centre
         base = opts if opts is not None else locate.SubpixelOptions()
         if bit_depth is None:
             bit_depth = getattr(self.source, "bit_depth", None)
@@ -362,8 +359,9 @@ class Tracker:
                     self.record(i, frame, span.prev, loc, ok)
                 span.prev = frame
                 if keep:
-                    self.clock.restart(self.bar)  # before the count: no line with the
-                    # compiler's rate
+                    # the bar's clock restarted before the count: no line with the compiler's
+                    # rate
+                    self.clock.restart(self.bar)
                     self.bar.update(1)
         except BaseException:
             self.stop.set()
@@ -574,8 +572,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         second pass (above) made with it. The segments run on as many threads (at most the
         CPUs not busy elsewhere at the start) when the reader says it can be read from several
         threads at once (its attribute ``concurrent_reads``; synth's recordings), else one
-        after another: the track is the same either way. 1: one pass through the recording,
-        as before 2026-11-23.
+        after another: the track is the same either way. 1: one pass through the recording.
     bit_depth : int or None
         The camera's effective bit depth (:func:`rollfric.io.bitdepth.resolve_bit_depth`): the
         locators' contrast floors are fractions of its full scale, 2**bit_depth - 1; None: the
