@@ -163,6 +163,18 @@ class _Span:
     n_warm: int = 0  # radii the warm-up frames gave
 
 
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """The frames judged (:meth:`Tracker.judge`): their times and flags, and the timing found."""
+
+    pos: np.ndarray  # each frame's time in camera periods from frame 0
+    flags: np.ndarray  # track.csv's flag of each frame ("" kept)
+    counts: dict  # frames by flag, the flags that occur
+    gaps: object  # the dropped-frame search (rollfric.track.dropped_frames.Gaps), or None
+    irregular: tuple  # (frame, step ratio): the timing's irregular steps
+    located_irregular: tuple  # the same, at frames the locator lost or got wrong
+
+
 class Tracker:
     """One recording's tracking: the steps of :func:`track_recording` as methods.
 
@@ -421,13 +433,11 @@ class Tracker:
                 rows[i, :5] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac)
         return redo
 
-    def judge(self, cal: RadiusCalibration, times, drops: bool, warnings: list):
+    def judge(self, cal: RadiusCalibration, times, drops: bool, warnings: list) -> Verdict:
         """The per-frame plausibility checks and the frame times: the frames that fail leave the
         track (their centres NaN, found 0) with their flag.
 
-        Returns (pos, flags, counts, gaps, irregular, located_irregular): the frame positions
-        in camera periods, the flags, their counts, the dropped-frame search (None without
-        it) and the irregular steps; the timing's warnings are appended to ``warnings``.
+        The timing's warnings are appended to ``warnings``.
         """
         rows, n, r_cal = self.rows, self.n, cal.value
         found = rows[:, 5] == 1.0
@@ -477,9 +487,9 @@ class Tracker:
                            "checks and are left out: " + ", ".join(
                                f"{k} {v}" for k, v in counts.items()
                                if k not in ("not_found", "off_track")))
-        return pos, flags, counts, gaps, irregular, located_irregular
+        return Verdict(pos, flags, counts, gaps, irregular, located_irregular)
 
-    def table(self, times, pos, flags) -> pd.DataFrame:
+    def table(self, times, verdict: Verdict) -> pd.DataFrame:
         """The track DataFrame: the centres (lens-undistorted ones beside them with a lens
         calibration) turned into angles about the trough's centre."""
         rows = self.rows
@@ -488,14 +498,15 @@ class Tracker:
         theta, xu, yu = centre_angles(x, y, self.center_ud, self.setup, method=self.angle)
         df = pd.DataFrame({
             "frame": np.arange(self.n),
-            "t_s": pos / self.setup.fps if times is None else np.asarray(times, dtype=float),
+            "t_s": verdict.pos / self.setup.fps if times is None
+            else np.asarray(times, dtype=float),
             "x_px": rows[:, 0],
             "y_px": rows[:, 1],
             "theta_rad": theta,
             "found": found.astype(int),
             "r_px": rows[:, 2],
             "sigma_px": rows[:, 3],
-            "flag": flags.astype(str),
+            "flag": verdict.flags.astype(str),
             "inlier_frac": rows[:, 4],
             "ring_gain": rows[:, 6],
         })
@@ -503,8 +514,8 @@ class Tracker:
             df["xu_px"], df["yu_px"] = xu, yu
         return df
 
-    def info(self, cal: RadiusCalibration, *, times, redo: list, counts: dict, gaps,
-             warnings: list, warnings_radius: list, irregular, located_irregular) -> TrackInfo:
+    def info(self, cal: RadiusCalibration, verdict: Verdict, *, times, redo: list,
+             warnings: list, warnings_radius: list) -> TrackInfo:
         """The :class:`TrackInfo` of the track: what the locating knows."""
         cal_keys = {"ball_radius_px_seen_rel_sigma": None, "ball_radius_px_seen_rel_dev": None,
                     **cal.summary()}
@@ -516,10 +527,11 @@ class Tracker:
                          center_source="given", undistorted=self.lens is not None,
                          background="given", times=TIMES_FPS if times is None else "given",
                          ball_radius_px=self.r_px, track_radius_px=self.L_px, **cal_keys,
-                         n_refitted=len(redo), flags=counts,
+                         n_refitted=len(redo), flags=verdict.counts,
                          warnings=tuple(warnings), warnings_radius=tuple(warnings_radius),
-                         frames_dropped=() if gaps is None else gaps.dropped,
-                         timing_irregular=irregular, located_irregular=located_irregular)
+                         frames_dropped=() if verdict.gaps is None else verdict.gaps.dropped,
+                         timing_irregular=verdict.irregular,
+                         located_irregular=verdict.located_irregular)
 
 
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
@@ -619,12 +631,10 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     warnings_radius = list(warnings)
     for msg in warnings:
         logger.warning(msg)
-    pos, flags, counts, gaps, irregular, located_irregular = tracker.judge(cal, times, drops,
-                                                                          warnings)
-    df = tracker.table(times, pos, flags)
-    info = tracker.info(cal, times=times, redo=redo, counts=counts, gaps=gaps,
-                        warnings=warnings, warnings_radius=warnings_radius,
-                        irregular=irregular, located_irregular=located_irregular)
+    verdict = tracker.judge(cal, times, drops, warnings)
+    df = tracker.table(times, verdict)
+    info = tracker.info(cal, verdict, times=times, redo=redo, warnings=warnings,
+                        warnings_radius=warnings_radius)
     return df, info
 
 
