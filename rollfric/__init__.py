@@ -28,8 +28,8 @@ _WHERE = {
     # a measurement, from a recording to mu
     "measure": "rollfric.track.tracker",
     "track_recording": "rollfric.track.tracker",
-    "TrackInfo": "rollfric.track.tracker",
-    "angles": "rollfric.track.tracker",
+    "TrackInfo": "rollfric.track.track_info",
+    "angles": "rollfric.geometry.theta",
     # recordings and images
     "open_recording": "rollfric.io.readers",
     "read_image": "rollfric.io.readers",

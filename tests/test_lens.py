@@ -126,7 +126,7 @@ def test_calibration_image_size_is_kept_and_checked_against_the_frames():
     # frames without a check (its centre and distortion then fall on other pixels)
     import tomllib
 
-    from rollfric.track.tracker import check_setup_fits
+    from rollfric.track.setup_checks import check_setup_fits
 
     d = thesis_setup().to_toml_dict()
     d["camera"].update(matrix=K, distortion=D, image_size_px=[1280, 1024])

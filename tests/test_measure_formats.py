@@ -16,7 +16,7 @@ from measure_data import make_recording
 from rollfric.cli.main import main
 from rollfric.io.readers import RecordingError, open_recording
 from rollfric.setup.model import save_setup
-from rollfric.track.tracker import frame_times
+from rollfric.track.timestamps import frame_times
 
 rng = np.random.default_rng(5)
 

@@ -14,7 +14,7 @@ from camera_files import write_cine
 
 from rollfric.io.formats.phantom_lut import P10_BITS, P10_TO_LINEAR
 from rollfric.io.readers import RecordingError, open_recording
-from rollfric.track.tracker import frame_times
+from rollfric.track.timestamps import frame_times
 
 REAL = Path(__file__).parent / "data" / "real"
 CINES = ["cine_781.cine", "cine_legacy.cine", "data_small_cine.cine"]

@@ -275,7 +275,7 @@ def _judged(x, y, found, sigma):
     lost frames flagged, and the irregular steps split (rollfric.track.tracker.track_recording)."""
     from rollfric.track import plausibility
     from rollfric.track.dropped_frames import split_irregular
-    from rollfric.track.tracker import LOCATOR_FLAGS
+    from rollfric.track.timestamps import LOCATOR_FLAGS
 
     gaps = find_gaps(x, y, found)
     flags = plausibility.flag_frames(x, y, found, sigma=sigma, pos=gaps.pos)

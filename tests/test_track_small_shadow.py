@@ -11,7 +11,8 @@ import numpy as np
 
 from rollfric.locate import locate_subpixel
 from rollfric.setup.model import Setup
-from rollfric.track.tracker import RadiusCalibration, track_recording
+from rollfric.track.radius import RadiusCalibration
+from rollfric.track.tracker import track_recording
 from synth.drawn.frames import disk_coverage
 
 R = 5.9  # the setup's radius (px)

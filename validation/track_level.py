@@ -125,8 +125,8 @@ def _contour(case: Case, radius_px: float, lens) -> tuple[tuple[float, float], s
     import synth
     from rollfric.geometry.trough import find_cylinder_center
     from rollfric.io import readers as io
+    from rollfric.io.background_choice import resolve_background
     from rollfric.setup.lens import Calibration
-    from rollfric.track.tracker import resolve_background
 
     cal = None if lens is None else Calibration(lens["matrix"], lens["distortion"])
     traj = sim.simulate(case.scenario.replace(duration=2.0 / case.scenario.fps))
@@ -212,8 +212,9 @@ def measure_track(case: Case | dict, *, sigma_px: float = LOCATOR_SIGMA_PX) -> T
 
     import sim
     from rollfric.fit.estimate import fit_mu
+    from rollfric.geometry.theta import angles
     from rollfric.setup.model import setup_from_dict
-    from rollfric.track.tracker import angles, resolve_offset
+    from rollfric.track.tracker import resolve_offset
     from synth.pipeline import truth_table
     from validation.e2e import _offset
 

@@ -13,6 +13,8 @@ SECTION = "API reference"
 # the module that defines a name -> the page it is listed on
 TITLES = {
     "rollfric.track.tracker": "Measuring",
+    "rollfric.track.track_info": "Measuring",
+    "rollfric.geometry.theta": "Measuring",
     "rollfric.io.readers": "Recordings",
     "rollfric.io.source": "Recordings",
     "rollfric.setup.model": "Setup and calibration",

@@ -154,57 +154,6 @@ def write_track_csv(track, path) -> None:
     csv.to_csv(path, index=False, float_format="%.6f", na_rep="")
 
 
-def track_summary(track, info) -> dict:
-    """What a track was measured with and what was found (fit.json's and track.json's keys).
-
-    Parameters
-    ----------
-    track : pandas.DataFrame
-        From :func:`rollfric.track.tracker.measure`.
-    info : rollfric.track.tracker.TrackInfo
-        Beside it.
-
-    Returns
-    -------
-    dict
-        n_frames, n_found, locator, angle, the centre and where it came from, background,
-        times, the ball's radius, flagged and dropped frames, irregular steps, warnings,
-        median_sigma_px, recording.
-    """
-    return {"n_frames": int(info.n_frames), "n_found": int(info.n_found),
-            "locator": info.locator, "angle": info.angle,
-            "center_px": list(info.center_px),
-            "center_source": info.center_source,
-            # standard uncertainty of a contour-found centre (null: from the setup)
-            "center_u_px": None if info.center_u_px is None else list(info.center_u_px),
-            # angles from lens-undistorted centres ([camera] matrix, distortion)
-            "undistorted": bool(info.undistorted),
-            "background": info.background,
-            # how: given (--background), recording (its own), median, clip or max
-            "background_from": info.background_from,
-            "times": info.times,
-            "ball_radius_px": info.ball_radius_px,
-            # the apparent radius calibrated from full-rim frames (None: too few)
-            "ball_radius_px_seen": info.ball_radius_px_seen,
-            "ball_radius_px_seen_n": info.ball_radius_px_seen_n,
-            "n_refitted": info.n_refitted,
-            # frames left out of the fit, by track.csv flag
-            "frames_flagged": dict(info.flags),
-            # a held start and a rest, left out of the fit (rollfric.track.still)
-            "frames_held": int((track["still"] == "held").sum()),
-            "frames_rest": int((track["still"] == "rest").sum()),
-            "frames_dropped": [{"after_frame": int(k), "frames": int(m)}
-                               for k, m in info.frames_dropped],
-            "timing_irregular": [{"frame": int(k), "step_ratio": float(r)}
-                                 for k, r in info.timing_irregular],
-            "located_irregular": [{"frame": int(k), "step_ratio": float(r)}
-                                  for k, r in info.located_irregular],
-            "warnings": list(info.warnings),
-            "median_sigma_px": float(track["sigma_px"].median())
-            if track["sigma_px"].notna().any() else None,
-            "recording": info.recording}
-
-
 def remove_legacy_leftovers(out) -> list:
     """Remove the hidden ``.DIR.XXXXXXXX`` folders that earlier versions of measure left beside
     DIR when killed (named by tempfile.mkdtemp, without a PID): only folders made as mkdtemp
@@ -310,15 +259,7 @@ def _run(args) -> int:
     remove_legacy_leftovers(out)
     with staged_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure") as tmp:
         write_track_csv(track, tmp / "track.csv")
-        extra = {**track_summary(track, info),
-                 "offset_fitted": bool(info.offset_fitted),
-                 "offset_reason": info.offset_reason,
-                 # the contour as an ellipse and the mu bias it implies (rollfric.geometry.ellipse)
-                 "contour_ellipse": info.contour_ellipse,
-                 # the ball's path as an ellipse and what it means (rollfric.geometry.pathshape)
-                 "path_ellipse": info.path_ellipse,
-                 # the camera's motion from the static scene (rollfric.track.camera_motion)
-                 "camera_motion": info.camera_motion, **keys,
+        extra = {**info.json_keys(track, fitted=True), **keys,
                  # the setup it was measured with (rollfric combine compares runs by it)
                  "setup": info.setup.to_toml_dict()}
         save_fit(result, tmp / "fit.json", **extra)

@@ -69,7 +69,7 @@ def run(args) -> int:
 def _run(args) -> int:
     import json
 
-    from rollfric.cli.measure import check_tracking_outputs, track_summary, write_track_csv
+    from rollfric.cli.measure import check_tracking_outputs, write_track_csv
     from rollfric.fit.estimate import json_safe
     from rollfric.output.atomic import write_text
     from rollfric.output.folder import staged_folder
@@ -83,8 +83,7 @@ def _run(args) -> int:
     with staged_folder(out, OUTPUTS, overwrite=args.overwrite, command="track") as tmp:
         write_track_csv(track, tmp / "track.csv")
         summary = {"setup": args.setup if args.setup is not None
-                   else "the recording's attrs", **track_summary(track, info),
-                   "contour_ellipse": info.contour_ellipse}
+                   else "the recording's attrs", **info.json_keys(track)}
         write_text(tmp / "track.json", json.dumps(json_safe(summary), indent=2) + "\n")
         if args.plot:
             from rollfric.io.readers import open_recording

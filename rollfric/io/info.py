@@ -123,7 +123,7 @@ def recording_info(recording, setup_fps: float | None = None) -> dict:
     """
     from rollfric.fit.estimate import MIN_SAMPLES
     from rollfric.io.readers import open_recording
-    from rollfric.track.tracker import TIMES_RATE_TOL, fps_mismatch, frame_times
+    from rollfric.track.timestamps import TIMES_RATE_TOL, fps_mismatch, frame_times
 
     path = Path(recording)
     src = open_recording(path)

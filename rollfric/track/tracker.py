@@ -1,12 +1,14 @@
-"""From a recording to the track theta(t) and mu: the streaming measurement loop.
+"""The tracking loop: the ball located in every frame of a recording, one row a frame.
 
-``measure(recording, setup, background=None, method="subpixel")`` reads the frames one at a
-time, locates the ball in each (tracking it with a small region of interest predicted from the
-previous frames, a full-frame search when it is lost), turns centres into angles about the
-cylinder centre, and fits mu with :func:`rollfric.fit.estimate.fit_mu`. When the source has
-``read(i, roi)`` (see :mod:`rollfric.io.readers`), a tracked frame is read only where the locator
-looks
-(:class:`rollfric.locate.LazyFrame`); the track is the same as from whole frames.
+:class:`Tracker` follows the ball through a recording: each frame's centre is predicted from
+the last ones, located in a small region about the prediction (a full-frame search when lost;
+with a reader's ``read(i, roi)`` only that region is read, :class:`rollfric.locate.LazyFrame`),
+accepted on the trough's circle and recorded; the ball's apparent radius is calibrated on the
+way (:mod:`rollfric.track.radius`) and the partial arcs fitted before it settled are fitted
+again. A long recording is tracked in segments on threads. The frames are then judged
+(:mod:`rollfric.track.plausibility`, the frame times of :mod:`rollfric.track.dropped_frames`)
+and the centres turned into angles (:mod:`rollfric.geometry.theta`).
+:func:`track_recording` is the public function; :func:`measure` the whole measurement.
 
 Angles: theta = atan2(x - xc, y - yc) with image y down (positive right of the bottom), or the
 thesis's theta = arcsin((x - xc) / L_px) with L = R - r (``angle="arcsin"``).
@@ -24,518 +26,52 @@ import time
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
 from rollfric import jit, locate
 from rollfric import parallel as cpus
 from rollfric.errors import InputError
 from rollfric.geometry.perspective import ball_plane_center, contour_depth_from_radius
+from rollfric.geometry.theta import ANGLES, angles, centre_angles
 from rollfric.geometry.trough import find_cylinder_center
 from rollfric.io import ballfree, bitdepth
 from rollfric.io import readers as io
-from rollfric.io.background import repaired_median, sample
-from rollfric.locate.kernels import _ring_sums, _same_values
+from rollfric.io.background import sample
+from rollfric.io.background_choice import resolve_background
+from rollfric.locate.tile import ring_gain, same_pixels
 from rollfric.registry import LOCATORS
-from rollfric.setup.model import Setup, SetupError, setup_from_dict
+from rollfric.setup.model import Setup, SetupError
 from rollfric.track import dropped_frames as timing
 from rollfric.track import plausibility
-from rollfric.track.readahead import ReadAhead
+from rollfric.track.radius import CAL_MIN_INLIER, RadiusCalibration
+from rollfric.track.setup_checks import (
+    ball_radius_px,
+    check_setup_fits,
+    check_track_fits,
+    setup_from_recording,
+)
+from rollfric.track.timestamps import (
+    LOCATOR_FLAGS,
+    TIMES_FPS,
+    dropped_message,
+    fps_mismatch,
+    frame_times,
+    irregular_message,
+    located_frames_reason,
+    located_irregular_message,
+)
+from rollfric.track.track_info import TrackInfo
 from rollfric.uncertainty import quality
 
 logger = logging.getLogger(__name__)  # messages: info (what was done), warning (check this)
 
 TRACK_COLUMNS = ["frame", "t_s", "x_px", "y_px", "theta_rad", "found", "flag", "still"]
-ANGLES = ("atan2", "arcsin")
-TIMES = ("auto", "fps")
-# the recording's timestamps are checked against the setup's rate and for even spacing
-TIMES_RATE_TOL = 1e-3  # relative: a median interval further from 1 / camera.fps is reported
-TIMES_JITTER_TOL = 0.01  # relative: an interval further from the median one is reported
-TIMES_FPS = "frame / camera.fps"  # TrackInfo.times when the times are not the recording's
-# timestamps whose median step is ~1000 or ~1e6 frame periods of the setup's rate are in ms or
-# us, not s (read as seconds they gave mu 0.297 for 0.02): within this factor of the unit's
-# ratio (a camera clock 10 % off, or a setup's rate that is, is still told from 1000x)
-TIMES_UNITS = (("ms", 1e-3), ("us", 1e-6))
-TIMES_UNIT_FACTOR = 1.5
-# the frame flags that do not depend on the frame times (the tracker's and the plausibility
-# checks' but jump and duplicate, which a timing error also raises): an irregular step at or
-# next to such a frame is the locator's (rollfric.track.dropped_frames.split_irregular)
-LOCATOR_FLAGS = tuple(f for f in plausibility.FLAGS if f not in ("jump", "duplicate"))
 # the locator's kernels compiled by numba on a fresh install (a 2-core machine; once, then cached)
 LOCATOR_COMPILE = "about 1-3 minutes"
-
-
-@dataclasses.dataclass(frozen=True)
-class TrackInfo:
-    """What a measured track was measured with and how: returned beside the track DataFrame.
-
-    :func:`track_recording` fills what the locating knows; :func:`measure` adds the rest
-    (``setup``, ``recording``, ``center_source``, ``background``, ``times``, the warnings of the
-    background and the frame times, ``offset_fitted``, ``offset_reason``). ``rollfric measure``
-    writes most of it to fit.json under the same names (``flags`` as ``frames_flagged``).
-
-    Attributes
-    ----------
-    setup : Setup
-        The setup the track was measured with.
-    recording : str
-        The recording's name (its path, or the FrameSource's ``name``).
-    n_frames : int
-        Frames in the recording (rows of the track).
-    n_found : int
-        Frames where the ball was found and kept (``found == 1``).
-    locator : str
-        The locator used: "subpixel", "thesis-large" or "thesis-small".
-    angle : str
-        The angle formula: "atan2" or "arcsin" (:func:`angles`).
-    center_px : tuple of float
-        The trough centre (xc, yc) the angles were taken about (px; lens-undistorted when
-        ``undistorted``).
-    center_source : str
-        Where ``center_px`` came from ("setup center_px", or the background contour's fit).
-    undistorted : bool
-        Whether the angles come from lens-undistorted centres (the setup's [camera] matrix and
-        distortion).
-    background : str
-        Where the background image came from (given, stored in the recording, median of N
-        frames; "repaired" when a resting ball was removed from it).
-    times : str
-        Where t_s came from: "the recording's timestamps" or ``TIMES_FPS`` (frame /
-        camera.fps).
-    ball_radius_px : float
-        The ball's radius from the setup (px): ball.diameter_mm / 2 / camera.pixel_size_mm.
-    track_radius_px : float
-        L = R - r, the radius of the ball centre's path, from the setup (px).
-    ball_radius_px_seen : float or None
-        The ball's apparent radius calibrated from full-rim frames (px; :class:`RadiusCalibration`);
-        None when too few frames showed a full rim.
-    ball_radius_px_seen_n : int
-        Frames in that calibration.
-    ball_radius_px_seen_rel_sigma : float or None
-        Relative scatter of one frame's apparent radius (1); None when not calibrated.
-    ball_radius_px_seen_rel_dev : float or None
-        ball_radius_px_seen / ball_radius_px - 1 (1); None when not calibrated.
-    n_refitted : int
-        Frames fitted again with the calibrated radius in the second pass.
-    flags : dict of str to int
-        Frames by track.csv ``flag`` (:data:`rollfric.track.plausibility.FLAGS`), only the flags
-        that
-        occur; the rejected ones are left out of the fit.
-    warnings : tuple of str
-        What to check about the measurement (also logged as warnings).
-    warnings_radius : tuple of str
-        The warnings of the radius calibration (a quality reason "ball_radius" of the fit).
-    offset_fitted : bool
-        Whether the angle offset of the trough's bottom was fitted (False without a fit).
-    offset_reason : str or None
-        Why (:func:`resolve_offset`); None without a fit.
-    center_u_px : tuple of float or None
-        Standard uncertainty (ux, uy) of a ``center_px`` found from the background's contour
-        (px; :class:`rollfric.geometry.trough.CylinderContour` ``center_u``: the circle fit's and
-        the
-        edge definition's); None when the centre came from the setup (its ``center_px_u``, if
-        any, is in ``setup``).
-    contour_ellipse : dict or None
-        The trough's contour fitted as an ellipse (:mod:`rollfric.geometry.ellipse`: centre,
-        semi-axes,
-        angle, eccentricity) and, after a fit, the mu bias it implies if the camera made it
-        (``mu_bias_if_camera``) or the trough is out of round (``mu_bias_if_trough``); None
-        when the centre came from the setup.
-    frames_dropped : tuple of (int, int)
-        Dropped frames found from the motion (:mod:`rollfric.track.dropped_frames`) and repaired in
-        t_s:
-        (recorded frame k, camera periods lost between frames k and k + 1); empty when the
-        times are the recording's own timestamps (they show a gap themselves).
-    timing_irregular : tuple of (int, float)
-        (frame k, step ratio): steps of the ball that fit no whole number of frame periods
-        (timing that cannot be repaired: a quality reason "timing").
-    located_irregular : tuple of (int, float)
-        The same, for steps at or next to frames the locator lost or whose centre a check
-        that does not depend on the frame times rejected (:data:`LOCATOR_FLAGS`; a ball
-        leaving a deep shadow): the located centres', not the timing's (a quality reason
-        "located_frames").
-    path_ellipse : dict or None
-        The ball's path fitted as an ellipse about the centre used and what it means
-        (:mod:`rollfric.geometry.pathshape`: the verdict, mu read as a tilted camera and as an
-        out-of-round bore, the lengths the period and the path give); None without a fit.
-    angle_map : tuple or None
-        The 2 x 2 map about the centre applied to the centres before the angles (a tilted
-        camera's compression undone, :mod:`rollfric.geometry.pathshape`); None: none applied.
-    camera_motion : dict or None
-        The camera's motion found from the static scene (:mod:`rollfric.track.camera_motion`:
-        "still", a "bump" at a frame or a "drift", the shifts sampled); the centres in the
-        track are moved back into the background's frame by it. None: not looked for.
-    seconds : dict of str to float
-        Wall time of each stage of :func:`measure` (s): "open" (the recording, the setup, the
-        frame times), "background", "trough centre", "tracking", "fit", "turning points"
-        (the dropped-frame search where the ball turns), "ellipse check", "path check" (the
-        path's ellipse: a tilted camera or an out-of-round bore), "checks"; empty
-        from :func:`track_recording` alone. Not written to fit.json.
-    background_from : str
-        How the background was had: "given" (an image), "recording" (the recording's own),
-        or made from the frames: "median", "clip" or "max".
-
-    Examples
-    --------
-    The shipped sample recording, measured (:func:`measure` returns its TrackInfo):
-
-    >>> import tempfile, rollfric
-    >>> from pathlib import Path
-    >>> from rollfric.sample import write_sample
-    >>> tmp = tempfile.TemporaryDirectory()
-    >>> folder = write_sample(Path(tmp.name) / "sample")
-    >>> track, info, result = rollfric.measure(folder / "frames.tif", folder / "setup.toml")
-    >>> info.n_frames, info.n_found, info.locator, info.center_source
-    (400, 400, 'subpixel', 'setup center_px')
-    >>> round(info.ball_radius_px, 1), info.times
-    (37.2, 'frame / camera.fps')
-    >>> tmp.cleanup()
-    """
-
-    setup: Setup
-    recording: str
-    n_frames: int
-    n_found: int
-    locator: str
-    angle: str
-    center_px: tuple[float, float]
-    center_source: str
-    undistorted: bool
-    background: str
-    times: str
-    ball_radius_px: float
-    track_radius_px: float
-    ball_radius_px_seen: float | None
-    ball_radius_px_seen_n: int
-    ball_radius_px_seen_rel_sigma: float | None
-    ball_radius_px_seen_rel_dev: float | None
-    n_refitted: int
-    flags: dict
-    warnings: tuple[str, ...]
-    warnings_radius: tuple[str, ...]
-    offset_fitted: bool = False
-    offset_reason: str | None = None
-    center_u_px: tuple[float, float] | None = None
-    contour_ellipse: dict | None = None
-    frames_dropped: tuple = ()
-    timing_irregular: tuple = ()
-    located_irregular: tuple = ()
-    seconds: dict = dataclasses.field(default_factory=dict)
-    background_from: str = "given"  # given, recording (its own), median, clip or max
-    path_ellipse: dict | None = None
-    angle_map: tuple | None = None
-    camera_motion: dict | None = None
-
-
-def ball_radius_px(setup: Setup) -> float:
-    """The setup's ball radius in pixels.
-
-    Parameters
-    ----------
-    setup : Setup
-
-    Returns
-    -------
-    float
-        ball radius / pixel size.
-    """
-    return setup.ball_radius / setup.pixel_size
-
-
-def angles(x, y, center, *, method: str = "atan2", track_radius_px: float | None = None):
-    """theta (rad) of ball centres about the cylinder centre.
-
-    "atan2": atan2(x - xc, y - yc) (image y down: y > yc below the axis). "arcsin": the
-    thesis's arcsin((x - xc) / L_px), L_px = (R - r) / pixel size.
-
-    Parameters
-    ----------
-    x, y : array_like
-        Ball centres (px).
-    center : tuple of float
-        (xc, yc), the cylinder axis (px).
-    method : {"atan2", "arcsin"}, optional
-        The formula.
-    track_radius_px : float, optional
-        L_px, needed by "arcsin".
-
-    Returns
-    -------
-    numpy.ndarray
-        theta, > 0 right of the bottom.
-
-    Raises
-    ------
-    InputError
-        An unknown method.
-    ValueError
-        "arcsin" without ``track_radius_px``.
-
-    Examples
-    --------
-    A ball 100 px straight below the axis, and one 0.1 rad to its right:
-
-    >>> import numpy as np
-    >>> from rollfric import angles
-    >>> x = [100.0, 100.0 + 100.0 * np.sin(0.1)]
-    >>> y = [200.0, 100.0 + 100.0 * np.cos(0.1)]
-    >>> angles(x, y, (100.0, 100.0)).round(6)
-    array([0. , 0.1])
-    >>> angles(x, y, (100.0, 100.0), method="arcsin", track_radius_px=100.0).round(6)
-    array([0. , 0.1])
-    """
-    x = np.asarray(x, dtype=float)
-    y = np.asarray(y, dtype=float)
-    xc, yc = center
-    if method == "atan2":
-        return np.arctan2(x - xc, y - yc)
-    if method == "arcsin":
-        if not track_radius_px:
-            raise ValueError("arcsin angles need track_radius_px")
-        return np.arcsin(np.clip((x - xc) / track_radius_px, -1.0, 1.0))
-    raise InputError(f"unknown angle method {method!r} (known: {', '.join(ANGLES)})")
-
-
-def setup_from_recording(source) -> Setup:
-    """The setup stored in a Zarr recording's attributes.
-
-    Parameters
-    ----------
-    source : FrameSource
-        A recording whose ``attrs["setup"]`` holds the lab-file form (dict, JSON or TOML text).
-
-    Returns
-    -------
-    Setup
-
-    Raises
-    ------
-    SetupError
-        The recording holds no setup, or a bad one.
-    """
-    data = source.attrs.get("setup") if hasattr(source, "attrs") else None
-    if data is None:
-        raise SetupError(f"{source.name}: no setup given (--setup) and the recording holds "
-                         "none in its attrs")
-    if isinstance(data, str):
-        import json
-        import tomllib
-
-        try:
-            data = json.loads(data)
-        except ValueError:
-            try:
-                data = tomllib.loads(data)
-            except tomllib.TOMLDecodeError as exc:
-                raise SetupError(f"{source.name} attrs['setup']: neither JSON nor valid TOML "
-                                 f"({exc})") from None
-    if not isinstance(data, dict):
-        raise SetupError(f"{source.name} attrs['setup']: a table of the setup file's sections "
-                         f"wanted, got {type(data).__name__}")
-    return setup_from_dict(dict(data), source=f"{source.name} attrs['setup']")
-
-
-def check_setup_fits(setup: Setup, shape: tuple[int, int, int]) -> None:
-    """Refuse a setup whose ball cannot be seen in frames of this size.
-
-    Parameters
-    ----------
-    setup : Setup
-    shape : tuple of int
-        (T, H, W) of the recording.
-
-    Raises
-    ------
-    SetupError
-        The ball is under 1.5 px in radius or larger than the frame, (with ``center_px``)
-        its track circle does not cross the frame, or the lens calibration was made on images
-        of another size (:func:`rollfric.setup.lens.check_image_size`).
-    """
-    from rollfric.setup.lens import CalibrationError, check_image_size
-
-    _, h, w = shape
-    try:
-        check_image_size(setup.calibration, w, h)
-    except CalibrationError as exc:
-        raise SetupError(str(exc)) from None
-    r = ball_radius_px(setup)
-    if r < 1.5:
-        raise SetupError(f"the setup's ball is {2 * r:.2f} px across (diameter "
-                         f"{setup.ball_diameter * 1e3:g} mm / pixel {setup.pixel_size * 1e3:g} "
-                         "mm): too small to locate")
-    if 2 * r >= min(h, w):
-        raise SetupError(f"the setup's ball is {2 * r:.0f} px across but the frames are "
-                         f"{w}x{h} px: check ball.diameter_mm and camera.pixel_size_mm")
-    if setup.center_px is not None:
-        xc, yc = setup.center_px
-        L = setup.track_radius / setup.pixel_size
-        # nearest and farthest frame points from the axis: the track circle must cross the frame
-        nx, ny = min(max(xc, 0), w - 1), min(max(yc, 0), h - 1)
-        near = math.hypot(nx - xc, ny - yc)
-        far = max(math.hypot(cx - xc, cy - yc) for cx in (0, w - 1) for cy in (0, h - 1))
-        if not (near - r <= L <= far + r):
-            raise SetupError(f"with center_px = ({xc:g}, {yc:g}) and a track radius of "
-                             f"{L:.0f} px the ball never appears in the {w}x{h} px frames: "
-                             "check center_px, cylinder.radius_mm and camera.pixel_size_mm")
-
-
-def _predict(hist: list, i: int):
-    """Predicted centre at frame i from the last found centres [(frame, x, y), ...]."""
-    if not hist or i - hist[-1][0] > 3:
-        return None
-    if len(hist) >= 3 and hist[-1][0] == i - 1 and hist[-2][0] == i - 2 and hist[-3][0] == i - 3:
-        (_, x1, y1), (_, x2, y2), (_, x3, y3) = hist[-1], hist[-2], hist[-3]
-        return 3 * x1 - 3 * x2 + x3, 3 * y1 - 3 * y2 + y3
-    if len(hist) >= 2 and hist[-2][0] == hist[-1][0] - 1:
-        (f1, x1, y1), (_, x2, y2) = hist[-1], hist[-2]
-        k = i - f1
-        return x1 + k * (x1 - x2), y1 + k * (y1 - y2)
-    return hist[-1][1], hist[-1][2]
-
-
-# apparent-radius calibration: free-radius fits of frames with nearly the whole rim usable
-CAL_MIN_INLIER = 0.9  # fraction of the rim a calibration frame must fit
-CAL_MAX_SIGMA = 0.1  # px: centre sigma of a calibration frame
-CAL_MIN_FRAMES = 5  # calibration frames before the calibrated radius is used
-CAL_WARN_DEV = 0.03  # warn when the apparent radius differs from the setup's by more
-READ_AHEAD_PAD = 4  # px a side the next frame's region read ahead grows the last one by
 # a recording of at least 2 x SEGMENT_MIN_FRAMES frames is tracked in 2 segments (halves), each
 # from its own full-frame search, on 2 threads where the reader allows (track_segments)
 SEGMENT_MIN_FRAMES = 500
 SEGMENT_WARMUP = 20  # frames a later segment is located from before its first (then dropped)
-
-
-class RadiusCalibration:
-    """The ball's apparent radius (px) from the free-radius fits of good full-rim frames.
-
-    The outline in the images is not the geometric one (anti-aliasing, gamma, the edge
-    threshold, optics blur shift it by a fraction of a pixel), so a partial arc fitted with the
-    setup's radius is off systematically; fitted with the radius the full rims show, it is not.
-    ``value`` is the median of the radii seen (None until ``min_frames``), ``rel_sigma`` the
-    relative uncertainty of the radius of any one frame (the radii's robust scatter, whatever
-    varies from frame to frame is in it) - what a partial arc's leverage multiplies.
-    """
-
-    def __init__(self, r_setup: float, min_frames: int = CAL_MIN_FRAMES, *,
-                 known: bool = False) -> None:
-        self.r_setup = float(r_setup)
-        self.min_frames = min_frames
-        # a ball the locator fits with a known radius only (under 12 px: too few edge points
-        # for a free one): its full rims' radius is the known one plus the median offset of
-        # the edge points from that circle (the full rim's centre does not depend on it)
-        self.known = bool(known)
-        self.radii: list[float] = []  # one float a frame: bounded by the frame count
-        self._n = 0  # len(radii) when value and rel_sigma were last computed
-        self._value: float | None = None
-        self._rel_sigma: float | None = None
-
-    def add(self, loc) -> None:
-        """Take one frame's answer into the calibration if it is a good full-rim, free-radius fit
-        (or, with ``known``, a full-rim fit of the known radius).
-
-        Parameters
-        ----------
-        loc : rollfric.locate.Location
-        """
-        if (loc.found and (loc.radius_free or self.known) and loc.inlier_frac >= CAL_MIN_INLIER
-                and loc.sigma <= CAL_MAX_SIGMA and math.isfinite(loc.r)):
-            self.radii.append(float(loc.r))
-
-    def _update(self, final: bool = False) -> None:
-        n = len(self.radii)
-        # recomputed on every new radius while few, then every 32nd (or when asked): the
-        # median barely moves, and the streaming loop asks once a frame
-        if n == self._n or n < self.min_frames or (n > 64 and n % 32 and not final):
-            return
-        r = np.asarray(self.radii)
-        v = float(np.median(r))
-        mad = 1.4826 * float(np.median(np.abs(r - v)))
-        self._n, self._value = n, v
-        # the scatter of one frame's radius, not the median's error: a partial arc's own
-        # apparent radius varies as much; floored at 0.05 % (0.02 px on a 37 px ball)
-        self._rel_sigma = max(mad / v, 5e-4)
-
-    def finish(self) -> None:
-        """Compute the final value from all the radii seen."""
-        self._update(final=True)
-
-    @property
-    def value(self) -> float | None:
-        """The calibrated apparent radius (px): the median of the radii seen.
-
-        None until ``min_frames`` radii were seen.
-        """
-        self._update()
-        return self._value
-
-    @property
-    def rel_sigma(self) -> float | None:
-        """Relative uncertainty of one frame's radius (robust scatter, at least 0.05 %).
-
-        None until ``min_frames`` radii were seen.
-        """
-        self._update()
-        return self._rel_sigma
-
-    def summary(self) -> dict:
-        """The calibration's keys of fit.json.
-
-        Returns
-        -------
-        dict
-            ``ball_radius_px_seen``, ``ball_radius_px_seen_n`` and, once calibrated,
-            ``ball_radius_px_seen_rel_sigma`` and ``ball_radius_px_seen_rel_dev`` (against the
-            setup's radius).
-        """
-        v = self.value
-        out = {"ball_radius_px_seen": v, "ball_radius_px_seen_n": len(self.radii)}
-        if v is not None:
-            out["ball_radius_px_seen_rel_sigma"] = self.rel_sigma
-            out["ball_radius_px_seen_rel_dev"] = v / self.r_setup - 1.0
-        return out
-
-    def warning(self) -> str | None:
-        """A warning when the apparent radius differs from the setup's by more than 3 %.
-
-        Returns
-        -------
-        str or None
-            The message (naming ``ball.diameter_mm`` and ``camera.pixel_size_mm``), or None.
-        """
-        v = self.value
-        if v is None or abs(v / self.r_setup - 1.0) <= CAL_WARN_DEV:
-            return None
-        return (f"the ball's outline measures {v:.2f} px in radius in {len(self.radii)} "
-                f"full-rim frames, the setup says {self.r_setup:.2f} px "
-                f"({100 * (v / self.r_setup - 1.0):+.1f} %): check ball.diameter_mm and "
-                "camera.pixel_size_mm")
-
-
-def ring_gain(frame, background, x: float, y: float, r: float) -> float:
-    """Brightness of the frame against the background in a ring 2-6 px outside the ball at
-    (x, y) of radius r: sum(frame) / sum(background) over the ring (NaN when the ring is off
-    the frame or dark). A flash or a dropped exposure moves it; the ball does not."""
-    m = int(math.ceil(r + 7))
-    x0, y0 = int(math.floor(x)) - m, int(math.floor(y)) - m
-    fr, x0c, y0c = locate.regions._crop(frame, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
-    if fr is None:
-        return math.nan
-    bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
-    num, den, count = _ring_sums(np.asarray(fr), np.asarray(bg), x0c, y0c, float(x), float(y),
-                                 r + 2, r + 6)
-    if count < 8 or den <= 0:
-        return math.nan
-    return num / den
-
-
-def same_pixels(frame, prev, x: float, y: float, r: float) -> bool:
-    """True when the ball's tile (the box of the ball at (x, y) of radius r, 4 px more a side)
-    holds the same pixels in ``frame`` and ``prev``: a repeated frame (two exposures always
-    differ by the sensor's noise)."""
-    m = int(math.ceil(r + 4))
-    x0, y0 = int(math.floor(x)) - m, int(math.floor(y)) - m
-    a, _, _ = locate.regions._crop(frame, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
-    b, _, _ = locate.regions._crop(prev, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
-    return (a is not None and b is not None and a.shape == b.shape
-            and _same_values(np.asarray(a), np.asarray(b)))
 
 
 def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=None,
@@ -571,115 +107,6 @@ def locate_frame(frame, bg, r_px, method, guess, center, *, opts=None, search=No
     """
     return LOCATORS.load(method)(frame, bg, r_px, guess, center, opts=opts, search=search,
                                  r_known=r_known, r_known_sigma=r_known_sigma)
-
-
-def _tiff_pages(path) -> int:
-    """Pages in a TIFF file (1 for other files, and for a TIFF tifffile cannot read: reading it
-    as an image then says what is wrong)."""
-    from pathlib import Path
-
-    if Path(path).suffix.lower() not in io.TIFF_SUFFIXES:
-        return 1
-    import tifffile
-
-    try:
-        with tifffile.TiffFile(path) as tif:
-            return len(tif.pages)
-    except Exception:  # noqa: BLE001 - any failure is read_image's to report
-        return 1
-
-
-def resolve_background(source, background, *, r_px: float, median_frames: int = 41,
-                       kind: str = "median", full_scale: float | None = None):
-    """The background: the given image, the recording's own, or one made from the frames.
-
-    Made from ``median_frames`` frames spread over the recording, by ``kind``
-    (:data:`rollfric.io.ballfree.KINDS`): "median", the per-pixel median
-    (:func:`rollfric.io.background.median_background`), repaired where the ball of radius
-    ``r_px`` rested in most of the frames; "max", the per-pixel maximum less its noise bias
-    (a backlit rig's dark ball, :func:`rollfric.io.ballfree.max_background`); "clip", a flat
-    field at the backlight's level (:func:`rollfric.io.ballfree.clip_background`). The median
-    and the maximum are then made free of the ball where it goes
-    (:func:`rollfric.io.ballfree.check_ball_free`), or refused. The notes say what was repaired
-    or rebuilt, also as warnings of the ``rollfric.track.tracker`` logger.
-
-    Parameters
-    ----------
-    source : FrameSource
-        The recording.
-    background : numpy.ndarray, str, pathlib.Path or None
-        An image, an image file, or None.
-    r_px : float
-        The ball's radius (px).
-    median_frames : int, optional
-        Frames in the median.
-    kind : {"median", "max", "clip"}, optional
-        How a background is made from the frames when none is given.
-    full_scale : float, optional
-        The camera's full scale (DN) the ball is searched with in the sampled frames.
-
-    Returns
-    -------
-    background : numpy.ndarray
-        (H, W), the frames' size.
-    description : str
-        Where it came from (written to fit.json).
-    notes : list of str
-        What was repaired, or why not.
-
-    Raises
-    ------
-    RecordingError
-        An unreadable image, or one of another size than the frames.
-    InputError
-        An unknown ``kind``, or one given with a background image; a background made from
-        the frames that holds the ball (:func:`rollfric.io.ballfree.check_ball_free`).
-    """
-    if kind not in ballfree.KINDS:
-        raise InputError(f"unknown background {kind!r} (known: {', '.join(ballfree.KINDS)})")
-    if background is not None and kind != "median":
-        raise InputError(f"a background image and --background-from {kind} are two "
-                         "backgrounds: give one")
-    if background is not None:
-        if isinstance(background, np.ndarray):
-            return io.check_background(background, source), "given array", []
-        pages = _tiff_pages(background)
-        if pages > 1:
-            raise InputError(f"background {background} holds {pages} pages (a recording?): give"
-                             " one image of the scene without the ball, or no --background to"
-                             " use the median of the recording's frames")
-        bg = io.read_image(background)
-        return io.check_background(bg, source, f"background {background}"), str(background), []
-    if getattr(source, "background", None) is not None and kind == "median":
-        return io.check_background(source.background, source, "the recording's background"), \
-            "stored in the recording", []
-    k = min(len(source), median_frames)
-    idx, stack = sample(source, median_frames)
-    if kind == "clip":
-        bg, level = ballfree.clip_background(stack)
-        logger.info(f"background: a flat field at the backlight's level, {level:g} DN")
-        return bg, (f"clip level: a flat field at {level:g} DN (the backlight's level, the "
-                    f"{ballfree.CLIP_PERCENTILE:g}th percentile of the median of {k} frames)"), []
-    if kind == "max":
-        bg, sigma = ballfree.max_background(stack)
-        desc = (f"per-pixel maximum of {k} frames less its noise bias ({sigma:.3g} DN noise x "
-                f"{ballfree.expected_max_normal(len(stack)):.3f})")
-        bg, notes = ballfree.check_ball_free(stack, bg, r_px, kind="max", sigma=sigma,
-                                             what=f"the per-pixel maximum of {k} frames",
-                                             full_scale=full_scale)
-    else:
-        logger.info(f"no background given: using the per-pixel median of {k} frames spread "
-                    "over the recording")
-        bg, notes, sources = repaired_median(stack, r_px, full_scale=full_scale)
-        desc = f"per-pixel median of {k} frames" + (", repaired" if notes else "")
-        bg, more = ballfree.check_ball_free(stack, bg, r_px, sources=sources,
-                                            what=f"the per-pixel median of {k} frames",
-                                            full_scale=full_scale)
-        notes = notes + more
-        desc += ", rebuilt where it held the ball" if more else ""
-    for msg in notes:
-        logger.warning(msg)
-    return bg, desc, notes
 
 
 def track_segments(n: int, segments: int | str = "auto") -> list[tuple[int, int]]:
@@ -723,12 +150,394 @@ def track_segments(n: int, segments: int | str = "auto") -> list[tuple[int, int]
         bounds.append(bounds[-1] + size + (1 if j < extra else 0))
     return list(zip(bounds[:-1], bounds[1:], strict=True))
 
+@dataclasses.dataclass
+class _Span:
+    """One segment's state while it is tracked (segments run on threads: each its own)."""
+
+    cal: RadiusCalibration  # the segment's radius calibration
+    hist: list = dataclasses.field(default_factory=list)  # last found centres (frame, x, y)
+    prev: object = None  # the previous frame (a repeated frame has the same ball tile)
+    pred_err: float = math.inf  # how far the last prediction was off (px)
+    # frame -> the radius its partial arc was fitted with (fitted again unless the final one)
+    revisit: dict = dataclasses.field(default_factory=dict)
+    n_warm: int = 0  # radii the warm-up frames gave
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """The frames judged (:meth:`Tracker.judge`): their times and flags, and the timing found."""
+
+    pos: np.ndarray  # each frame's time in camera periods from frame 0
+    flags: np.ndarray  # track.csv's flag of each frame ("" kept)
+    counts: dict  # frames by flag, the flags that occur
+    gaps: object  # the dropped-frame search (rollfric.track.dropped_frames.Gaps), or None
+    irregular: tuple  # (frame, step ratio): the timing's irregular steps
+    located_irregular: tuple  # the same, at frames the locator lost or got wrong
+
+
+class Tracker:
+    """One recording's tracking: the steps of :func:`track_recording` as methods.
+
+    Each frame is predicted from the last centres (:meth:`predict`), located about the
+    prediction (:meth:`locate`), accepted when on the trough's circle (:meth:`accept`) and
+    recorded (:meth:`record`); :meth:`track_span` does that for a segment of frames,
+    :meth:`track` for all (segments on threads), :meth:`refit` is the second pass with the
+    calibrated radius, :meth:`judge` the plausibility and timing checks, :meth:`table` the
+    DataFrame and its :class:`TrackInfo`. The arguments are :func:`track_recording`'s.
+    """
+
+    def __init__(self, source, setup: Setup, background: np.ndarray, *,
+                 method: str = "subpixel", angle: str = "atan2",
+                 center: tuple[float, float] | None = None, opts=None,
+                 bit_depth: int | None = None) -> None:
+        LOCATORS.check(method)
+        self.source, self.setup, self.background = source, setup, background
+        self.method, self.angle = method, angle
+        self.n, self.h, self.w = source.shape
+        self.r_px = ball_radius_px(setup)
+        self.L_px = setup.track_radius / setup.pixel_size
+        if center is None:
+            center = setup.center_px
+        self.lens = setup.calibration
+        # with a lens calibration the centre is in the undistorted image; the locator works in
+        # the recorded one (where the lens put the axis) and its centres are undistorted for
+        # the angles
+        self.center_ud = center
+        if self.lens is not None:
+            center = tuple(float(v) for v in self.lens.distort(np.asarray(center, dtype=float)))
+        self.center = center
+        n = self.n
+        self.rows = np.full((n, 7), np.nan)  # x, y, r, sigma, inlier_frac, found, ring gain
+        self.lost = np.zeros(n, dtype=bool)  # a ball located, but off the trough's circle
+        self.identical = np.zeros(n, dtype=bool)  # the ball's tile equals the previous frame's
+        # px: a tracked ball moves less than this from its prediction
+        self.gate = 0.25 * self.r_px + 2.0
+        self._read = getattr(source, "read", None)
+        self.opts, self.opts_cal, self.cal_known = self._options(opts, bit_depth)
+        self.locator = LOCATORS.load(method)  # as locate_frame, looked up once (not a frame)
+        self.stop = threading.Event()  # a segment failed: the others end at their next frame
+        self.clock = jit.CompileClock()
+        self.bar = None  # the progress bar of track()
+
+    def _options(self, opts, bit_depth):
+        """(opts, opts_cal, cal_known): the locator's options before and after the radius is
+        calibrated, and whether the calibration is of a known-radius fit."""
+        base_radius = (opts if opts is not None else locate.SubpixelOptions()).radius
+        # a small ball (known radius only): its apparent radius from its full rims' edge
+        # points (it differs from the setup's by a fraction of a pixel)
+        cal_known = self.method == "subpixel" and (
+            base_radius == "known" or (base_radius == "auto" and self.r_px < 12))
+        # once calibrated, a free radius only on (nearly) the full rim: on a partial arc the
+        # free radius and the centre are confounded, the calibrated one pins the centre
+        base = opts if opts is not None else locate.SubpixelOptions()
+        if bit_depth is None:
+            bit_depth = getattr(self.source, "bit_depth", None)
+        if base.full_scale is None and bit_depth is not None:
+            # the thresholds against the camera's full scale, not the 16-bit word's
+            base = dataclasses.replace(base, full_scale=bitdepth.full_scale(bit_depth))
+            opts = base
+        setup = self.setup
+        if setup.working_distance is not None and self.method == "subpixel" \
+                and base.pinhole is None:
+            # a pinhole at a stated working distance sees the ball as an ellipse
+            # (rollfric.locate.silhouette_stretch), stretched away from the principal point
+            lens, h, w = self.lens, self.h, self.w
+            pp = (lens.K[0, 2], lens.K[1, 2]) if lens is not None else ((w - 1) / 2.0,
+                                                                        (h - 1) / 2.0)
+            base = dataclasses.replace(base, pinhole=(float(pp[0]), float(pp[1]),
+                                                      setup.working_distance / setup.pixel_size))
+            opts = base
+        opts_cal = dataclasses.replace(base, free_min_frac=max(base.free_min_frac,
+                                                               CAL_MIN_INLIER))
+        return opts, opts_cal, cal_known
+
+    @staticmethod
+    def predict(hist: list, i: int):
+        """Predicted centre at frame i from the last found centres [(frame, x, y), ...]; None
+        when the ball was last found more than 3 frames before."""
+        if not hist or i - hist[-1][0] > 3:
+            return None
+        if len(hist) >= 3 and hist[-1][0] == i - 1 and hist[-2][0] == i - 2 \
+                and hist[-3][0] == i - 3:
+            (_, x1, y1), (_, x2, y2), (_, x3, y3) = hist[-1], hist[-2], hist[-3]
+            return 3 * x1 - 3 * x2 + x3, 3 * y1 - 3 * y2 + y3
+        if len(hist) >= 2 and hist[-2][0] == hist[-1][0] - 1:
+            (f1, x1, y1), (_, x2, y2) = hist[-1], hist[-2]
+            k = i - f1
+            return x1 + k * (x1 - x2), y1 + k * (y1 - y2)
+        return hist[-1][1], hist[-1][2]
+
+    def frame_at(self, i: int, guess):
+        """Frame ``i``: tracking (a ``guess``) with a region reader, a LazyFrame from which the
+        locator reads only the regions it crops (the same pixels as the full frame's); else
+        the whole frame."""
+        if self._read is not None and guess is not None:
+            source = self.source
+            return locate.LazyFrame(functools.partial(self._read, i),
+                                    functools.partial(source.__getitem__, i),
+                                    (self.h, self.w), source.dtype)
+        return self.source[i]
+
+    def locate(self, span: _Span, frame, guess):
+        """(Location, radius fitted with): the ball in ``frame`` about ``guess``, searched in a
+        band that follows how well the last prediction did, with the span's calibrated
+        radius once there is one."""
+        search = min(0.3 * self.r_px + 2.0, max(2.0, 4.0 * span.pred_err + 1.0))
+        r_kn = span.cal.value
+        loc = self.locator(frame, self.background, self.r_px, guess, self.center,
+                           opts=self.opts if r_kn is None else self.opts_cal, search=search,
+                           r_known=r_kn, r_known_sigma=span.cal.rel_sigma)
+        if guess is not None and loc.found:
+            span.pred_err = math.hypot(loc.x - guess[0], loc.y - guess[1])
+        else:
+            span.pred_err = math.inf
+        return loc, r_kn
+
+    def accept(self, loc) -> bool:
+        """A ball found inside the frame and within 15 % of the track radius of the trough's
+        circle."""
+        w, h = self.w, self.h
+        ok = (loc.found and math.isfinite(loc.x) and -0.5 <= loc.x <= w - 0.5
+              and -0.5 <= loc.y <= h - 0.5)
+        if ok:
+            dist = math.hypot(loc.x - self.center[0], loc.y - self.center[1])
+            ok = abs(dist - self.L_px) <= 0.15 * self.L_px
+        return ok
+
+    def calibrate(self, span: _Span, i: int, loc, ok: bool, keep: bool, r_kn) -> None:
+        """An accepted frame into the span's radius calibration; a kept frame whose partial arc
+        was fitted with another radius than the final one will be fitted again."""
+        if not ok or self.method != "subpixel":
+            return
+        span.cal.add(loc)
+        if not keep:
+            return
+        if loc.radius_free:
+            if loc.inlier_frac < CAL_MIN_INLIER:
+                span.revisit[i] = math.inf  # a free radius on a partial arc: always again
+        elif r_kn is None or loc.inlier_frac < CAL_MIN_INLIER:
+            # (a full rim's centre barely depends on the radius once calibrated)
+            span.revisit[i] = self.r_px if r_kn is None else r_kn
+
+    def follow(self, span: _Span, i: int, loc, guess, ok: bool) -> None:
+        """An accepted centre near its prediction into the history the next ones are predicted
+        from."""
+        # a centre far from the prediction (a swapped frame, a ball found elsewhere by the
+        # full-frame search) does not predict the next frames: that is the plausibility
+        # checks' to judge, and one wrong centre would send the next searches astray
+        near = guess is None or math.hypot(loc.x - guess[0], loc.y - guess[1]) <= self.gate
+        if ok and near:
+            span.hist.append((i, loc.x, loc.y))
+            if len(span.hist) > 4:
+                span.hist.pop(0)
+
+    def record(self, i: int, frame, prev, loc, ok: bool) -> None:
+        """Frame ``i``'s row: the centre, radius, sigma, rim share and ring gain of an accepted
+        ball (and whether its tile repeats the previous frame's), else not found (lost: found
+        off the trough's circle)."""
+        if ok:
+            r_loc = loc.r if math.isfinite(loc.r) else self.r_px  # thesis-small: no radius
+            self.identical[i] = prev is not None and same_pixels(frame, prev, loc.x, loc.y,
+                                                                 r_loc)
+            self.rows[i] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac, 1.0,
+                            ring_gain(frame, self.background, loc.x, loc.y, r_loc))
+        else:
+            self.rows[i, 5] = 0.0
+            self.lost[i] = bool(loc.found)
+
+    def track_span(self, a: int, b: int):
+        """Frames a..b-1 with the segment's own prediction, search band and radius calibration.
+
+        A later segment starts SEGMENT_WARMUP frames early, from a full-frame search, and keeps
+        its answers from frame a on (those before are the previous segment's): by then its
+        prediction and search band are one pass's again. Writes rows, lost and identical
+        [a:b]; returns the calibration, the radii of frames a..b-1 and the frames to fit again.
+        """
+        span = _Span(RadiusCalibration(self.r_px, known=self.cal_known))
+        try:
+            for i in range(max(0, a - SEGMENT_WARMUP) if a else 0, b):
+                if self.stop.is_set():
+                    break
+                if i == a:
+                    span.n_warm = len(span.cal.radii)
+                keep = i >= a
+                guess = self.predict(span.hist, i)
+                frame = self.frame_at(i, guess)
+                loc, r_kn = self.locate(span, frame, guess)
+                ok = self.accept(loc)
+                self.calibrate(span, i, loc, ok, keep, r_kn)
+                self.follow(span, i, loc, guess, ok)
+                if keep:
+                    self.record(i, frame, span.prev, loc, ok)
+                span.prev = frame
+                if keep:
+                    # the bar's clock restarted before the count: no line with the compiler's
+                    # rate
+                    self.clock.restart(self.bar)
+                    self.bar.update(1)
+        except BaseException:
+            self.stop.set()
+            raise
+        return span.cal, span.cal.radii[span.n_warm:], span.revisit
+
+    def track(self, segments: int | str = "auto", progress: bool = True):
+        """Every frame, in segments (:func:`track_segments`): (the calibration of all their
+        radii, the frames to fit again)."""
+        n = self.n
+        # a fresh install compiles the locator's kernels on the first frames: said before, and
+        # the bar's clock restarted after it (else it shows an ETA of days for those minutes)
+        jit.announce("rollfric.locate.kernels", "the locator's kernels", LOCATOR_COMPILE, logger)
+        self.bar = tqdm(total=n, desc="locating ball", unit="frame", disable=not progress,
+                        file=sys.stderr, mininterval=0.5)
+        spans = track_segments(n, segments)
+        # the segments on threads when the reader allows reads from two threads at once (the
+        # locator's kernels, decoding and a synthetic recording's sensor model release the
+        # GIL) and CPUs are free; else one after another: the track is the same either way
+        # (five readings of the running threads: a wrong "busy" costs seconds of tracking here)
+        workers = cpus.free_cpus(samples=5) if getattr(self.source, "concurrent_reads",
+                                                        False) else 1
+        logger.debug(f"tracking {n} frames in {len(spans)} segment(s) on "
+                     f"{min(workers, len(spans))} thread(s)")
+        with self.clock:
+            done = cpus.map_ordered(lambda span: self.track_span(*span), spans,
+                                    workers=workers, name="rollfric-track")
+        self.bar.close()
+        if len(done) == 1:
+            cal, _, revisit = done[0]
+        else:
+            # one calibration from every segment's radii (in frame order), one second pass
+            cal = RadiusCalibration(self.r_px, known=self.cal_known)
+            revisit = {}
+            for _, radii, revisit_s in done:
+                cal.radii.extend(radii)
+                revisit.update(revisit_s)
+        cal.finish()
+        return cal, revisit
+
+    def refit(self, cal: RadiusCalibration, revisit: dict, progress: bool = True) -> list:
+        """The second pass: the partial arcs fitted with a free radius or another radius than
+        the calibrated one, again with it; returns the frames fitted again."""
+        r_cal = cal.value
+        if r_cal is None:
+            return []
+        tol = 0.25 * cal.rel_sigma * r_cal
+        redo = [i for i, r_used in revisit.items() if abs(r_used - r_cal) > tol]
+        rows = self.rows
+        for i in tqdm(redo, desc="partial arcs, calibrated radius", unit="frame",
+                      disable=not progress or not redo, file=sys.stderr, mininterval=0.5):
+            guess = (rows[i, 0], rows[i, 1])
+            loc = self.locator(self.frame_at(i, guess), self.background, self.r_px, guess,
+                               self.center, opts=self.opts_cal, search=2.0, r_known=r_cal,
+                               r_known_sigma=cal.rel_sigma)
+            if self.accept(loc):
+                rows[i, :5] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac)
+        return redo
+
+    def judge(self, cal: RadiusCalibration, times, drops: bool, warnings: list) -> Verdict:
+        """The per-frame plausibility checks and the frame times: the frames that fail leave the
+        track (their centres NaN, found 0) with their flag.
+
+        The timing's warnings are appended to ``warnings``.
+        """
+        rows, n, r_cal = self.rows, self.n, cal.value
+        found = rows[:, 5] == 1.0
+        gaps = None
+        if times is not None:
+            pos = np.asarray(times, dtype=float) * self.setup.fps
+        elif drops:
+            gaps = timing.find_gaps(rows[:, 0], rows[:, 1], found)
+            pos = gaps.pos
+            if gaps.dropped:
+                msg = dropped_message(gaps)
+                logger.warning(msg)
+                warnings.append(msg)
+        else:
+            pos = np.arange(n, dtype=float)
+        subpixel = self.method == "subpixel"
+        flags = plausibility.flag_frames(
+            rows[:, 0], rows[:, 1], found, same_pixels=self.identical, sigma=rows[:, 3],
+            # the rim's share and the radius are the sub-pixel locator's own figures
+            inlier_frac=rows[:, 4] if subpixel else None,
+            gain=rows[:, 6], radius=rows[:, 2] if subpixel else None,
+            r_ref=r_cal, r_rel_sigma=cal.rel_sigma if r_cal is not None else None, pos=pos,
+            center=self.center, r_ball=r_cal if r_cal is not None else self.r_px)
+        flags[~found] = np.where(self.lost[~found], "off_track", "not_found")
+        located = (rows[:, 0].copy(), rows[:, 1].copy(), found.copy())  # before any rejected
+        rejected = found & (flags != "")
+        rows[rejected, :5] = np.nan
+        rows[rejected, 5] = 0.0
+        counts = {f: int(np.sum(flags == f)) for f in plausibility.FLAGS if np.any(flags == f)}
+        irregular, located_irregular = (), ()
+        if gaps is not None and gaps.irregular:
+            # steps among frames the locator lost or got wrong are its, not the camera's
+            # timing; a rejected glitch (a repeated, swapped or flashed frame) a few frames
+            # away spoils the prediction of a clean step where the ball turns: judged again
+            # without them
+            again = timing.confirm_irregular(*located, flags != "", flags == "duplicate",
+                                             gaps.irregular)
+            irregular, located_irregular = timing.split_irregular(
+                again, np.isin(flags, LOCATOR_FLAGS))
+            for msg in ([irregular_message(irregular)] if irregular else []) + (
+                    [located_irregular_message(located_irregular)] if located_irregular
+                    else []):
+                logger.warning(msg)
+                warnings.append(msg)
+        if rejected.any():
+            logger.warning(f"{int(rejected.sum())} located frame(s) failed the plausibility "
+                           "checks and are left out: " + ", ".join(
+                               f"{k} {v}" for k, v in counts.items()
+                               if k not in ("not_found", "off_track")))
+        return Verdict(pos, flags, counts, gaps, irregular, located_irregular)
+
+    def table(self, times, verdict: Verdict) -> pd.DataFrame:
+        """The track DataFrame: the centres (lens-undistorted ones beside them with a lens
+        calibration) turned into angles about the trough's centre."""
+        rows = self.rows
+        found = rows[:, 5] == 1.0
+        x, y = np.where(found, rows[:, 0], np.nan), np.where(found, rows[:, 1], np.nan)
+        theta, xu, yu = centre_angles(x, y, self.center_ud, self.setup, method=self.angle)
+        df = pd.DataFrame({
+            "frame": np.arange(self.n),
+            "t_s": verdict.pos / self.setup.fps if times is None
+            else np.asarray(times, dtype=float),
+            "x_px": rows[:, 0],
+            "y_px": rows[:, 1],
+            "theta_rad": theta,
+            "found": found.astype(int),
+            "r_px": rows[:, 2],
+            "sigma_px": rows[:, 3],
+            "flag": verdict.flags.astype(str),
+            "inlier_frac": rows[:, 4],
+            "ring_gain": rows[:, 6],
+        })
+        if self.lens is not None:  # the undistorted centres the angles come from
+            df["xu_px"], df["yu_px"] = xu, yu
+        return df
+
+    def info(self, cal: RadiusCalibration, verdict: Verdict, *, times, redo: list,
+             warnings: list, warnings_radius: list) -> TrackInfo:
+        """The :class:`TrackInfo` of the track: what the locating knows."""
+        cal_keys = {"ball_radius_px_seen_rel_sigma": None, "ball_radius_px_seen_rel_dev": None,
+                    **cal.summary()}
+        center_ud = self.center_ud
+        return TrackInfo(setup=self.setup, recording=str(getattr(self.source, "name", "")),
+                         n_frames=self.n, n_found=int((self.rows[:, 5] == 1.0).sum()),
+                         locator=self.method, angle=self.angle,
+                         center_px=(float(center_ud[0]), float(center_ud[1])),
+                         center_source="given", undistorted=self.lens is not None,
+                         background="given", times=TIMES_FPS if times is None else "given",
+                         ball_radius_px=self.r_px, track_radius_px=self.L_px, **cal_keys,
+                         n_refitted=len(redo), flags=verdict.counts,
+                         warnings=tuple(warnings), warnings_radius=tuple(warnings_radius),
+                         frames_dropped=() if verdict.gaps is None else verdict.gaps.dropped,
+                         timing_irregular=verdict.irregular,
+                         located_irregular=verdict.located_irregular)
+
 
 def track_recording(source, setup: Setup, background: np.ndarray, *, method: str = "subpixel",
                     angle: str = "atan2", center: tuple[float, float] | None = None,
                     progress: bool = True, opts=None,
                     times=None, drops: bool = True,
-                    read_ahead: bool = False,
                     segments: int | str = "auto",
                     bit_depth: int | None = None) -> tuple[pd.DataFrame, TrackInfo]:
     """Locate the ball in every frame of ``source``; one row a frame (see TRACK_COLUMNS), plus
@@ -768,11 +577,6 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         t_s of each frame (s); None: frame / setup.fps, repaired for dropped frames.
     drops : bool
         Find dropped frames from the motion when ``times`` is None.
-    read_ahead : bool
-        Read the next frame's region on a second thread while a frame is located
-        (:class:`rollfric.track.readahead.ReadAhead`; a reader with ``read`` only). The track is the
-        same either way; off by default: on a loaded 2-core machine it cost 10 % more CPU
-        and no wall time (docs/how/locator.md, "Where the time goes").
     segments : int or "auto"
         The recording is tracked in this many contiguous segments (:func:`track_segments`;
         "auto": 2 from 2 x SEGMENT_MIN_FRAMES frames on), each from its own full-frame search
@@ -780,8 +584,7 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
         second pass (above) made with it. The segments run on as many threads (at most the
         CPUs not busy elsewhere at the start) when the reader says it can be read from several
         threads at once (its attribute ``concurrent_reads``; synth's recordings), else one
-        after another: the track is the same either way. 1: one pass through the recording,
-        as before 2026-11-23.
+        after another: the track is the same either way. 1: one pass through the recording.
     bit_depth : int or None
         The camera's effective bit depth (:func:`rollfric.io.bitdepth.resolve_bit_depth`): the
         locators' contrast floors are fractions of its full scale, 2**bit_depth - 1; None: the
@@ -820,507 +623,26 @@ def track_recording(source, setup: Setup, background: np.ndarray, *, method: str
     (400, 0.262)
     >>> tmp.cleanup()
     """
-    from tqdm import tqdm
-
-    LOCATORS.check(method)
-    n, h, w = source.shape
-    r_px = ball_radius_px(setup)
-    L_px = setup.track_radius / setup.pixel_size
-    if center is None:
-        center = setup.center_px
-    lens = setup.calibration
-    # with a lens calibration the centre is in the undistorted image; the locator works in the
-    # recorded one (where the lens put the axis) and its centres are undistorted for the angles
-    center_ud = center
-    if lens is not None:
-        center = tuple(float(v) for v in lens.distort(np.asarray(center, dtype=float)))
-    rows = np.full((n, 7), np.nan)  # x, y, r, sigma, inlier_frac, found, ring gain
-    lost = np.zeros(n, dtype=bool)  # a ball located, but off the trough's circle
-    identical = np.zeros(n, dtype=bool)  # the ball's tile equals the previous frame's
-    # a fresh install compiles the locator's kernels on the first frames: said before, and
-    # the bar's clock restarted after it (else it shows an ETA of days for those minutes)
-    jit.announce("rollfric.locate.kernels", "the locator's kernels", LOCATOR_COMPILE, logger)
-    clock = jit.CompileClock()
-    bar = tqdm(total=n, desc="locating ball", unit="frame", disable=not progress,
-               file=sys.stderr, mininterval=0.5)
-    gate = 0.25 * r_px + 2.0  # px: a tracked ball moves less than this from its prediction
-    read = getattr(source, "read", None)
-    base_radius = (opts if opts is not None else locate.SubpixelOptions()).radius
-    # a small ball (known radius only): its apparent radius from its full rims' edge points;
-    # the 1.58 mm ball (5.9 px) under a harsh side lamp measured 1.7 % (0.10 px) larger than
-    # the setup's in synth's renders, which put its half-shadowed arcs 0.15-0.3 px off
-    cal_known = method == "subpixel" and (
-        base_radius == "known" or (base_radius == "auto" and r_px < 12))
-    # once calibrated, a free radius only on (nearly) the full rim: on a partial arc the free
-    # radius and the centre are confounded (centres 0.1-0.15 px off on the harsh lamp's arcs
-    # over half of the rim), the calibrated one pins the centre
-    base = opts if opts is not None else locate.SubpixelOptions()
-    if bit_depth is None:
-        bit_depth = getattr(source, "bit_depth", None)
-    if base.full_scale is None and bit_depth is not None:
-        # the thresholds against the camera's full scale, not the 16-bit word's
-        base = dataclasses.replace(base, full_scale=bitdepth.full_scale(bit_depth))
-        opts = base
-    if setup.working_distance is not None and method == "subpixel" and base.pinhole is None:
-        # a pinhole at a stated working distance sees the ball as an ellipse
-        # (rollfric.locate.silhouette_stretch), stretched away from the principal point
-        pp = (lens.K[0, 2], lens.K[1, 2]) if lens is not None else ((w - 1) / 2.0,
-                                                                    (h - 1) / 2.0)
-        base = dataclasses.replace(base, pinhole=(float(pp[0]), float(pp[1]),
-                                                  setup.working_distance / setup.pixel_size))
-        opts = base
-    opts_cal = dataclasses.replace(base, free_min_frac=max(base.free_min_frac, CAL_MIN_INLIER))
-    locator = LOCATORS.load(method)  # as locate_frame, looked up once (not once a frame)
-    stop = threading.Event()  # a segment failed: the others end at their next frame
-
-    def frame_at(i, guess, ahead=None):
-        if read is not None and guess is not None:
-            # tracking: the locator reads only the regions it crops around the prediction
-            # (the same pixels as the full frame's; a full-frame search reads the whole frame)
-            if ahead is not None:
-                return locate.LazyFrame(functools.partial(ahead.read, i),
-                                        functools.partial(ahead.frame, i), (h, w),
-                                        source.dtype)
-            return locate.LazyFrame(functools.partial(read, i),
-                                    functools.partial(source.__getitem__, i), (h, w),
-                                    source.dtype)
-        return source[i] if ahead is None else ahead.frame(i)
-
-    def accept(loc):
-        ok = (loc.found and math.isfinite(loc.x) and -0.5 <= loc.x <= w - 0.5
-              and -0.5 <= loc.y <= h - 0.5)
-        if ok:
-            dist = math.hypot(loc.x - center[0], loc.y - center[1])
-            ok = abs(dist - L_px) <= 0.15 * L_px
-        return ok
-
-    def track_span(a, b):
-        # frames a..b-1 with the segment's own prediction, search band and radius calibration;
-        # a later segment starts SEGMENT_WARMUP frames early, from a full-frame search, and
-        # keeps its answers from frame a on (those before are the previous segment's): by then
-        # its prediction and search band are one pass's again. Writes rows, lost and
-        # identical [a:b]; returns the calibration, the radii of frames a..b-1 and the frames
-        # to fit again
-        cal = RadiusCalibration(r_px, known=cal_known)
-        n_warm = 0  # radii the warm-up frames gave
-        revisit: dict[int, float] = {}  # frame -> radius its partial arc was fitted with
-        hist: list = []
-        prev = None
-        pred_err = math.inf  # how far the last prediction was off (px)
-        # the next frame's region read on a second thread while this one is located
-        ahead = ReadAhead(source) if read is not None and read_ahead else None
-        box_at = None  # the last region read about its frame's guess, (dy0, dy1, dx0, dx1)
-        try:
-            for i in range(max(0, a - SEGMENT_WARMUP) if a else 0, b):
-                if stop.is_set():
-                    break
-                if i == a:
-                    n_warm = len(cal.radii)
-                keep = i >= a
-                guess = _predict(hist, i)
-                frame = frame_at(i, guess, ahead)
-                # frame i + 1's region as far as it is known now: the last region read, moved
-                # to the centre predicted two frames ahead, grown by READ_AHEAD_PAD px a side
-                g = None if ahead is None or box_at is None or i + 1 >= b \
-                    else _predict(hist, i + 1)
-                if g is not None:
-                    gx, gy, p = math.floor(g[0]), math.floor(g[1]), READ_AHEAD_PAD
-                    ahead.prefetch(i + 1, (gy + box_at[0] - p, gy + box_at[1] + p,
-                                           gx + box_at[2] - p, gx + box_at[3] + p))
-                search = min(0.3 * r_px + 2.0, max(2.0, 4.0 * pred_err + 1.0))
-                r_kn = cal.value
-                loc = locator(frame, background, r_px, guess, center,
-                              opts=opts if r_kn is None else opts_cal, search=search,
-                              r_known=r_kn, r_known_sigma=cal.rel_sigma)
-                box = getattr(frame, "_box", None) if guess is not None else None
-                if box is not None:
-                    gx, gy = math.floor(guess[0]), math.floor(guess[1])
-                    box_at = (box[0] - gy, box[1] - gy, box[2] - gx, box[3] - gx)
-                if guess is not None and loc.found:
-                    pred_err = math.hypot(loc.x - guess[0], loc.y - guess[1])
-                else:
-                    pred_err = math.inf
-                ok = accept(loc)
-                if ok and method == "subpixel":
-                    cal.add(loc)
-                if keep and ok and method == "subpixel":
-                    if loc.radius_free:
-                        if loc.inlier_frac < CAL_MIN_INLIER:
-                            revisit[i] = math.inf  # a free radius on a partial arc: always again
-                    elif r_kn is None or loc.inlier_frac < CAL_MIN_INLIER:
-                        # (a full rim's centre barely depends on the radius once calibrated)
-                        revisit[i] = r_px if r_kn is None else r_kn
-                # a centre far from the prediction (a swapped frame, a ball found elsewhere by
-                # the full-frame search) does not predict the next frames: that is the
-                # plausibility checks' to judge, and one wrong centre would send the next
-                # searches astray
-                near = guess is None or math.hypot(loc.x - guess[0], loc.y - guess[1]) <= gate
-                if ok and near:
-                    hist.append((i, loc.x, loc.y))
-                    if len(hist) > 4:
-                        hist.pop(0)
-                if keep and ok:
-                    r_loc = loc.r if math.isfinite(loc.r) else r_px  # thesis-small: no radius
-                    identical[i] = prev is not None and same_pixels(frame, prev, loc.x, loc.y,
-                                                                    r_loc)
-                    rows[i] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac, 1.0,
-                               ring_gain(frame, background, loc.x, loc.y, r_loc))
-                elif keep:
-                    rows[i, 5] = 0.0
-                    lost[i] = bool(loc.found)
-                prev = frame
-                if keep:
-                    clock.restart(bar)  # before the count: no line with the compiler's rate
-                    bar.update(1)
-        except BaseException:
-            stop.set()
-            raise
-        finally:
-            if ahead is not None:  # its worker thread ends
-                ahead.close()
-                logger.debug(f"read ahead: {ahead.hits} regions read ahead, {ahead.misses} "
-                             "when asked")
-        return cal, cal.radii[n_warm:], revisit
-
-    spans = track_segments(n, segments)
-    # the segments on threads when the reader allows reads from two threads at once (the
-    # locator's kernels, decoding and a synthetic recording's sensor model release the GIL)
-    # and CPUs are free; else one after another: the track is the same either way
-    # (five readings of the running threads: a wrong "busy" costs seconds of tracking here)
-    workers = cpus.free_cpus(samples=5) if getattr(source, "concurrent_reads", False) else 1
-    logger.debug(f"tracking {n} frames in {len(spans)} segment(s) on "
-                 f"{min(workers, len(spans))} thread(s)")
-    with clock:
-        done = cpus.map_ordered(lambda span: track_span(*span), spans, workers=workers,
-                                name="rollfric-track")
-    bar.close()
-    if len(done) == 1:
-        cal, _, revisit = done[0]
-    else:
-        # one calibration from every segment's radii (in frame order), one second pass
-        cal = RadiusCalibration(r_px, known=cal_known)
-        revisit = {}
-        for _, radii, revisit_s in done:
-            cal.radii.extend(radii)
-            revisit.update(revisit_s)
-    cal.finish()
-    r_cal = cal.value
-    if r_cal is not None:
-        # second pass: the partial arcs fitted with a free radius or another radius than the
-        # final one, again
-        tol = 0.25 * cal.rel_sigma * r_cal
-        redo = [i for i, r_used in revisit.items() if abs(r_used - r_cal) > tol]
-        for i in tqdm(redo, desc="partial arcs, calibrated radius", unit="frame",
-                      disable=not progress or not redo, file=sys.stderr, mininterval=0.5):
-            guess = (rows[i, 0], rows[i, 1])
-            loc = locator(frame_at(i, guess), background, r_px, guess, center,
-                          opts=opts_cal, search=2.0, r_known=r_cal, r_known_sigma=cal.rel_sigma)
-            if accept(loc):
-                rows[i, :5] = (loc.x, loc.y, loc.r, loc.sigma, loc.inlier_frac)
+    tracker = Tracker(source, setup, background, method=method, angle=angle, center=center,
+                      opts=opts, bit_depth=bit_depth)
+    cal, revisit = tracker.track(segments, progress)
+    redo = tracker.refit(cal, revisit, progress)
     warnings = [cal.warning()] if cal.warning() else []
     warnings_radius = list(warnings)
     for msg in warnings:
         logger.warning(msg)
-    # per-frame plausibility: frames that fail leave the track with their flag
-    found = rows[:, 5] == 1.0
-    gaps = None
-    if times is not None:
-        pos = np.asarray(times, dtype=float) * setup.fps
-    elif drops:
-        gaps = timing.find_gaps(rows[:, 0], rows[:, 1], found)
-        pos = gaps.pos
-        if gaps.dropped:
-            msg = dropped_message(gaps)
-            logger.warning(msg)
-            warnings.append(msg)
-    else:
-        pos = np.arange(n, dtype=float)
-    flags = plausibility.flag_frames(
-        rows[:, 0], rows[:, 1], found, same_pixels=identical, sigma=rows[:, 3],
-        # the rim's share and the radius are the sub-pixel locator's own figures
-        inlier_frac=rows[:, 4] if method == "subpixel" else None,
-        gain=rows[:, 6], radius=rows[:, 2] if method == "subpixel" else None,
-        r_ref=r_cal, r_rel_sigma=cal.rel_sigma if r_cal is not None else None, pos=pos,
-        center=center, r_ball=r_cal if r_cal is not None else r_px)
-    flags[~found] = np.where(lost[~found], "off_track", "not_found")
-    located = (rows[:, 0].copy(), rows[:, 1].copy(), found.copy())  # before any is rejected
-    rejected = found & (flags != "")
-    rows[rejected, :5] = np.nan
-    rows[rejected, 5] = 0.0
-    found = rows[:, 5] == 1.0
-    counts = {f: int(np.sum(flags == f)) for f in plausibility.FLAGS if np.any(flags == f)}
-    irregular, located_irregular = (), ()
-    if gaps is not None and gaps.irregular:
-        # steps among frames the locator lost or got wrong are its, not the camera's timing
-        # a rejected glitch (a repeated, swapped or flashed frame) a few frames away spoils
-        # the prediction of a clean step where the ball turns: judged again without them
-        again = timing.confirm_irregular(*located, flags != "", flags == "duplicate",
-                                         gaps.irregular)
-        irregular, located_irregular = timing.split_irregular(
-            again, np.isin(flags, LOCATOR_FLAGS))
-        for msg in ([irregular_message(irregular)] if irregular else []) + (
-                [located_irregular_message(located_irregular)] if located_irregular else []):
-            logger.warning(msg)
-            warnings.append(msg)
-    if rejected.any():
-        logger.warning(f"{int(rejected.sum())} located frame(s) failed the plausibility checks "
-                       "and are left out: " + ", ".join(f"{k} {v}" for k, v in counts.items()
-                                     if k not in ("not_found", "off_track")))
-    theta = np.full(n, np.nan)
-    xy = rows[:, :2].copy()
-    if lens is not None:
-        # the lens bends the round outline: the fitted circle's centre is not the bent
-        # image of the ball's centre (rollfric.setup.lens.Calibration.undistort_ball)
-        xy[found] = lens.undistort_ball(rows[found, :2], r_px)
-    theta[found] = angles(xy[found, 0], xy[found, 1], center_ud, method=angle,
-                          track_radius_px=L_px)
-    frame_idx = np.arange(n)
-    df = pd.DataFrame({
-        "frame": frame_idx,
-        "t_s": pos / setup.fps if times is None else np.asarray(times, dtype=float),
-        "x_px": rows[:, 0],
-        "y_px": rows[:, 1],
-        "theta_rad": theta,
-        "found": found.astype(int),
-        "r_px": rows[:, 2],
-        "sigma_px": rows[:, 3],
-        "flag": flags.astype(str),
-        "inlier_frac": rows[:, 4],
-        "ring_gain": rows[:, 6],
-    })
-    if lens is not None:  # the undistorted centres the angles come from
-        df["xu_px"], df["yu_px"] = xy[:, 0], xy[:, 1]
-    cal_keys = {"ball_radius_px_seen_rel_sigma": None, "ball_radius_px_seen_rel_dev": None,
-                **cal.summary()}
-    info = TrackInfo(setup=setup, recording=str(getattr(source, "name", "")), n_frames=n,
-                     n_found=int(found.sum()), locator=method, angle=angle,
-                     center_px=(float(center_ud[0]), float(center_ud[1])),
-                     center_source="given", undistorted=lens is not None, background="given",
-                     times=TIMES_FPS if times is None else "given",
-                     ball_radius_px=r_px, track_radius_px=L_px, **cal_keys,
-                     n_refitted=len(redo) if r_cal is not None else 0, flags=counts,
-                     warnings=tuple(warnings), warnings_radius=tuple(warnings_radius),
-                     frames_dropped=() if gaps is None else gaps.dropped,
-                     timing_irregular=irregular, located_irregular=located_irregular)
+    verdict = tracker.judge(cal, times, drops, warnings)
+    df = tracker.table(times, verdict)
+    info = tracker.info(cal, verdict, times=times, redo=redo, warnings=warnings,
+                        warnings_radius=warnings_radius)
     return df, info
-
-
-def dropped_message(gaps) -> str:
-    """The message of the dropped frames found (:func:`rollfric.track.dropped_frames.find_gaps`).
-
-    Parameters
-    ----------
-    gaps : rollfric.track.dropped_frames.Gaps
-
-    Returns
-    -------
-    str
-    """
-    where = ", ".join(f"{m} after frame {k}" for k, m in gaps.dropped[:8])
-    more = f" and {len(gaps.dropped) - 8} more" if len(gaps.dropped) > 8 else ""
-    return (f"{gaps.n_dropped} dropped frame(s) found from the ball's steps ({where}{more}): "
-            "the later frames' t_s are moved by the periods lost; a step slower than "
-            f"{gaps.min_step_px:.2g} px a frame (near the turning points) would hide one")
-
-
-def irregular_message(irregular) -> str:
-    """The message (and quality reason "timing") of steps that fit no whole number of periods.
-
-    Parameters
-    ----------
-    irregular : sequence of (int, float)
-        (frame, step ratio) pairs (:attr:`rollfric.track.dropped_frames.Gaps.irregular`).
-
-    Returns
-    -------
-    str
-    """
-    return (f"{_irregular_steps(irregular)}: the timing is irregular there and cannot be "
-            "repaired from the motion; a recording with timestamps would tell")
-
-
-def _irregular_steps(steps) -> str:
-    """"N step(s) of the ball fit no whole number of frame periods (frame k (r x), ...)"."""
-    where = ", ".join(f"frame {k} ({r:.2f} x)" for k, r in steps[:8])
-    return f"{len(steps)} step(s) of the ball fit no whole number of frame periods ({where})"
-
-
-def located_irregular_message(located_irregular) -> str:
-    """The message of irregular steps among frames the locator lost or got wrong.
-
-    Parameters
-    ----------
-    located_irregular : sequence of (int, float)
-        (frame, step ratio) pairs (:attr:`TrackInfo.located_irregular`).
-
-    Returns
-    -------
-    str
-    """
-    return (f"{_irregular_steps(located_irregular)} at frames the locator lost or that failed "
-            "the plausibility checks: the located centres are off there (a ball in shadow, half "
-            "lit), not the timing")
-
-
-def located_frames_reason(info: TrackInfo) -> str:
-    """The quality reason "located_frames": what the locator lost or got wrong, with the
-    irregular steps it caused (:attr:`TrackInfo.located_irregular`).
-
-    Parameters
-    ----------
-    info : TrackInfo
-
-    Returns
-    -------
-    str
-    """
-    bad = ", ".join(f"{k} {v}" for k, v in info.flags.items() if k in LOCATOR_FLAGS)
-    return (f"the ball was located and accepted in {info.n_found} of {info.n_frames} frames "
-            f"({100.0 * info.n_found / max(info.n_frames, 1):.1f} %; {bad}); "
-            + located_irregular_message(info.located_irregular)
-            + ": the centres next to the lost and rejected frames may be off too (check the "
-            "lighting, the shadows, the overlays)")
-
-
-def check_track_fits(df: pd.DataFrame, setup: Setup) -> None:
-    """Refuse a track whose ball radius contradicts the setup, or without any ball found.
-
-    Parameters
-    ----------
-    df : pandas.DataFrame
-        The track of :func:`track_recording`.
-    setup : Setup
-        The setup used.
-
-    Raises
-    ------
-    rollfric.errors.InputError
-        The ball was found in no frame.
-    rollfric.setup.model.SetupError
-        The ball's median fitted radius is more than 10 % off the setup's.
-    """
-    found = df["found"] == 1
-    if not found.any():
-        raise InputError(
-            f"the ball was found in none of the {len(df)} frames: is it in the recording, is the "
-            f"background right, and is its size right (setup: {ball_radius_px(setup):.1f}"
-            " px radius)?")
-    rfit = df.loc[found, "r_px"].dropna()
-    r_px = ball_radius_px(setup)
-    if len(rfit) and abs(float(rfit.median()) - r_px) > 0.1 * r_px:
-        raise SetupError(f"the setup does not fit the images: the ball measures "
-                         f"{float(rfit.median()):.1f} px in radius, the setup says {r_px:.1f} px"
-                         " (ball.diameter_mm / camera.pixel_size_mm)")
-
-
-def fps_mismatch(recording_fps, setup_fps: float) -> str | None:
-    """A note when the recording carries a frame rate other than the setup's, else None.
-
-    The setup's rate is the one used: a high-speed camera's video export often carries a
-    playback rate (25, 30 fps), not the rate the frames were taken at.
-
-    Parameters
-    ----------
-    recording_fps : float or None
-        The frame rate in the recording's header (Hz); None or 0 when it has none.
-    setup_fps : float
-        The setup's camera.fps (Hz).
-
-    Returns
-    -------
-    str or None
-        The note, or None when the rates agree to 1e-6 or the recording gives none.
-    """
-    if not recording_fps or abs(recording_fps - setup_fps) <= 1e-6 * setup_fps:
-        return None
-    return (f"the recording says {recording_fps:g} frames/s, the setup {setup_fps:g} Hz: times "
-            "use the setup's (camera.fps); a video export's rate is often a playback rate")
-
-
-def frame_times(source, setup_fps: float, times: str = "auto"):
-    """(t, description, notes): the time (s) of each frame of ``source`` from frame 0.
-
-    ``times="auto"``: the recording's own per-frame times when it has them (``timestamps``, e.g.
-    a Phantom cine's TIME64 block: the camera's clock, so a dropped frame or a rate other than
-    the nominal one shows), else frame / ``setup_fps``; ``"fps"``: always frame / ``setup_fps``.
-    ``notes`` say where the timestamps disagree with the setup's rate (by more than
-    TIMES_RATE_TOL and the clock's step) or are unevenly spaced (an interval more than
-    TIMES_JITTER_TOL from the median one, beyond the step of the camera's clock,
-    ``attrs["timestamp_resolution_s"]``: times rounded to whole microseconds are 28 or 29 us
-    apart at 35087 Hz, no dropped frame). Timestamps whose steps are ~1000 or ~1e6 of the
-    setup's frame periods (within TIMES_UNIT_FACTOR) are read as ms or us, and a note names
-    the unit.
-
-    Parameters
-    ----------
-    source : FrameSource
-        The recording; its ``timestamps`` (s) are used when it has them.
-    setup_fps : float
-        The setup's camera.fps (Hz).
-    times : str
-        "auto" or "fps".
-
-    Returns
-    -------
-    t : numpy.ndarray
-        The time of each frame (s), 0 at frame 0.
-    description : str
-        "the recording's timestamps" or "frame / camera.fps".
-    notes : list of str
-        What to check about the timestamps.
-
-    Raises
-    ------
-    rollfric.errors.InputError
-        An unknown ``times``.
-    """
-    if times not in TIMES:
-        raise InputError(f"unknown times {times!r} (known: {', '.join(TIMES)})")
-    n = len(source)
-    stamps = getattr(source, "timestamps", None) if times == "auto" else None
-    if stamps is None:
-        return np.arange(n) / setup_fps, TIMES_FPS, []
-    t = np.asarray(stamps, dtype=float)
-    if t.shape != (n,) or not np.all(np.isfinite(t)) or (n > 1 and np.any(np.diff(t) <= 0)):
-        return np.arange(n) / setup_fps, TIMES_FPS, [
-            "the recording's timestamps are not one increasing time a frame: times use the "
-            "setup's camera.fps"]
-    t = t - t[0]
-    notes = []
-    if n > 1:
-        ratio = float(np.median(np.diff(t))) * setup_fps
-        for unit, scale in TIMES_UNITS:
-            if abs(math.log(ratio * scale)) <= math.log(TIMES_UNIT_FACTOR):
-                t = t * scale
-                notes.append(f"the recording's timestamps step by {ratio / setup_fps:.6g} a "
-                             f"frame, {ratio:.4g} x the setup's frame period (camera.fps = "
-                             f"{setup_fps:g} Hz): they are in {unit}, not seconds, and are "
-                             f"read as {unit}")
-                break
-        d = np.diff(t)
-        dt = float(np.median(d))
-        # a clock that counts in steps (a cine's microseconds) makes intervals a step apart
-        res = (getattr(source, "attrs", None) or {}).get("timestamp_resolution_s")
-        res = float(res) if isinstance(res, (int, float)) and res > 0 else 0.0
-        if abs(dt * setup_fps - 1.0) > TIMES_RATE_TOL + res * setup_fps:
-            notes.append(f"the recording's timestamps are {dt * 1e3:.6g} ms apart (median: "
-                         f"{1 / dt:.6g} frames/s), the setup says {setup_fps:g} Hz: times are "
-                         "the recording's timestamps; check camera.fps")
-        off = np.abs(d - dt) > TIMES_JITTER_TOL * dt + res
-        if off.any():
-            notes.append(f"{int(off.sum())} of the recording's {n - 1} frame intervals differ "
-                         f"from the median {dt * 1e3:.6g} ms by more than "
-                         f"{100 * TIMES_JITTER_TOL:g} % ({float(d.min()) * 1e3:.6g} to "
-                         f"{float(d.max()) * 1e3:.6g} ms: dropped frames?); times are the "
-                         "recording's timestamps")
-    return t, "the recording's timestamps", notes
 
 
 def measure(recording, setup: Setup | str | None = None, background=None, *,
             method: str = "subpixel", angle: str = "atan2", fit_method: str = "lsq",
             offset: bool | str = "auto", fit: bool = True, progress: bool = False,
             median_frames: int = 41, fit_kwargs: dict | None = None,
-            times: str = "auto", drops: bool = True, read_ahead: bool = False,
+            times: str = "auto", drops: bool = True,
             segments: int | str = "auto", background_from: str = "median"):
     """Measure mu from a recording: (track DataFrame, TrackInfo, FitResult or None).
 
@@ -1374,8 +696,6 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         More keywords of :func:`rollfric.fit.estimate.fit_mu`.
     drops : bool
         Find and repair dropped frames (above).
-    read_ahead : bool
-        Read the next frame's region on a second thread (:func:`track_recording`).
     segments : int or "auto"
         Track the recording in this many segments (:func:`track_recording`).
 
@@ -1511,7 +831,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
     df, info = track_recording(source, setup, bg, method=method, angle=angle, center=center,
                                progress=progress,
                                times=None if times_desc == TIMES_FPS else t, drops=drops,
-                               read_ahead=read_ahead, segments=segments, bit_depth=bits)
+                               segments=segments, bit_depth=bits)
     check_track_fits(df, setup)
     still_notes = _mark_still(df, setup)
     bg_coded = bg_notes  # the background's notes that make the measurement suspect
@@ -1528,7 +848,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                 df, info = track_recording(source, setup, bg2, method=method, angle=angle,
                                            center=center, progress=progress,
                                            times=None if times_desc == TIMES_FPS else t,
-                                           drops=drops, read_ahead=read_ahead,
+                                           drops=drops,
                                            segments=segments, bit_depth=bits)
                 check_track_fits(df, setup)
                 still_notes = _mark_still(df, setup)

@@ -53,6 +53,7 @@ from rollfric.errors import InputError
 from rollfric.fit import eom
 from rollfric.fit.air import WALL_FACTOR_U, coefficients_of
 from rollfric.fit.hac import autocorrelation, hac_covariance  # noqa: F401 (re-exported)
+from rollfric.geometry.theta import centre_angles
 from rollfric.setup.model import LAB_KEYS, Setup, SetupError
 
 COVERAGE_FACTOR = 2.0
@@ -183,7 +184,7 @@ class Measurement:
     center : tuple of float, optional
         The cylinder axis the angles are taken about (px).
     angle : {"atan2", "arcsin"}, optional
-        The angle formula (:func:`rollfric.track.tracker.angles`).
+        The angle formula (:func:`rollfric.geometry.theta.angles`).
     t, theta : numpy.ndarray, optional
         Times (s) and given angles (rad).
     center_u : tuple of float, optional
@@ -242,23 +243,10 @@ class Measurement:
             Angles, rad (NaN where no ball).
         """
         if self.from_centres:
-            from rollfric.track.tracker import angles
-
             center = setup.center_px if setup.center_px is not None else self.center
-            x, y = self.x, self.y
-            if self.distorted and setup.calibration is not None:
-                ok = np.isfinite(x) & np.isfinite(y)
-                # as the measurement did (rollfric.track.tracker): corrected for the bent outline
-                und = setup.calibration.undistort_ball(np.stack([x[ok], y[ok]], axis=1),
-                                                       setup.ball_radius / setup.pixel_size)
-                x, y = np.full_like(x, np.nan), np.full_like(y, np.nan)
-                x[ok], y[ok] = und[:, 0], und[:, 1]
-            if self.angle_map is not None:
-                from rollfric.geometry.pathshape import mapped_centres
-
-                x, y = mapped_centres(x, y, center, self.angle_map)
-            th = angles(x, y, center, method=self.angle,
-                        track_radius_px=setup.track_radius / setup.pixel_size)
+            # as the measurement did (rollfric.track.tracker): undistorted, mapped, the angles
+            th, _, _ = centre_angles(self.x, self.y, center, setup, method=self.angle,
+                                     distorted=self.distorted, angle_map=self.angle_map)
             if self.t is not None:
                 return np.asarray(self.t, dtype=float), th
             return np.asarray(self.frames, dtype=float) / setup.fps, th
