@@ -12,7 +12,8 @@ import pytest
 
 import sim
 from rollfric.fit.estimate import fit_mu
-from rollfric.track.tracker import angles, measure
+from rollfric.measurement import measure
+from rollfric.track.tracker import angles
 from rollfric.uncertainty.budget import budget, measurement_from_track
 from synth.drawn import frames as dfm
 from synth.drawn.frames import make_frames

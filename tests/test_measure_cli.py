@@ -13,8 +13,9 @@ from measure_data import make_recording, messages
 
 from rollfric.cli.main import main
 from rollfric.geometry.trough import ContourError, find_cylinder_center
+from rollfric.measurement import measure
 from rollfric.setup.model import dumps_setup, save_setup
-from rollfric.track.tracker import angles, measure
+from rollfric.track.tracker import angles
 from synth.drawn.frames import Scene, background, to_dtype
 
 

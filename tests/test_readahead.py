@@ -12,8 +12,9 @@ from measure_data import MemorySource as _Source
 from measure_data import make_recording
 
 from rollfric.io.readers import RecordingError
+from rollfric.measurement import measure
 from rollfric.track.readahead import ReadAhead
-from rollfric.track.tracker import measure, track_recording
+from rollfric.track.tracker import track_recording
 
 
 def _frames(n=12, h=40, w=50, seed=0):

@@ -12,6 +12,7 @@ from mkdocs.structure.files import File
 SECTION = "API reference"
 # the module that defines a name -> the page it is listed on
 TITLES = {
+    "rollfric.measurement": "Measuring",
     "rollfric.track.tracker": "Measuring",
     "rollfric.io.readers": "Recordings",
     "rollfric.io.source": "Recordings",

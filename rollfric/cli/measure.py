@@ -144,7 +144,7 @@ def write_track_csv(track, path) -> None:
     Parameters
     ----------
     track : pandas.DataFrame
-        From :func:`rollfric.track.tracker.measure`.
+        From :func:`rollfric.measurement.measure`.
     path : pathlib.Path
         The file to write.
     """
@@ -160,7 +160,7 @@ def track_summary(track, info) -> dict:
     Parameters
     ----------
     track : pandas.DataFrame
-        From :func:`rollfric.track.tracker.measure`.
+        From :func:`rollfric.measurement.measure`.
     info : rollfric.track.tracker.TrackInfo
         Beside it.
 
@@ -278,8 +278,9 @@ def _run(args) -> int:
     from rollfric.cli.fit import report_quality
     from rollfric.errors import InputError
     from rollfric.fit.estimate import save_fit
+    from rollfric.io.readers import open_recording
+    from rollfric.measurement import measure
     from rollfric.output.folder import staged_folder
-    from rollfric.track.tracker import measure
     from rollfric.uncertainty.budget import (
         check_arguments,
         measurement_from_track,
@@ -299,7 +300,8 @@ def _run(args) -> int:
     if args.offset == "on" and args.fit_method == "paper2_grid":  # refused before the tracking
         raise InputError("--offset: paper2_grid fits no angle offset (the thesis's procedure "
                          "has none)")
-    track, info, result = measure(args.recording, args.setup, args.background, method=args.method,
+    source = open_recording(args.recording)  # measured, then its overlay frames drawn
+    track, info, result = measure(source, args.setup, args.background, method=args.method,
                             angle=args.angle, fit_method=args.fit_method,
                                   offset={"on": True, "off": False}.get(args.offset, "auto"),
                                   progress=not args.no_progress,
@@ -323,7 +325,6 @@ def _run(args) -> int:
                  "setup": info.setup.to_toml_dict()}
         save_fit(result, tmp / "fit.json", **extra)
         if args.plot:
-            from rollfric.io.readers import open_recording
             from rollfric.output.overlay import plot_overlays
             from rollfric.output.plots import plot_budget, plot_fit
 
@@ -331,7 +332,7 @@ def _run(args) -> int:
                      tmp / "fit.png")
             if budget is not None:
                 plot_budget(budget, tmp / "budget.png")
-            plot_overlays(open_recording(args.recording), track, tmp / "overlays.png",
+            plot_overlays(source, track, tmp / "overlays.png",
                           frames=frames, info=info)
     unc = f"+- {result.mu_stderr:.2g} (standard error)" if budget is None else \
         f"+- {budget.u_mu:.2g} (u), U = {budget.U_mu:.2g} (k = 2)"

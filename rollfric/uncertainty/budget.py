@@ -267,7 +267,7 @@ class Measurement:
 
 
 def measurement_from_track(track, info) -> Measurement:
-    """A :class:`Measurement` from ``rollfric.track.tracker.measure``'s track DataFrame.
+    """A :class:`Measurement` from ``rollfric.measurement.measure``'s track DataFrame.
 
     Parameters
     ----------

@@ -1,0 +1,117 @@
+"""The measured mu checked against the ellipses the images show: the trough's contour and the
+ball's path.
+
+A trough contour that is an ellipse (a tilted camera, an out-of-round bore) implies a mu bias
+either way (:func:`contour_check`); the ball's path as an ellipse tells the two apart by the
+period (:func:`path_check`) and, for a tilted camera, corrects the angles. A path read either
+way replaces the contour's two readings (:func:`path_replaces_contour`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+
+import numpy as np
+
+from rollfric.errors import InputError
+from rollfric.fit import estimate as fitmod
+from rollfric.geometry import ellipse as ell
+from rollfric.geometry import pathshape
+from rollfric.track.tracker import angles
+
+logger = logging.getLogger(__name__)
+
+ELLIPSE_WARNING_START = "the trough's contour is an ellipse"
+
+
+def contour_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fit_kwargs):
+    """The mu bias the contour's ellipse implies (:mod:`rollfric.geometry.ellipse`).
+
+    Returns (info, coded): ``info.contour_ellipse`` set, a warning above ``BIAS_WARN`` (logged,
+    added to ``info.warnings``), a quality reason ``contour_ellipse`` in ``coded`` above
+    ``BIAS_SUSPECT``."""
+    out = ellipse.to_dict()
+    # the swing's turning points (of the fitted curve): where the amplitude loss is measured
+    swing = np.asarray(result.curve, dtype=float) - result.offset
+    k = np.flatnonzero(np.diff(np.sign(np.diff(swing))) != 0) + 1
+    amp = float(np.median(np.abs(swing[k]))) if len(k) else float(np.nanmax(np.abs(swing)))
+    cam = ell.camera_bias(ellipse, amp)
+    r_eff, f_b = ell.trough_scale(ellipse, info.ball_radius_px, amp)
+    try:
+        refit = fitmod.fit_mu(t_s, th, setup.replace(cylinder_radius=setup.cylinder_radius
+                                                     * r_eff),
+                              method=fit_method, offset=offset, **(fit_kwargs or {}))
+        trough = ell.trough_bias(result.mu, refit.mu, f_b)
+    except (InputError, ValueError):
+        trough = math.nan
+    out.update(mu_bias_if_camera=cam, mu_bias_if_trough=trough, swing_amplitude_rad=amp,
+               bottom_radius_over_mean=r_eff, trough_angle_scale=f_b)
+    worst = max(abs(cam), abs(trough) if math.isfinite(trough) else 0.0)
+    coded, warns = [], ()
+    if ellipse.significant and worst > ell.BIAS_WARN:
+        msg = ell.warning_text(ellipse, cam, trough)
+        logger.warning(msg)
+        warns = (msg,)
+        if worst > ell.BIAS_SUSPECT:
+            coded.append(("contour_ellipse", msg))
+    return dataclasses.replace(info, contour_ellipse=out,
+                               warnings=info.warnings + warns), coded
+
+
+def path_check(df, info, center, setup, result, offset, fit_method, fit_kwargs, angle):
+    """The ball's path as an ellipse (:mod:`rollfric.geometry.pathshape`).
+
+    Returns (info, result, coded): ``info.path_ellipse`` set; a tilted camera the period
+    singles out corrected (the angles in ``df`` and the fit replaced, ``info.angle_map`` set);
+    a reason ``camera_orientation`` in ``coded`` when the readings cannot be told apart and
+    differ by more than ``BIAS_WARN`` of mu."""
+    found = df["found"].to_numpy() == 1
+    cx_col, cy_col = ("xu_px", "yu_px") if "xu_px" in df.columns else ("x_px", "y_px")
+    x = np.where(found, df[cx_col].to_numpy(float), np.nan)
+    y = np.where(found, df[cy_col].to_numpy(float), np.nan)
+    t_s, th = df["t_s"].to_numpy(float), df["theta_rad"].to_numpy(float)
+    L_px = setup.track_radius / setup.pixel_size
+
+    def refit(t, theta, s):
+        return fitmod.fit_mu(t, theta, s, method=fit_method, offset=offset,
+                             **(fit_kwargs or {}))
+
+    def angle_of(xx, yy):
+        return angles(xx, yy, center, method=angle, track_radius_px=L_px)
+
+    # the centre's uncertainty: the lab's center_px_u, else the contour's
+    u_c = setup.u("center_px") if setup.center_px is not None else info.center_u_px
+    try:
+        reading = pathshape.read_path(x, y, center, t_s, th, setup, result, offset=offset,
+                                      refit=refit, ball_radius_px=info.ball_radius_px,
+                                      angle_of=angle_of, center_u=u_c)
+    except (InputError, ValueError, np.linalg.LinAlgError) as exc:
+        logger.info(f"the ball's path was not fitted as an ellipse: {exc}")
+        return info, result, []
+    msg = reading.message()
+    coded, warns, amap = [], (), None
+    if reading.verdict == "camera":
+        df["theta_rad"] = np.where(found & np.isfinite(th), reading.theta_camera, th)
+        result = reading.result_camera
+        amap = tuple(map(tuple, reading.path.round_map(L_px)))
+    elif reading.verdict == "undecided" and reading.spread > ell.BIAS_WARN:
+        coded.append(("camera_orientation", msg))
+    if msg is not None and (reading.verdict != "undecided" or reading.spread > ell.BIAS_WARN):
+        logger.warning(msg)
+        warns = (msg,)
+    return dataclasses.replace(info, path_ellipse=reading.to_dict(), angle_map=amap,
+                               warnings=info.warnings + warns), result, coded
+
+
+def path_replaces_contour(info, coded):
+    """The path's reading, decided by the period, in place of the contour's two readings.
+
+    Returns (info, coded): when the path was read as "camera" or "trough", the contour's
+    reason ``contour_ellipse`` and its warning are dropped; else both as they were."""
+    if info.path_ellipse is None or info.path_ellipse["verdict"] not in ("camera", "trough"):
+        return info, coded
+    coded = [c for c in coded if c[0] != "contour_ellipse"]
+    return dataclasses.replace(info, warnings=tuple(
+        w for w in info.warnings if not w.startswith(ELLIPSE_WARNING_START))), coded
