@@ -163,11 +163,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                           r_px=ball_radius_px(setup), kind=background_from,
                                           full_scale=camera.full_scale))
     stages.lap("background")
-    axis = trough_center(bg.image, setup, source.shape, full_scale=camera.full_scale)
-    if setup.center_px is None:
-        check_setup_fits(setup.replace(center_px=axis.center), source.shape)
-    for note in axis.notes:
-        logger.warning(note)
+    axis = _trough_center(bg.image, setup, source.shape, camera.full_scale)
     stages.lap("trough centre")
     track = functools.partial(_tracked, source, setup, method=method, angle=angle,
                               center=axis.center, progress=progress, times=camera.track_times,
@@ -181,7 +177,7 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
                                                    median_frames, camera.full_scale, track)
     if fit:  # the measurement's; without a fit the track as located
         df, info = correct_for_motion(source, bg.image, df, info, setup, angle)
-    n_found = int(df["found"].sum())
+    n_found = int(df["found"].sum())  # what the track was measured with, into its TrackInfo
     info = dataclasses.replace(info, setup=setup, background=bg.desc, center_source=axis.source,
                                background_from="given" if background is not None else
                                "recording" if bg.desc == "stored in the recording" else
@@ -286,6 +282,17 @@ def _camera(source, setup: Setup, times: str) -> _Camera:
     for msg in time_notes:
         logger.warning(msg)
     return _Camera(bits=bits, full_scale=fs, t=t, times=times_desc, notes=time_notes)
+
+
+def _trough_center(background, setup: Setup, shape, full_scale: float):
+    """The trough's centre (:func:`rollfric.geometry.trough_center.trough_center`), the setup
+    checked with a centre found from the contour, then the contour's notes logged."""
+    axis = trough_center(background, setup, shape, full_scale=full_scale)
+    if setup.center_px is None:
+        check_setup_fits(setup.replace(center_px=axis.center), shape)
+    for note in axis.notes:
+        logger.warning(note)
+    return axis
 
 
 def _tracked(source, setup: Setup, background, **kwargs):
