@@ -29,9 +29,33 @@ ELLIPSE_WARNING_START = "the trough's contour is an ellipse"
 def contour_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fit_kwargs):
     """The mu bias the contour's ellipse implies (:mod:`rollfric.geometry.ellipse`).
 
-    Returns (info, coded): ``info.contour_ellipse`` set, a warning above ``BIAS_WARN`` (logged,
-    added to ``info.warnings``), a quality reason ``contour_ellipse`` in ``coded`` above
-    ``BIAS_SUSPECT``."""
+    Parameters
+    ----------
+    ellipse : rollfric.geometry.ellipse.ContourEllipse
+        The trough's contour as an ellipse.
+    info : rollfric.track.tracker.TrackInfo
+        The track's (its ``ball_radius_px`` and ``warnings``).
+    t_s, th : numpy.ndarray
+        The fitted times (s) and angles (rad; NaN where left out).
+    setup : rollfric.setup.model.Setup
+        The setup.
+    result : rollfric.fit.estimate.FitResult
+        The fit of mu.
+    offset : bool
+        Whether the fit has the angle offset.
+    fit_method : str
+        The fitting method (the refit with the bottom's radius uses it).
+    fit_kwargs : dict or None
+        More keywords of :func:`rollfric.fit.estimate.fit_mu`.
+
+    Returns
+    -------
+    info : rollfric.track.tracker.TrackInfo
+        With ``contour_ellipse`` set and, when the bias exceeds ``BIAS_WARN``, its warning
+        (logged too).
+    coded : list of (str, str)
+        The quality reason ``contour_ellipse`` when the bias exceeds ``BIAS_SUSPECT``.
+    """
     out = ellipse.to_dict()
     # the swing's turning points (of the fitted curve): where the amplitude loss is measured
     swing = np.asarray(result.curve, dtype=float) - result.offset
@@ -63,10 +87,41 @@ def contour_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fit
 def path_check(df, info, center, setup, result, offset, fit_method, fit_kwargs, angle):
     """The ball's path as an ellipse (:mod:`rollfric.geometry.pathshape`).
 
-    Returns (info, result, coded): ``info.path_ellipse`` set; a tilted camera the period
-    singles out corrected (the angles in ``df`` and the fit replaced, ``info.angle_map`` set);
-    a reason ``camera_orientation`` in ``coded`` when the readings cannot be told apart and
-    differ by more than ``BIAS_WARN`` of mu."""
+    A tilted camera that the period singles out is corrected: the angles in ``df``
+    (``theta_rad``) and the fit are replaced.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The track (its centres, times and angles).
+    info : rollfric.track.tracker.TrackInfo
+        The track's.
+    center : tuple of float
+        The trough's centre the angles are taken about (px).
+    setup : rollfric.setup.model.Setup
+        The setup.
+    result : rollfric.fit.estimate.FitResult
+        The fit of mu.
+    offset : bool
+        Whether the fit has the angle offset.
+    fit_method : str
+        The fitting method of the refits.
+    fit_kwargs : dict or None
+        More keywords of :func:`rollfric.fit.estimate.fit_mu`.
+    angle : str
+        The angle formula (:func:`rollfric.track.tracker.angles`).
+
+    Returns
+    -------
+    info : rollfric.track.tracker.TrackInfo
+        With ``path_ellipse`` set, ``angle_map`` for a corrected camera, and the reading's
+        warning (logged too).
+    result : rollfric.fit.estimate.FitResult
+        The fit, replaced for a corrected camera.
+    coded : list of (str, str)
+        The quality reason ``camera_orientation`` when the readings cannot be told apart and
+        differ by more than ``BIAS_WARN`` of mu.
+    """
     found = df["found"].to_numpy() == 1
     cx_col, cy_col = ("xu_px", "yu_px") if "xu_px" in df.columns else ("x_px", "y_px")
     x = np.where(found, df[cx_col].to_numpy(float), np.nan)
@@ -108,8 +163,20 @@ def path_check(df, info, center, setup, result, offset, fit_method, fit_kwargs, 
 def path_replaces_contour(info, coded):
     """The path's reading, decided by the period, in place of the contour's two readings.
 
-    Returns (info, coded): when the path was read as "camera" or "trough", the contour's
-    reason ``contour_ellipse`` and its warning are dropped; else both as they were."""
+    Parameters
+    ----------
+    info : rollfric.track.tracker.TrackInfo
+        After :func:`path_check`.
+    coded : list of (str, str)
+        The quality reasons so far.
+
+    Returns
+    -------
+    info : rollfric.track.tracker.TrackInfo
+        Without the contour's warning when the path was read as "camera" or "trough".
+    coded : list of (str, str)
+        Without the reason ``contour_ellipse`` then.
+    """
     if info.path_ellipse is None or info.path_ellipse["verdict"] not in ("camera", "trough"):
         return info, coded
     coded = [c for c in coded if c[0] != "contour_ellipse"]

@@ -262,8 +262,31 @@ def correct_for_motion(source, bg, df, info, setup, angle):
 
     The centres in ``df`` are moved back into the background's frame and the angles taken
     again; the steps the motion made are no timing's (left out of ``timing_irregular`` and
-    ``located_irregular``). Returns (df, info): ``info.camera_motion`` set, the warning
-    added (and logged)."""
+    ``located_irregular``).
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording.
+    bg : numpy.ndarray
+        The background image.
+    df : pandas.DataFrame
+        The track (changed in place where the camera moved).
+    info : rollfric.track.tracker.TrackInfo
+        The track's.
+    setup : rollfric.setup.model.Setup
+        The setup (the path's radius for the arcsin angle).
+    angle : str
+        The angle formula (:func:`rollfric.track.tracker.angles`).
+
+    Returns
+    -------
+    df : pandas.DataFrame
+        The track.
+    info : rollfric.track.tracker.TrackInfo
+        With ``camera_motion`` set (unless the motion could not be looked for) and, for a
+        moved camera, its warning (logged too).
+    """
     found = df["found"].to_numpy() == 1
     xy = np.column_stack([df["x_px"].to_numpy(float), df["y_px"].to_numpy(float)])
     try:

@@ -116,9 +116,29 @@ def still_spells(t, theta, found, setup) -> dict:
 
 def median_without_still(source, df, bg, r_px: float, median_frames: int, *,
                          full_scale: float | None = None):
-    """The median background of the sampled frames whose ball is neither held nor at rest:
-    (background, whether it agrees with ``bg``, frames in it), or None when fewer than
-    :data:`rollfric.io.ballfree.MIN_CLEAR` are left or it still holds the ball."""
+    """The median background of the sampled frames whose ball is neither held nor at rest.
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording.
+    df : pandas.DataFrame
+        Its track, column ``still`` marked (:func:`mark_still`).
+    bg : numpy.ndarray
+        The median background it was tracked with.
+    r_px : float
+        The ball's radius (px).
+    median_frames : int
+        Frames sampled for the median.
+    full_scale : float or None
+        The camera's full scale (DN).
+
+    Returns
+    -------
+    tuple or None
+        (background, whether it agrees with ``bg``, frames in it); None when fewer than
+        :data:`rollfric.io.ballfree.MIN_CLEAR` are left or it still holds the ball.
+    """
     idx, stack = sample(source, median_frames)
     still_rows = df["still"].to_numpy() != ""
     keep = [j for j, i in enumerate(idx) if not still_rows[int(i)]]
@@ -137,8 +157,21 @@ def median_without_still(source, df, bg, r_px: float, median_frames: int, *,
 
 
 def mark_still(df, setup) -> list:
-    """Frames of a held start or a rest (:func:`still_spells`) marked ``held`` / ``rest`` in the
-    column ``still`` of ``df`` (kept out of the fit); the warnings saying so (logged)."""
+    """Frames of a held start or a rest (:func:`still_spells`) marked in the track.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The track: its column ``still`` is set, "held" / "rest" on those frames (kept out of
+        the fit), "" elsewhere.
+    setup : rollfric.setup.model.Setup
+        The setup.
+
+    Returns
+    -------
+    list of str
+        The warnings saying so (logged too).
+    """
     df["still"] = ""
     found = df["found"].to_numpy() == 1
     spells = still_spells(df["t_s"].to_numpy(), df["theta_rad"].to_numpy(), found, setup)
