@@ -26,7 +26,7 @@ except PackageNotFoundError:  # run from a source tree that was never installed
 # public name -> the module that defines it
 _WHERE = {
     # a measurement, from a recording to mu
-    "measure": "rollfric.track.tracker",
+    "measure": "rollfric.measurement",
     "track_recording": "rollfric.track.tracker",
     "TrackInfo": "rollfric.track.track_info",
     "angles": "rollfric.geometry.theta",

@@ -14,8 +14,8 @@ from rollfric.errors import InputError
 from rollfric.io import ballfree
 from rollfric.io import readers as io
 from rollfric.io.background import median, sample
+from rollfric.measurement import measure
 from rollfric.setup.model import Setup
-from rollfric.track.tracker import measure
 from synth.drawn.frames import Scene, make_frames
 
 REAL = Path(__file__).parent / "data" / "real" / "ball_12bit.cihx"

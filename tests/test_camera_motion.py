@@ -5,8 +5,8 @@ are shifted from a frame on, or steadily: validation.faults.camera)."""
 import numpy as np
 import pytest
 
+from rollfric.measurement import measure
 from rollfric.track import camera_motion as cm
-from rollfric.track.tracker import measure
 from synth.drawn.frames import Scene, make_frames
 from tests.measure_data import MemorySource, make_recording
 from validation.faults.camera import camera_shift, moved_frames

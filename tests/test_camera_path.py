@@ -13,7 +13,7 @@ import pytest
 import sim
 from rollfric.fit.estimate import fit_mu
 from rollfric.geometry.theta import angles
-from rollfric.track.tracker import measure
+from rollfric.measurement import measure
 from rollfric.uncertainty.budget import budget, measurement_from_track
 from synth.drawn import frames as dfm
 from synth.drawn.frames import make_frames

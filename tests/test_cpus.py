@@ -18,8 +18,7 @@ from test_uncertainty import LAB, _lab_track, write
 from rollfric import parallel as cpus
 from rollfric.fit.estimate import fit_mu
 from rollfric.setup.model import load_setup
-from rollfric.track.dropped_frames import find_gaps
-from rollfric.track.tracker import turning_gaps
+from rollfric.track.dropped_frames import find_gaps, turning_gaps
 from rollfric.uncertainty.budget import Measurement, budget
 
 
@@ -131,7 +130,7 @@ def test_measure_on_threads_is_measure_in_one_thread_and_times_its_stages(monkey
     # 1000 frames: the recording's halves on two threads too, the fits on two
     from measure_data import MemorySource, make_recording
 
-    from rollfric.track import tracker as track
+    from rollfric import measurement as track
 
     rec = make_recording(1000, mu=0.01, theta0=0.5, fps=200.0, noise=1.0, seed=2)
     src = MemorySource(rec.frames, concurrent=True)

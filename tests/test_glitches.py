@@ -9,8 +9,8 @@ import pytest
 from measure_data import make_recording
 from test_measure_roi import _Plain
 
+from rollfric.measurement import measure
 from rollfric.track import plausibility
-from rollfric.track.tracker import measure
 from validation.faults.glitches import glitch_frames
 
 

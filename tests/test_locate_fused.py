@@ -547,7 +547,7 @@ def _same_frame(a, b):
 def test_measured_tracks_to_the_bit(monkeypatch, kw):
     from measure_data import MemorySource, make_recording
 
-    from rollfric.track import tracker as track
+    from rollfric import measurement as track
 
     rec = make_recording(240, mu=0.01, theta0=0.5, fps=200.0, **kw)
 

@@ -7,7 +7,7 @@ from measure_data import make_recording, messages
 from test_measure_roi import _Plain
 
 from rollfric.io.background import median, median_background, sample
-from rollfric.track.tracker import measure
+from rollfric.measurement import measure
 
 
 def _errors(df, rec):

@@ -14,8 +14,8 @@ from measure_data import make_recording, messages
 from rollfric.cli.main import main
 from rollfric.geometry.theta import angles
 from rollfric.geometry.trough import ContourError, find_cylinder_center
+from rollfric.measurement import measure
 from rollfric.setup.model import dumps_setup, save_setup
-from rollfric.track.tracker import measure
 from synth.drawn.frames import Scene, background, to_dtype
 
 

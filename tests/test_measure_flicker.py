@@ -6,7 +6,7 @@ import pytest
 from measure_data import make_recording
 from test_measure_roi import _Plain
 
-from rollfric.track.tracker import measure
+from rollfric.measurement import measure
 
 
 @pytest.mark.parametrize("given_background", [True, False])

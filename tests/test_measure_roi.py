@@ -13,7 +13,7 @@ from measure_data import make_recording, messages
 
 from rollfric.io import readers as io
 from rollfric.locate import LazyFrame, locate_subpixel
-from rollfric.track.tracker import measure
+from rollfric.measurement import measure
 
 rng = np.random.default_rng(1)
 FR8 = rng.integers(0, 255, (4, 37, 53), dtype=np.uint8)

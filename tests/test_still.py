@@ -7,9 +7,9 @@ from measure_data import PIX, R
 from test_measure_roi import _Plain
 
 from rollfric.fit import eom
+from rollfric.measurement import measure
 from rollfric.setup.model import Setup
 from rollfric.track import still
-from rollfric.track.tracker import measure
 from synth.drawn.frames import Scene, make_frames
 
 
@@ -109,7 +109,7 @@ def test_the_median_without_the_still_frames_tells_a_held_ball_from_the_backdrop
     import pandas as pd
 
     from rollfric.io.background import median, sample
-    from rollfric.track.tracker import _median_without_still
+    from rollfric.track.still import median_without_still
 
     # at rest in 400 of 608 frames: the plain median holds the ball at its rest place
     setup, bg_true, frames, theta = _recording(0, 240, 400, mu=0.02)
@@ -119,9 +119,9 @@ def test_the_median_without_the_still_frames_tells_a_held_ball_from_the_backdrop
     _, stack = sample(src, 41)
     plain = median(stack)
     r = setup.ball_radius / PIX
-    bg2, same, k2 = _median_without_still(src, df, plain, r, 41)
+    bg2, same, k2 = median_without_still(src, df, plain, r, 41)
     assert not same and k2 == 14  # the 14 sampled frames before the rest
     assert np.abs(bg2.astype(int) - bg_true.astype(int)).max() <= 5
     # against a background that is right there, it agrees
-    _, same, _ = _median_without_still(src, df, bg2, r, 41)
+    _, same, _ = median_without_still(src, df, bg2, r, 41)
     assert same

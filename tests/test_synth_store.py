@@ -415,7 +415,7 @@ def test_a_corrupt_chunk_stops_the_measurement_with_a_message(rec_path, tmp_path
 
     from rollfric.cli.main import main
     from rollfric.errors import InputError
-    from rollfric.track.tracker import measure
+    from rollfric.measurement import measure
 
     bad = tmp_path / "bad.zarr"
     shutil.copytree(rec_path, bad)

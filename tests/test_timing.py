@@ -204,7 +204,7 @@ def test_measure_repairs_dropped_frames_and_reports_them(tmp_path):
     no frame flagged, mu as from the clean recording."""
     import tifffile
 
-    from rollfric.track import tracker as track_mod
+    from rollfric import measurement as track_mod
     from tests.measure_data import make_recording
 
     clean = make_recording(300, mu=0.02, theta0=0.5, fps=200.0, noise=1.0, seed=2)
@@ -226,8 +226,8 @@ def test_zarr_timestamps_are_the_times(tmp_path):
     a gap in them), no drop is looked for in the motion."""
     import zarr
 
+    from rollfric import measurement as track_mod
     from rollfric.io import readers as io
-    from rollfric.track import tracker as track_mod
     from tests.measure_data import make_recording
 
     clean = make_recording(200, mu=0.02, theta0=0.5, fps=200.0, noise=1.0, seed=5)
@@ -245,7 +245,7 @@ def test_zarr_timestamps_are_the_times(tmp_path):
 
 def test_a_frame_lost_where_the_ball_turns_is_found_by_the_fit():
     """No step shows a frame lost at a turning point; the fit's residual after it does."""
-    from rollfric.track.tracker import turning_gaps
+    from rollfric.track.dropped_frames import turning_gaps
 
     omega = math.sqrt(5 * 9.80665 / (7 * SETUP.track_radius))
     turn = 3 * int(round(math.pi / omega * FPS))  # the third turning point, camera frame 1008
@@ -316,7 +316,7 @@ def test_measure_reports_frames_taken_half_a_period_late_as_timing(tmp_path):
     quarter period late: the quality reason is the timing's, not the located frames'."""
     import tifffile
 
-    from rollfric.track import tracker as track_mod
+    from rollfric import measurement as track_mod
     from tests.measure_data import make_recording
 
     fine = make_recording(1200, mu=0.02, theta0=0.5, fps=800.0, noise=1.0, seed=2)

@@ -9,10 +9,10 @@ import pytest
 import tifffile
 from measure_data import make_recording
 
+from rollfric import measurement as trackmod
 from rollfric.cli.main import main
 from rollfric.fit.estimate import MIN_SAMPLES
 from rollfric.setup.model import save_setup
-from rollfric.track import tracker as trackmod
 
 
 def _write(rec, tmp_path):

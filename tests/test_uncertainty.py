@@ -11,6 +11,7 @@ import tifffile
 from rollfric.cli.main import main
 from rollfric.fit import eom
 from rollfric.fit.estimate import fit_mu
+from rollfric.measurement import measure
 from rollfric.setup.model import (
     Setup,
     SetupError,
@@ -19,7 +20,6 @@ from rollfric.setup.model import (
     save_setup,
     thesis_setup,
 )
-from rollfric.track.tracker import measure
 from rollfric.uncertainty.budget import Measurement, budget, hac_covariance, measurement_from_track
 
 LAB = """

@@ -12,9 +12,9 @@ from measure_data import make_recording
 
 from rollfric.fit import eom
 from rollfric.fit.estimate import fit_mu
+from rollfric.measurement import measure as measure_track
 from rollfric.setup.model import thesis_setup
 from rollfric.track.timestamps import frame_times
-from rollfric.track.tracker import measure as measure_track
 from rollfric.uncertainty import quality
 
 T4 = np.arange(4000) / 1000.0

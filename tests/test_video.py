@@ -49,7 +49,7 @@ def test_lower_quality_changes_the_pixels_more(tmp_path, drawn, codec, qualities
 
 
 def test_a_playback_rate_is_reported_and_the_setup_rate_used(tmp_path, drawn):
-    from rollfric.track import tracker as track_mod
+    from rollfric import measurement as track_mod
 
     path = write_video(drawn.frames, tmp_path / "v.mp4", VideoSpec("h264", 18,
                                                                     playback_fps=30.0), 200.0)

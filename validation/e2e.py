@@ -100,7 +100,7 @@ class CaseResult:
     trajectory: object  # sim.Trajectory
     truth: object  # pandas.DataFrame, one row per frame (synth's truth)
     track: object  # pandas.DataFrame: frame, t_s, x_px, y_px, theta_rad, found, ...
-    track_info: object  # rollfric.track.tracker.TrackInfo: how the track was measured
+    track_info: object  # rollfric.track.track_info.TrackInfo: how the track was measured
     fit: object  # rollfric.fit.estimate.FitResult from the measured track
     fit_truth: object  # the same fitter on the engine's theta(t)
     setup: object  # rollfric.setup.model.Setup used by the measurement
@@ -370,7 +370,7 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
 
     Exactly what ``rollfric measure REC.zarr --setup SETUP.toml`` does: the recording opened
     through rollfric's reader (synth's Zarr entry point) with its background, the case's
-    locator and fit method (:func:`rollfric.track.tracker.measure`). With ``render.video`` the
+    locator and fit method (:func:`rollfric.measurement.measure`). With ``render.video`` the
     recording is first exported as that video (:func:`synth.video.export_video`, to a
     temporary folder) and rollfric reads the video file and the background's one-frame video
     instead. Blind mode: SETUP.toml is the
@@ -378,6 +378,7 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
     carries (the renderer's exact geometry and center_px).
     """
     from rollfric.io import readers as io
+    from rollfric.measurement import measure
     from rollfric.setup.model import setup_from_dict
     from rollfric.track import tracker as track_mod
 
@@ -389,7 +390,7 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
         setup_dict = case.lab_setup_dict()
         setup = setup_from_dict(setup_dict, source="the lab's setup")
     if case.video is None:
-        track, info, fit = track_mod.measure(src, setup, method=case.locator,
+        track, info, fit = measure(src, setup, method=case.locator,
                                              fit_method=case.fit, offset=case.offset,
                                              progress=progress)
         return track, info, fit, setup, setup_dict
@@ -400,7 +401,7 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
         files = export_video(path, tmp, case.video, progress=progress)
         src = io.open_recording(files["frames"])
         background = io.open_recording(files["background"])[0]
-        track, info, fit = track_mod.measure(src, setup, background, method=case.locator,
+        track, info, fit = measure(src, setup, background, method=case.locator,
                                              fit_method=case.fit, offset=case.offset,
                                              progress=progress)
     return track, info, fit, setup, setup_dict
@@ -408,7 +409,7 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
 
 def _offset(case: Case, t, theta, setup) -> bool:
     """The case's offset choice for a fit of theta(t) ("auto": as rollfric decides)."""
-    from rollfric.track.tracker import resolve_offset
+    from rollfric.fit.offset import resolve_offset
 
     return resolve_offset(case.offset, t, theta, setup, case.fit)[0]
 

@@ -212,9 +212,9 @@ def measure_track(case: Case | dict, *, sigma_px: float = LOCATOR_SIGMA_PX) -> T
 
     import sim
     from rollfric.fit.estimate import fit_mu
+    from rollfric.fit.offset import resolve_offset
     from rollfric.geometry.theta import angles
     from rollfric.setup.model import setup_from_dict
-    from rollfric.track.tracker import resolve_offset
     from synth.pipeline import truth_table
     from validation.e2e import _offset
 
@@ -281,7 +281,7 @@ def run_track_case(case: Case | dict, *, sigma_px: float = LOCATOR_SIGMA_PX) -> 
     if tc.case.data.get("measure", {}).get("budget") is True and tc.fit.method == "lsq":
         from validation.e2e import _true_center, budget_metrics
 
-        # what rollfric.track.tracker.measure tells the budget (TrackInfo's fields it reads)
+        # what rollfric.measurement.measure tells the budget (TrackInfo's fields it reads)
         info = SimpleNamespace(**vars(info), setup=tc.setup, angle="atan2",
                                times="frame / camera.fps")
         metrics.update(budget_metrics(tc.case, tc.track, info, tc.fit,  # with t_budget_s

@@ -12,6 +12,7 @@ from mkdocs.structure.files import File
 SECTION = "API reference"
 # the module that defines a name -> the page it is listed on
 TITLES = {
+    "rollfric.measurement": "Measuring",
     "rollfric.track.tracker": "Measuring",
     "rollfric.track.track_info": "Measuring",
     "rollfric.geometry.theta": "Measuring",

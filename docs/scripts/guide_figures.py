@@ -31,9 +31,9 @@ def _sample_track():
     """The sample measured as ``rollfric measure`` does (no fit): the track, the setup, the
     recording and the truth."""
     from rollfric.io.readers import open_recording
+    from rollfric.measurement import measure
     from rollfric.sample import sample_path, sample_truth
     from rollfric.setup.model import load_setup
-    from rollfric.track.tracker import measure
 
     src = open_recording(sample_path("frames.tif"))
     setup = load_setup(sample_path("setup.toml"))

@@ -337,9 +337,9 @@ def rollfric_inside(out):
 def _sample_track():
     """The sample measured as ``rollfric measure`` does (no fit)."""
     from rollfric.io.readers import open_recording
+    from rollfric.measurement import measure
     from rollfric.sample import sample_path
     from rollfric.setup.model import load_setup
-    from rollfric.track.tracker import measure
 
     src = open_recording(sample_path("frames.tif"))
     setup = load_setup(sample_path("setup.toml"))

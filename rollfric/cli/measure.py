@@ -144,7 +144,7 @@ def write_track_csv(track, path) -> None:
     Parameters
     ----------
     track : pandas.DataFrame
-        From :func:`rollfric.track.tracker.measure`.
+        From :func:`rollfric.measurement.measure`.
     path : pathlib.Path
         The file to write.
     """
@@ -227,8 +227,8 @@ def _run(args) -> int:
     from rollfric.cli.fit import report_quality
     from rollfric.errors import InputError
     from rollfric.fit.estimate import save_fit
+    from rollfric.measurement import measure
     from rollfric.output.folder import staged_folder
-    from rollfric.track.tracker import measure
     from rollfric.uncertainty.budget import (
         check_arguments,
         measurement_from_track,

@@ -71,12 +71,14 @@ def _run(args) -> int:
 
     from rollfric.cli.measure import check_tracking_outputs, write_track_csv
     from rollfric.fit.estimate import json_safe
+    from rollfric.io.readers import open_recording
+    from rollfric.measurement import measure
     from rollfric.output.atomic import write_text
     from rollfric.output.folder import staged_folder
-    from rollfric.track.tracker import measure
 
     out = check_tracking_outputs(args, OUTPUTS, "track")
-    track, info, _ = measure(args.recording, args.setup, args.background, method=args.method,
+    source = open_recording(args.recording)  # tracked, then its overlay frames drawn
+    track, info, _ = measure(source, args.setup, args.background, method=args.method,
                              angle=args.angle, fit=False, progress=not args.no_progress,
                              median_frames=args.median_frames, times=args.times,
                              background_from=args.background_from)
@@ -86,10 +88,8 @@ def _run(args) -> int:
                    else "the recording's attrs", **info.json_keys(track)}
         write_text(tmp / "track.json", json.dumps(json_safe(summary), indent=2) + "\n")
         if args.plot:
-            from rollfric.io.readers import open_recording
             from rollfric.output.overlay import plot_overlays
 
-            plot_overlays(open_recording(args.recording), track, tmp / "overlays.png",
-                          info=info)
+            plot_overlays(source, track, tmp / "overlays.png", info=info)
     print(f"ball found in {info.n_found} of {info.n_frames} frames -> {out}")
     return 0

@@ -13,7 +13,7 @@ A round trough filmed square-on has a circular contour. Two things make it an el
   f_B = (rho_b - r) / D, rho_b the bore's radius of curvature at its lowest point, D the
   distance from the centre to the ball centre there; the period is set by rho_b - r, not by the
   nominal R - r. Both are corrected by re-fitting with R_eff = rho_b and dividing by f_B
-  (:func:`trough_bias`, in :func:`rollfric.track.tracker.measure`); the lab's nominal radius is
+  (:func:`trough_bias`, in :func:`rollfric.measurement.measure`); the lab's nominal radius is
   taken as
   the bore's mean radius (what the contour's circle and a caliper give).
 

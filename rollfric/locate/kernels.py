@@ -924,7 +924,7 @@ def _mirror_rim(s_edge, valid, a_lv, b_lv, bgr, cx, cy, inset, kappa, most, rela
 def _ring_sums(fr, bg, x0, y0, cx, cy, r_in, r_out):
     """(sum of ``fr``, sum of ``bg``, pixels) over the pixels of the crops ``fr``, ``bg`` (whose
     top-left pixel is (x0, y0) of the frame) at a distance in [r_in, r_out] from (cx, cy), the
-    sums in float64 (:func:`rollfric.track.tracker.ring_gain`)."""
+    sums in float64 (:func:`rollfric.locate.tile.ring_gain`)."""
     h, w = fr.shape
     sf = 0.0
     sb = 0.0
@@ -978,7 +978,7 @@ def _ring_sums(fr, bg, x0, y0, cx, cy, r_in, r_out):
 def _same_values(a, b):
     """Whether the 2-D arrays ``a`` and ``b`` (the same shape) hold the same values:
     ``numpy.array_equal``'s answer, up to the first pixel that differs
-    (:func:`rollfric.track.tracker.same_pixels`)."""
+    (:func:`rollfric.locate.tile.same_pixels`)."""
     h, w = a.shape
     for iy in range(h):
         for ix in range(w):

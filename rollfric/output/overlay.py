@@ -55,8 +55,9 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
         Radius drawn where the track has none.
     zoom : float, optional
         Crop half-size in ball radii.
-    info : rollfric.track.tracker.TrackInfo, optional
-        The track's :class:`~rollfric.track.tracker.TrackInfo`: the cylinder centre (``center_px``,
+    info : rollfric.track.track_info.TrackInfo, optional
+        The track's :class:`~rollfric.track.track_info.TrackInfo`: the cylinder centre
+        (``center_px``,
         drawn as the direction to it) and the default radius (``ball_radius_px``); without it
         no direction is drawn and the default radius is 10 px.
 
@@ -132,7 +133,7 @@ def plot_full_frame(source, track, info, path, *, frame: int | None = None) -> P
         The recording.
     track : pandas.DataFrame
         Its track (``x_px``, ``y_px``, ``found``, ``theta_rad``).
-    info : rollfric.track.tracker.TrackInfo
+    info : rollfric.track.track_info.TrackInfo
         How it was measured: ``center_px`` (the trough's axis), ``track_radius_px`` (the
         radius of the centre's path, R - r) and ``ball_radius_px``.
     path : str or pathlib.Path

@@ -6,7 +6,8 @@ correlation (``cv2.phaseCorrelate``, sub-pixel), the ball's disc (and a margin) 
 the background's pixels so that only the static scene counts. A step between two samples is
 narrowed down to its frame by bisection. The located centres are then moved back into the
 background's frame (a step from the bump's frame on, or the drift interpolated between the
-samples), so the angles are taken about the same trough axis throughout.
+samples), so the angles are taken about the same trough axis throughout
+(:func:`correct_for_motion`, a step of :func:`rollfric.measurement.measure`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,9 @@ import math
 import cv2
 import numpy as np
 
+from rollfric.geometry.theta import angles
 from rollfric.io.source import RecordingError
+from rollfric.track.timestamps import irregular_message, located_irregular_message
 
 logger = logging.getLogger(__name__)
 
@@ -253,3 +256,77 @@ def find_motion(source, background, centres, r_px: float, *, samples: int = SAMP
         return CameraMotion("bump", idx, s, frame=hi, size_px=(float(size[0]), float(size[1])),
                             before_px=(float(before[0]), float(before[1])))
     return CameraMotion("drift", idx, s, size_px=(float(rel[-1, 0]), float(rel[-1, 1])))
+
+
+def correct_for_motion(source, bg, df, info, setup, angle):
+    """The camera's motion from the static scene (:func:`find_motion`) taken out of a track.
+
+    The centres in ``df`` are moved back into the background's frame and the angles taken
+    again; the steps the motion made are no timing's (left out of ``timing_irregular`` and
+    ``located_irregular``).
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording.
+    bg : numpy.ndarray
+        The background image.
+    df : pandas.DataFrame
+        The track (changed in place where the camera moved).
+    info : rollfric.track.track_info.TrackInfo
+        The track's.
+    setup : rollfric.setup.model.Setup
+        The setup (the path's radius for the arcsin angle).
+    angle : str
+        The angle formula (:func:`rollfric.geometry.theta.angles`).
+
+    Returns
+    -------
+    df : pandas.DataFrame
+        The track.
+    info : rollfric.track.track_info.TrackInfo
+        With ``camera_motion`` set (unless the motion could not be looked for) and, for a
+        moved camera, its warning (logged too).
+    """
+    found = df["found"].to_numpy() == 1
+    xy = np.column_stack([df["x_px"].to_numpy(float), df["y_px"].to_numpy(float)])
+    try:
+        # frames the checks rejected (flash, repeated, ...) are not sampled
+        flags = df["flag"].astype(str).to_numpy()
+        motion = find_motion(source, bg, xy, info.ball_radius_px,
+                                usable=flags == "")
+    except (RecordingError, ValueError) as exc:
+        logger.info(f"the camera's motion was not looked for: {exc}")
+        return df, info
+    if motion.kind in ("still", "unknown"):
+        if motion.kind == "unknown":
+            logger.info("the camera's motion could not be measured: the scene around the "
+                        "ball is too plain")
+        return df, dataclasses.replace(info, camera_motion=motion.to_dict())
+    per = motion.per_frame(len(df))
+    cols = [("x_px", "y_px")] + ([("xu_px", "yu_px")] if "xu_px" in df.columns else [])
+    for cx, cy in cols:
+        df[cx] = df[cx].to_numpy(float) - per[:, 0]
+        df[cy] = df[cy].to_numpy(float) - per[:, 1]
+    ax, ay = cols[-1]
+    th = np.full(len(df), np.nan)
+    th[found] = angles(df[ax].to_numpy(float)[found], df[ay].to_numpy(float)[found],
+                       info.center_px, method=angle,
+                       track_radius_px=setup.track_radius / setup.pixel_size)
+    df["theta_rad"] = th
+    warnings = list(info.warnings)
+    kept = {}
+    for name, text_of in (("timing_irregular", irregular_message),
+                          ("located_irregular", located_irregular_message)):
+        old = getattr(info, name)
+        new = tuple(e for e in old if motion.kind != "bump" or abs(e[0] - motion.frame) > 1)
+        if old and new != old and text_of(old) in warnings:
+            warnings.remove(text_of(old))
+            if new:
+                warnings.append(text_of(new))
+        kept[name] = new
+    msg = (f"{motion.message()}: the centres were moved back into the background's frame "
+           "and the angles taken again")
+    logger.warning(msg)
+    return df, dataclasses.replace(info, camera_motion=motion.to_dict(),
+                                   warnings=tuple(warnings) + (msg,), **kept)

@@ -36,7 +36,11 @@ import math
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
+from rollfric.fit import estimate as fitmod
+from rollfric.parallel import first_ordered
+from rollfric.setup.model import Setup
 from rollfric.track.localfit import polyfit_rows
+from rollfric.uncertainty import quality
 
 HALF_WINDOW = 8  # steps on each side that predict a step (2..HALF_WINDOW away)
 DEGREE = 2  # the steps are the velocity times dt: a quadratic over 16 ms of a 0.5 s swing
@@ -357,3 +361,77 @@ def likelihood_ratio(ssr0: float, ssr1: float, n: int) -> float:
     if ssr1 <= 0 or ssr0 <= 0:
         return math.inf if ssr1 < ssr0 else 0.0
     return n * math.log(ssr0 / ssr1)
+
+
+def turning_gaps(t, theta, result, setup: Setup, offset: bool, fit_kwargs=None):
+    """Dropped frames where the ball turns, found by the fit (this module's steps miss them).
+
+    A lost frame at a turning point leaves no step to see, but the later frames are a period
+    late: the best-scoring turning point (:func:`turning_gap_candidates`) gets a period counted
+    in and the fit is made again (the ``TURN_TRIES`` best, in turn); it is kept when the
+    likelihood ratio (with the effective number of samples of a correlated residual) exceeds
+    ``TURN_LR_MIN``, then the next is looked for (at most ``TURN_MAX``).
+
+    Parameters
+    ----------
+    t, theta : array_like
+        The track's times (s, frame / fps with the step-found gaps) and angles (rad).
+    result : rollfric.fit.estimate.FitResult
+        The "lsq" fit of them.
+    setup : Setup
+        The setup.
+    offset : bool
+        Whether the fit has the angle offset.
+    fit_kwargs : dict or None
+        More keywords of :func:`rollfric.fit.estimate.fit_mu`.
+
+    Returns
+    -------
+    t : numpy.ndarray
+        The times with the gaps found counted in.
+    result : rollfric.fit.estimate.FitResult
+        The fit of them.
+    gaps : tuple of (int, int)
+        (frame k, 1): a period lost after frame k, one entry a gap found.
+    """
+    t = np.asarray(t, dtype=float).copy()
+    th = np.asarray(theta, dtype=float)
+    finite = np.isfinite(th)
+
+    def ssr(res):
+        # over every located sample: the fitter may leave a whole stretch out as outliers
+        # (the frames before a gap it did not see), a repaired one takes it back
+        d = th[finite] - np.asarray(res.curve, dtype=float)[finite]
+        return float(np.mean(d[np.isfinite(d)] ** 2))
+
+    def refit(k):
+        t2 = t.copy()
+        t2[k + 1:] += 1.0 / setup.fps
+        return t2, fitmod.fit_mu(t2, th, setup, method="lsq", offset=offset,
+                                 **(fit_kwargs or {}))
+
+    def better(k, fitted):
+        # correlated residuals (a systematic misfit, not noise) hold fewer independent
+        # samples: n (1 - rho) / (1 + rho), rho the lag-1 autocorrelation of the new fit's
+        # residual over the samples it used
+        r2 = fitted[1]
+        res2 = th - np.asarray(r2.curve, dtype=float)
+        if r2.used is not None and r2.used.shape == res2.shape:
+            res2 = np.where(r2.used, res2, np.nan)
+        rho = quality.lag1_autocorrelation(res2)
+        rho = min(max(rho, 0.0), 0.999) if math.isfinite(rho) else 0.999
+        n = int(finite.sum()) * (1.0 - rho) / (1.0 + rho)
+        return likelihood_ratio(ssr(result), ssr(r2), n) >= TURN_LR_MIN
+
+    found = []
+    for _ in range(TURN_MAX):
+        # the candidates' refits are independent: on the CPUs that are free, the first that
+        # passes in their order is the loop's (rollfric.parallel.first_ordered)
+        cands = [k for k, _z in turning_gap_candidates(t, th, result.curve,
+                                                       setup.fps)[:TURN_TRIES]]
+        step = first_ordered(refit, cands, better, name="rollfric-fit")
+        if step is None:
+            break
+        k, (t, result) = step
+        found.append((int(k), 1))
+    return t, result, tuple(found)

@@ -5,14 +5,24 @@ time sqrt(2 delta / a), a = (5/7) g sin(theta) / (R - r) its angular acceleratio
 rolls); it comes to rest the same way in reverse. A still spell at the start (or the end) of
 the track several times longer than that is the ball held before its release (a finger, a
 release mechanism), or the ball at rest: those frames are no part of the motion the equation
-of motion describes, and are left out of the fit (flagged ``held`` / ``rest``).
+of motion describes, and are left out of the fit (flagged ``held`` / ``rest``). A median
+background made while the ball was held or at rest holds it: :func:`median_without_still` makes
+it again from the other frames.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 
+import cv2
 import numpy as np
+
+from rollfric.errors import InputError
+from rollfric.io import ballfree
+from rollfric.io.background import median, sample
+
+logger = logging.getLogger(__name__)
 
 # a still spell this many times the natural still time is a hold or a rest
 STILL_FACTOR = 3.0
@@ -102,3 +112,82 @@ def still_spells(t, theta, found, setup) -> dict:
         rest[ridx[t[ridx] > first_still + t_nat]] = True
         out["natural_s"][1] = t_nat
     return out
+
+
+def median_without_still(source, df, bg, r_px: float, median_frames: int, *,
+                         full_scale: float | None = None):
+    """The median background of the sampled frames whose ball is neither held nor at rest.
+
+    Parameters
+    ----------
+    source : FrameSource
+        The recording.
+    df : pandas.DataFrame
+        Its track, column ``still`` marked (:func:`mark_still`).
+    bg : numpy.ndarray
+        The median background it was tracked with.
+    r_px : float
+        The ball's radius (px).
+    median_frames : int
+        Frames sampled for the median.
+    full_scale : float or None
+        The camera's full scale (DN).
+
+    Returns
+    -------
+    tuple or None
+        (background, whether it agrees with ``bg``, frames in it); None when fewer than
+        :data:`rollfric.io.ballfree.MIN_CLEAR` are left or it still holds the ball.
+    """
+    idx, stack = sample(source, median_frames)
+    still_rows = df["still"].to_numpy() != ""
+    keep = [j for j, i in enumerate(idx) if not still_rows[int(i)]]
+    if len(keep) < ballfree.MIN_CLEAR:
+        return None
+    sub = stack[keep]
+    try:
+        bg2, _ = ballfree.check_ball_free(sub, median(sub), r_px, full_scale=full_scale)
+    except InputError:
+        return None
+    # a ball's trace is a ball-sized difference: averaged over r x r, above the noise
+    d = cv2.blur(np.abs(bg2.astype(np.float32) - bg.astype(np.float32)),
+                 (max(1, int(r_px)), max(1, int(r_px))))
+    tol = max(2.0, ballfree.noise_sigma(stack))
+    return bg2, bool(d.max() <= tol), len(keep)
+
+
+def mark_still(df, setup) -> list:
+    """Frames of a held start or a rest (:func:`still_spells`) marked in the track.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The track: its column ``still`` is set, "held" / "rest" on those frames (kept out of
+        the fit), "" elsewhere.
+    setup : rollfric.setup.model.Setup
+        The setup.
+
+    Returns
+    -------
+    list of str
+        The warnings saying so (logged too).
+    """
+    df["still"] = ""
+    found = df["found"].to_numpy() == 1
+    spells = still_spells(df["t_s"].to_numpy(), df["theta_rad"].to_numpy(), found, setup)
+    notes = []
+    for name, what in (("held", "held still before its release"),
+                       ("rest", "at rest from there on")):
+        mask = spells[name] & found
+        if not mask.any():
+            continue
+        k = np.flatnonzero(mask)
+        t = df["t_s"].to_numpy()
+        nat = spells["natural_s"][0 if name == "held" else 1]
+        df.loc[mask, "still"] = name
+        notes.append(f"the ball was {what}: frames {int(k[0])}-{int(k[-1])} "
+                     f"({t[k[-1]] - t[k[0]]:.3g} s, more than {STILL_FACTOR:g} x the "
+                     f"{nat * 1e3:.3g} ms a ball turning there is still), flagged '{name}' and "
+                     "left out of the fit")
+        logger.warning(notes[-1])
+    return notes

@@ -77,7 +77,7 @@ class TrackInfo:
     offset_fitted : bool
         Whether the angle offset of the trough's bottom was fitted (False without a fit).
     offset_reason : str or None
-        Why (:func:`rollfric.track.tracker.resolve_offset`); None without a fit.
+        Why (:func:`rollfric.fit.offset.resolve_offset`); None without a fit.
     center_u_px : tuple of float or None
         Standard uncertainty (ux, uy) of a ``center_px`` found from the background's contour
         (px; :class:`rollfric.geometry.trough.CylinderContour` ``center_u``: the circle fit's and

@@ -255,13 +255,13 @@ class Measurement:
 
 
 def measurement_from_track(track, info) -> Measurement:
-    """A :class:`Measurement` from ``rollfric.track.tracker.measure``'s track DataFrame.
+    """A :class:`Measurement` from ``rollfric.measurement.measure``'s track DataFrame.
 
     Parameters
     ----------
     track : pandas.DataFrame
         Columns ``frame``, ``found``, ``x_px``, ``y_px`` (in the recorded image), ``t_s``.
-    info : rollfric.track.tracker.TrackInfo
+    info : rollfric.track.track_info.TrackInfo
         How it was measured: ``setup`` (the nominal setup), ``center_px``, ``angle`` and
         ``times`` (the recording's timestamps unless it is "frame / camera.fps").
 

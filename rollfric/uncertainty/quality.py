@@ -461,7 +461,7 @@ def circle_center(x, y, radius: float, start) -> tuple[float, float, float]:
 
 
 def check_track(df, setup, center, *, warnings=(), flag_counts=None) -> list[Reason]:
-    """Quality reasons of a measured track (a DataFrame of :func:`rollfric.track.tracker.measure`).
+    """Quality reasons of a measured track (a DataFrame of :func:`rollfric.measurement.measure`).
 
     ``center``: the trough centre (px) the angles were taken about; ``warnings``: the
     measurement's warnings with codes (``[(code, text), ...]``); ``flag_counts``: rejected frames

@@ -440,7 +440,7 @@ def bench_e2e(quick: bool) -> list[Row]:
                         "locator (the recording's halves, on 2 threads when a core is free), fits, "
                         "checks and budget "
                         "(the process's imports not counted)"))
-        # where the measure stage's wall time goes (rollfric.track.tracker.measure's own stages)
+        # where the measure stage's wall time goes (rollfric.measurement.measure's own stages)
         if parts:
             parts["the store opened, the setup read (before measure())"] = max(
                 0.0, m["t_measure_s"] - sum(parts.values()))

@@ -80,7 +80,7 @@ def findings(df, info, res) -> list[str]:
     ----------
     df : pandas.DataFrame
         The track.
-    info : rollfric.track.tracker.TrackInfo
+    info : rollfric.track.track_info.TrackInfo
         How it was measured.
     res : rollfric.fit.estimate.FitResult
         The fit.
@@ -161,8 +161,8 @@ def run_one(rec: Recording) -> dict:
         ``findings``, ``named``, ``message`` (why refused), ``seconds``.
     """
     from rollfric.errors import InputError
+    from rollfric.measurement import measure
     from rollfric.setup.model import SetupError
-    from rollfric.track.tracker import measure
     from rollfric.uncertainty.budget import budget, measurement_from_track, with_budget_reason
 
     row = {"fault": rec.fault, "magnitude": rec.magnitude}

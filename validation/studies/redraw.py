@@ -13,7 +13,7 @@ u z for every key with a stated ``_u`` and the lab's trough centre = the true ce
 standard normal, seeded by the case and the draw (draw 0 is the study's own lab). So nominal -
 as-built has the distribution the study draws (N(0, u)). The angles, times, offset decision, fit
 and budget are redone from the located centres with that setup, as
-:func:`rollfric.track.tracker.measure` does after locating (:func:`refit`), and z = (mu - mu_true) /
+:func:`rollfric.measurement.measure` does after locating (:func:`refit`), and z = (mu - mu_true) /
 u_mu is recorded. What is not redone: the locating itself (the ball's radius in px and the
 per-frame plausibility checks use the lab's setup; its draws move them by ~0.2 % and a few px
 of the centre, which the study's own draws also do).
@@ -105,16 +105,16 @@ def redrawn_setup(case: Case, draw: int):
 def refit(track, info, setup, offset: str = "auto"):
     """Angles, times, offset decision, fit and budget of located centres with ``setup``.
 
-    What :func:`rollfric.track.tracker.measure` does after locating, with the angles about
+    What :func:`rollfric.measurement.measure` does after locating, with the angles about
     ``setup.center_px`` and the times frame / ``setup.fps``
     (:meth:`rollfric.uncertainty.budget.Measurement.series`, the budget's own re-evaluation).
 
     Parameters
     ----------
     track : pandas.DataFrame
-        ``rollfric.track.tracker.measure``'s track (``frame``, ``found``, ``x_px``, ``y_px``,
+        ``rollfric.measurement.measure``'s track (``frame``, ``found``, ``x_px``, ``y_px``,
         ``t_s``).
-    info : rollfric.track.tracker.TrackInfo
+    info : rollfric.track.track_info.TrackInfo
         How it was measured (times frame / camera.fps, atan2 or arcsin angles).
     setup : rollfric.setup.model.Setup
         The setup to measure with; it must give ``center_px``.
@@ -127,7 +127,7 @@ def refit(track, info, setup, offset: str = "auto"):
     budget : rollfric.uncertainty.budget.Budget
     """
     from rollfric.fit.estimate import fit_mu
-    from rollfric.track.tracker import resolve_offset
+    from rollfric.fit.offset import resolve_offset
     from rollfric.uncertainty.budget import budget, measurement_from_track
 
     if setup.center_px is None:
@@ -161,7 +161,7 @@ def redraw_case(case: Case | dict, recording: str | Path | None, draws: int) -> 
         One row per draw: ``draw``, ``mu``, ``mu_true``, ``u_mu``, ``U_mu``, ``z``,
         ``within_u``, ``within_U``, ``top_source``, the errors (nominal - as-built, in units of
         their u) of the centre and the radius, ``mu_study`` (draw 0 as the study measured it:
-        :func:`rollfric.track.tracker.measure`'s own fit, or the track level's).
+        :func:`rollfric.measurement.measure`'s own fit, or the track level's).
     """
     if isinstance(case, dict):
         case = case_from_dict(case)
@@ -174,7 +174,7 @@ def redraw_case(case: Case | dict, recording: str | Path | None, draws: int) -> 
 
         tc = measure_track(case)
         track, fit0 = tc.track, tc.fit
-        # what rollfric.track.tracker.measure tells the budget (as validation.track_level does)
+        # what rollfric.measurement.measure tells the budget (as validation.track_level does)
         info = SimpleNamespace(center_px=tc.center_px, undistorted=tc.undistorted,
                                setup=tc.setup, angle="atan2", times="frame / camera.fps")
     else:
