@@ -23,6 +23,9 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from rollfric.output.atomic import write_text
+from validation.sweep import load_sweep
+
 LEVELS = (0.001, 0.01)  # |mu bias| of the table's columns: 0.1 % and 1 %
 # swept keys that say how a case was measured, not which error it has
 CORRECTION_KEYS = ("measure.offset", "lab.lens_calibrated", "lab.camera.matrix",
@@ -463,8 +466,6 @@ def study_json(out: str | Path, note: str = "") -> dict:
     """
     import pandas as pd
 
-    from validation.sweep import load_sweep
-
     out = Path(out)
     df = pd.read_parquet(out / "results.parquet")
     spec = load_sweep(out / "sweep.toml")
@@ -485,8 +486,6 @@ def study_json(out: str | Path, note: str = "") -> dict:
 def main(argv=None) -> int:
     """``python -m validation.studies.systematics OUT --json PATH [--note TEXT]``."""
     import argparse
-
-    from rollfric.output.atomic import write_text
 
     ap = argparse.ArgumentParser(prog="python -m validation.studies.systematics",
                                  description=__doc__.split("\n\n")[0])
