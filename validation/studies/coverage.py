@@ -87,7 +87,7 @@ def draw_case(seed: int) -> dict:
     }
 
 
-def _centres(case: dict, true: Setup):
+def drawn_centres(case: dict, true: Setup):
     """Frames and located centres (px) of the case: the reference ODE on the as-built trough,
     sampled at the as-built rate, plus AR(1) locator noise of rms ``noise_px``."""
     n = int(case["seconds"] * NOMINAL["fps"])
@@ -155,7 +155,7 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
     exact as-built setup. ``contour``: the lab gives no centre; rollfric finds it, with its
     uncertainty, from the case's background (:func:`contour_background`)."""
     true, lab = drawn_setups(case)
-    frames, x, y = _centres(case, true)
+    frames, x, y = drawn_centres(case, true)
     out = {k: v for k, v in case.items() if not isinstance(v, tuple)}
     center, center_u = lab.center_px, None
     if contour:
