@@ -1,4 +1,7 @@
-"""Sweeps: many validation cases on Dask distributed, one tidy table row per case.
+"""Sweep files: many validation cases, read into their cases (:func:`load_sweep`).
+
+They run on Dask distributed, one tidy table row per case (:mod:`validation.sweep_run`; the
+table: :mod:`validation.sweep_table`, the plots: :mod:`validation.sweep_plots`).
 
 A sweep file (TOML)::
 
