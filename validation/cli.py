@@ -201,14 +201,14 @@ def handle_sweep(args) -> int:
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     from rollfric.errors import InputError
     from validation import sweep as sweep_mod
-    from validation.sweep_run import run_sweep
-    from validation.sweep_table import recorded_sweep
 
     if args.list:
         for name, path, doc in sweep_mod.shipped_sweeps():
             print(f"{name:14s} {doc}   ({path})")
         return 0
     if args.from_recordings:
+        from validation.sweep_table import recorded_sweep
+
         spec = recorded_sweep(args.from_recordings, _parse_set(args.set))
         if args.sweep and sweep_mod.load_sweep(args.sweep).name != spec.name:
             raise InputError(f"--from-recordings {args.from_recordings} holds sweep "
@@ -230,6 +230,8 @@ def handle_sweep(args) -> int:
         return 0
     if not args.out:
         raise InputError("--out DIR is required to run a sweep")
+    from validation.sweep_run import run_sweep  # the measurement's imports: not for --list
+
     summary = run_sweep(spec, args.out, scheduler=args.scheduler, n_workers=args.workers,
                         keep_recordings=args.keep_recordings,
                         retry_failed=args.retry_failed, progress=not args.no_progress,
