@@ -160,6 +160,7 @@ def test_a_recording_through_a_lens_measured_with_and_without_its_calibration(tm
     undistorted truth's; without it they are not."""
     from validation import case as C
     from validation import e2e
+    from validation.metrics import mode_metrics
 
     d = C.default_case_dict()
     d["scenario"]["motion"].update(theta0_deg=8.0, seconds=0.3)
@@ -188,7 +189,7 @@ def test_a_recording_through_a_lens_measured_with_and_without_its_calibration(tm
     d["lab"] = {}
     case = C.case_from_dict(d)
     track, info, _, _, _ = e2e.measure_recording(rec, case)
-    un = e2e.mode_metrics(case, info, r.truth)
+    un = mode_metrics(case, info, r.truth)
     assert not un["undistorted"]
     xc, yc = info.center_px
     assert abs(yc - 20.6) > 2.0  # the distorted contour's centre

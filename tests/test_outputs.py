@@ -401,30 +401,32 @@ def test_bench_refuses_and_overwrites_its_own_files_only(tmp_path, monkeypatch, 
 
 def test_sweep_output_folder(tmp_path, capsys):
     from validation import sweep as S
+    from validation import sweep_run as R
+    from validation import sweep_table as T
 
     spec = S.sweep_from_dict({"sweep": {"name": "a", "stages": "sim"},
                               "grid": {"scenario.motion.mu": [0.005, 0.006]}})
     other = S.sweep_from_dict({"sweep": {"name": "b", "stages": "sim"},
                                "grid": {"scenario.motion.mu": [0.005]}})
     out = tmp_path / "out"
-    assert S.check_out(out, spec) == "new"
+    assert R.check_out(out, spec) == "new"
     out.mkdir()
-    assert S.check_out(out, spec) == "new"
+    assert R.check_out(out, spec) == "new"
     (out / "notes.txt").write_text("mine")
     with pytest.raises(InputError, match="not empty"):
-        S.check_out(out, spec)
-    assert S.check_out(out, spec, overwrite=True) == "fresh"
+        R.check_out(out, spec)
+    assert R.check_out(out, spec, overwrite=True) == "fresh"
     # a folder of this sweep is resumed; of another sweep refused without --overwrite
     for sc in spec.cases:
-        S.write_part(out / "parts", S._row(sc, {"status": "ok", "error": "", "metrics": {}}))
-    assert S.check_out(out, spec) == "resume"
+        T.write_part(out / "parts", T.part_row(sc, {"status": "ok", "error": "", "metrics": {}}))
+    assert R.check_out(out, spec) == "resume"
     with pytest.raises(InputError, match="holds the results of sweep 'a'"):
-        S.check_out(out, other)
+        R.check_out(out, other)
     # starting afresh removes the sweep's own outputs only
     (out / "results.csv").write_text("old")
     (out / "plots").mkdir()
     (out / "plots" / "x.png").write_text("old")
-    S._remove_own_outputs(out)
+    R._remove_own_outputs(out)
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
     # the command refuses before starting a cluster
     sw = tmp_path / "s.toml"

@@ -7,6 +7,7 @@ import json
 import pandas as pd
 import pytest
 
+from validation.studies import error_sources as es
 from validation.studies import systematics as st
 from validation.sweep import sweep_from_dict
 
@@ -77,18 +78,18 @@ def test_budget_table_and_markdown_from_a_fixture_json(tmp_path):
 def test_classify_names_the_source_and_the_correction():
     swept = ["lab.center_error_px", "measure.offset", "render.camera.roll_deg",
              "trough.ellipse"]
-    assert st.classify({"lab.center_error_px": "[2.0, 0.0]", "measure.offset": False},
+    assert es.classify({"lab.center_error_px": "[2.0, 0.0]", "measure.offset": False},
                        swept)[1:] == (2.0, "px", False)
-    name, mag, _, corr = st.classify({"lab.center_error_px": "[0.0, 5.0]"}, swept)
+    name, mag, _, corr = es.classify({"lab.center_error_px": "[0.0, 5.0]"}, swept)
     assert (name, mag, corr) == ("trough centre measured by the lab, y error", 5.0, None)
-    assert st.classify({"lab_err_cylinder_radius_mm": -0.5, "lab_cylinder_radius_mm": 85.3},
+    assert es.classify({"lab_err_cylinder_radius_mm": -0.5, "lab_cylinder_radius_mm": 85.3},
                        swept)[:2] == (RADIUS, 0.5)
-    assert st.classify({"lab_err_camera_fps": -1.0, "lab_camera_fps": 1000.0},
+    assert es.classify({"lab_err_camera_fps": -1.0, "lab_camera_fps": 1000.0},
                        swept)[1] == pytest.approx(1000.0)
     # a source this module does not know: named after its key, the first number its magnitude
-    assert st.classify({"trough.ellipse": "[0.2, 0.0]"}, swept) == (
+    assert es.classify({"trough.ellipse": "[0.2, 0.0]"}, swept) == (
         "trough.ellipse", 0.2, "", None)
-    assert st.classify({"render.seed": 0}, ["render.seed"])[0] == "none"
+    assert es.classify({"render.seed": 0}, ["render.seed"])[0] == "none"
 
 
 def test_study_rows_from_a_sweep_table():

@@ -241,6 +241,8 @@ def test_coverage_sweep_smoke(tmp_path):
     import tomllib
 
     from validation import sweep as S
+    from validation import sweep_run as R
+    from validation import sweep_table as T
     from validation.studies.coverage import from_sweep, summarize
 
     spec = S.load_sweep("coverage")
@@ -250,7 +252,7 @@ def test_coverage_sweep_smoke(tmp_path):
     data["grid"] = {"scenario.motion.mu": [0.0079], "scenario.motion.theta0_deg": [8.0],
                     "render.noise": ["realistic"], "render.seed": [0, 1]}
     small = S.sweep_from_dict(data, source="coverage (smoke)")
-    rows = [S._row(sc, S.run_one(sc.case)) for sc in small.cases]
+    rows = [T.part_row(sc, R.run_one(sc.case)) for sc in small.cases]
     assert [r["status"] for r in rows] == ["ok", "ok"], [r["error"] for r in rows]
     for r in rows:
         assert r["mode"] == "blind" and r["lab_draw"] and r["lab_center_measured"]

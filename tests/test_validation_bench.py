@@ -1,4 +1,4 @@
-"""The bench's end-to-end row of the whole ``rollfric validate`` command (validation.bench.run)."""
+"""The bench's end-to-end row of the whole ``rollfric validate`` command (validation.bench.e2e)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 @pytest.mark.slow
 def test_validate_command_is_timed_as_a_user_runs_it(tmp_path):
-    from validation.bench.run import validate_command
+    from validation.bench.e2e import validate_command
 
     wall, m = validate_command(0.1, tmp_path / "report")
     # the real command ran (its report is there) and its wall time holds the printed total
@@ -38,9 +38,9 @@ def test_the_validate_case_is_reported_by_its_median_run_each_beside_its_stock_f
         monkeypatch):
     # three runs between stock frames measured before and after each: the ratio of each run
     # is its frames' stock time over its total; the run with the median ratio is reported
+    from validation.bench import e2e as bench
     from validation.bench import locate as bench_locate
     from validation.bench import render as sbench
-    from validation.bench import run as bench
 
     stock = iter([[0.4] * 3, [0.5] * 3, [0.4] * 3, [0.6] * 3])  # s a frame, before/after
     totals = iter([18.0, 20.0, 16.0])

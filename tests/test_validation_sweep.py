@@ -16,6 +16,9 @@ import pytest
 
 from validation import e2e
 from validation import sweep as S
+from validation import sweep_plots as P
+from validation import sweep_run as R
+from validation import sweep_table as T
 
 # the case functions below are defined here: ship them to the workers by value
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
@@ -68,7 +71,7 @@ def test_two_worker_sweep_table_and_plots(client, tmp_path):
     calls = tmp_path / "calls"
     calls.mkdir()
     spec = _mu_spec([0.004, 0.006, 0.008, 0.010, 0.012, 0.014])
-    summary = S.run_sweep(spec, tmp_path / "out", client=client, progress=False,
+    summary = R.run_sweep(spec, tmp_path / "out", client=client, progress=False,
                           case_fn=functools.partial(_counting_case, str(calls)))
     assert summary.n_run == 6 and summary.n_failed == 0
     df = pd.read_parquet(tmp_path / "out" / "results.parquet")
@@ -90,10 +93,10 @@ def test_worker_killed_mid_sweep_loses_nothing(client, tmp_path):
     spec = _mu_spec(mus, name="kill")
     markers = tmp_path / "m"
     markers.mkdir()
-    summary = S.run_sweep(spec, tmp_path / "out", client=client, progress=False,
+    summary = R.run_sweep(spec, tmp_path / "out", client=client, progress=False,
                           case_fn=functools.partial(_dying_case, str(markers), 0.007))
     assert (markers / "died").exists()  # a worker really died
-    df = S.read_parts(tmp_path / "out")
+    df = T.read_parts(tmp_path / "out")
     assert summary.n_failed == 0
     assert sorted(df["case_id"]) == sorted(c.case_id for c in spec.cases)
     assert (df["status"] == "ok").all()
@@ -104,7 +107,7 @@ def test_worker_killed_mid_sweep_loses_nothing(client, tmp_path):
 def test_failed_case_recorded_and_sweep_goes_on(client, tmp_path):
     spec = _mu_spec([0.005, 0.007, 0.009], name="fail")
     out = tmp_path / "out"
-    summary = S.run_sweep(spec, out, client=client, progress=False,
+    summary = R.run_sweep(spec, out, client=client, progress=False,
                           case_fn=functools.partial(_failing_case, 0.007))
     assert summary.n_failed == 1
     df = pd.read_parquet(out / "results.parquet").set_index("scenario.motion.mu")
@@ -113,10 +116,10 @@ def test_failed_case_recorded_and_sweep_goes_on(client, tmp_path):
     assert (df.drop(index=0.007)["status"] == "ok").all()
     assert pd.isna(df.loc[0.007, "mu_engine"]) and df.loc[0.005, "mu_engine"] > 0
     # resume does not re-run the failed case unless asked
-    again = S.run_sweep(spec, out, client=client, progress=False,
+    again = R.run_sweep(spec, out, client=client, progress=False,
                         case_fn=functools.partial(_failing_case, 0.007))
     assert again.n_run == 0
-    retry = S.run_sweep(spec, out, client=client, progress=False, retry_failed=True,
+    retry = R.run_sweep(spec, out, client=client, progress=False, retry_failed=True,
                         case_fn=functools.partial(_failing_case, 0.0))
     assert retry.n_run == 1 and retry.n_failed == 0
 
@@ -127,7 +130,7 @@ def test_resume_runs_only_the_missing_cases(client, tmp_path):
     fn = functools.partial(_counting_case, str(calls))
     spec = _mu_spec([0.005, 0.006, 0.007, 0.008], name="resume")
     out = tmp_path / "out"
-    S.run_sweep(spec, out, client=client, progress=False, case_fn=fn)
+    R.run_sweep(spec, out, client=client, progress=False, case_fn=fn)
     first = pd.read_parquet(out / "results.parquet")
     # an interrupted sweep: two cases never finished, the combined table never written
     lost = [spec.cases[1].case_id, spec.cases[3].case_id]
@@ -136,7 +139,7 @@ def test_resume_runs_only_the_missing_cases(client, tmp_path):
     (out / "results.parquet").unlink()
     (out / "results.csv").unlink()
     before = {p.name for p in calls.iterdir()}
-    summary = S.run_sweep(spec, out, client=client, progress=False, case_fn=fn)
+    summary = R.run_sweep(spec, out, client=client, progress=False, case_fn=fn)
     assert summary.n_done_before == 2 and summary.n_run == 2
     new = {p.name for p in calls.iterdir()} - before
     assert sorted(n.split(".")[0] for n in new) == sorted(lost)
@@ -155,7 +158,7 @@ def test_real_pipeline_sweep_keeps_recordings(client, tmp_path):
                               "base": base,
                               "grid": {"measure.locator": ["subpixel", "thesis-large"]}})
     out = tmp_path / "out"
-    summary = S.run_sweep(spec, out, client=client, progress=False, keep_recordings=True)
+    summary = R.run_sweep(spec, out, client=client, progress=False, keep_recordings=True)
     df = pd.read_parquet(out / "results.parquet")
     assert summary.n_failed == 0, df["error"].tolist()
     assert (df["found_fraction"] == 1.0).all()
@@ -176,14 +179,14 @@ def test_table_holds_this_sweeps_cases_only(tmp_path):
     """Parts of other case ids (an edited sweep file, changed defaults) stay out of the table."""
     spec = _mu_spec([0.005, 0.006], name="own")
     for sc in spec.cases:
-        S.write_part(tmp_path / "parts", S._row(sc, {"status": "ok", "error": "",
+        T.write_part(tmp_path / "parts", T.part_row(sc, {"status": "ok", "error": "",
                                                      "metrics": {"mu_engine": 1.0}}))
-    S.write_part(tmp_path / "parts", {"case_id": "0123456789ab", "status": "ok", "error": "",
+    T.write_part(tmp_path / "parts", {"case_id": "0123456789ab", "status": "ok", "error": "",
                                       "stale_metric": 5.0})
-    df = S.rebuild_table(tmp_path, spec)
+    df = T.rebuild_table(tmp_path, spec)
     assert list(df["case_id"]) == [c.case_id for c in spec.cases]
     assert "stale_metric" not in df.columns
-    assert len(S.read_parts(tmp_path)) == 3  # nothing deleted
+    assert len(T.read_parts(tmp_path)) == 3  # nothing deleted
 
 
 def test_list_sweep_with_a_failing_case_still_writes_table_plots_and_summary(client, tmp_path):
@@ -198,7 +201,7 @@ def test_list_sweep_with_a_failing_case_still_writes_table_plots_and_summary(cli
                   {"scenario.motion.theta0_deg": 12.0}]})
     out = tmp_path / "out"
     for run in range(2):
-        summary = S.run_sweep(spec, out, client=client, progress=False,
+        summary = R.run_sweep(spec, out, client=client, progress=False,
                               case_fn=functools.partial(_failing_case, 0.0))
         assert summary.n_run == (5 if run == 0 else 0) and summary.n_failed == 1
         df = pd.read_csv(out / "results.csv")
@@ -214,15 +217,15 @@ def test_list_sweep_with_a_failing_case_still_writes_table_plots_and_summary(cli
 def test_overwrite_starts_a_sweep_afresh(client, tmp_path):
     spec = _mu_spec([0.005, 0.006], name="fresh")
     out = tmp_path / "out"
-    S.run_sweep(spec, out, client=client, progress=False)
+    R.run_sweep(spec, out, client=client, progress=False)
     (out / "notes.txt").write_text("mine")
-    again = S.run_sweep(spec, out, client=client, progress=False)
+    again = R.run_sweep(spec, out, client=client, progress=False)
     assert again.n_run == 0  # resumed: nothing to do
-    fresh = S.run_sweep(spec, out, client=client, progress=False, overwrite=True)
+    fresh = R.run_sweep(spec, out, client=client, progress=False, overwrite=True)
     assert fresh.n_run == 2 and fresh.n_done_before == 0
     assert (out / "notes.txt").read_text() == "mine"
     with pytest.raises(S.SweepError, match="holds the results of sweep 'fresh'"):
-        S.run_sweep(_mu_spec([0.005], name="other"), out, client=client, progress=False)
+        R.run_sweep(_mu_spec([0.005], name="other"), out, client=client, progress=False)
 
 
 def test_recordings_measured_again_blind_and_oracle(client, tmp_path):
@@ -240,14 +243,14 @@ def test_recordings_measured_again_blind_and_oracle(client, tmp_path):
     spec = S.sweep_from_dict({"sweep": {"name": "rec", "metrics": ["z_budget"]}, "base": base,
                               "grid": {"scenario.motion.mu": [0.005, 0.0079]}})
     src = tmp_path / "src"
-    S.run_sweep(spec, src, client=client, progress=False, keep_recordings=True)
+    R.run_sweep(spec, src, client=client, progress=False, keep_recordings=True)
     first = pd.read_parquet(src / "results.parquet")
     assert (first["status"] == "ok").all(), first["error"].tolist()
     before = sorted((p.relative_to(src), p.stat().st_mtime_ns) for p in src.rglob("*"))
 
-    blind = S.recorded_sweep(src)
+    blind = T.recorded_sweep(src)
     assert sorted(c.case_id for c in blind.cases) == sorted(first["case_id"])
-    S.run_sweep(blind, tmp_path / "blind", client=client, progress=False)
+    R.run_sweep(blind, tmp_path / "blind", client=client, progress=False)
     again = pd.read_parquet(tmp_path / "blind" / "results.parquet")
     assert (again["status"] == "ok").all(), again["error"].tolist()
     cols = ["case_id", "scenario.motion.mu", "mu_recovered", "u_mu", "z_budget",
@@ -255,8 +258,8 @@ def test_recordings_measured_again_blind_and_oracle(client, tmp_path):
     pd.testing.assert_frame_equal(first[cols], again[cols])
     assert "t_render_s" not in again.columns  # nothing rendered
 
-    oracle = S.recorded_sweep(src, {"measure.oracle": True})
-    S.run_sweep(oracle, tmp_path / "oracle", client=client, progress=False)
+    oracle = T.recorded_sweep(src, {"measure.oracle": True})
+    R.run_sweep(oracle, tmp_path / "oracle", client=client, progress=False)
     o = pd.read_parquet(tmp_path / "oracle" / "results.parquet")
     assert (o["status"] == "ok").all(), o["error"].tolist()
     assert (o["mode"] == "oracle").all() and (first["mode"] == "blind").all()
@@ -271,7 +274,7 @@ def test_recordings_measured_again_blind_and_oracle(client, tmp_path):
     assert sorted((p.relative_to(src), p.stat().st_mtime_ns) for p in src.rglob("*")) == before
 
     with pytest.raises(S.SweepError, match="only measure"):
-        S.recorded_sweep(src, {"render.seed": 3})
+        T.recorded_sweep(src, {"render.seed": 3})
 
 
 def test_recording_of_another_case_is_refused(tmp_path):
@@ -305,7 +308,7 @@ def test_from_recordings_cli_checks_its_input(tmp_path, capsys):
                               "grid": {"scenario.motion.mu": [0.005, 0.006]}})
     src = tmp_path / "src"
     for sc in spec.cases:
-        S.write_part(src / "parts", S._row(sc, {"status": "ok", "error": "", "metrics": {}}))
+        T.write_part(src / "parts", T.part_row(sc, {"status": "ok", "error": "", "metrics": {}}))
     (src / "recordings" / f"{spec.cases[0].case_id}.zarr").mkdir(parents=True)
     assert main(["sweep", "--from-recordings", str(src), "--dry-run"]) == 0
     out = capsys.readouterr().out
@@ -321,19 +324,19 @@ def test_from_recordings_cli_checks_its_input(tmp_path, capsys):
 
 
 def test_metrics_are_plotted_in_the_unit_a_user_reads():
-    assert S.metric_axis("mu_bias_rel") == (100.0, "bias in mu (%)")
-    assert S.metric_axis("found_fraction") == (100.0, "frames located (%)")
-    scale, label = S.metric_axis("theta_rms_rad")
+    assert P.metric_axis("mu_bias_rel") == (100.0, "bias in mu (%)")
+    assert P.metric_axis("found_fraction") == (100.0, "frames located (%)")
+    scale, label = P.metric_axis("theta_rms_rad")
     assert scale == pytest.approx(57.29577951308232) and label == "angle error, rms (deg)"
-    assert S.metric_axis("center_rms_px") == (1.0, "centre error, rms (px)")
+    assert P.metric_axis("center_rms_px") == (1.0, "centre error, rms (px)")
 
 
 def test_identical_metrics_share_one_panel_and_the_verdict_counts_cases_within_U():
     df = pd.DataFrame({"status": ["ok"] * 4, "a": [1.0, 2.0, 3.0, 4.0],
                        "b": [1.0, 2.0, 3.0, 4.0], "c": [1.0, 2.0, 3.0, 5.0],
                        "within_U": [True, True, True, False]})
-    assert S._distinct_metrics(df, ["a", "b", "c"]) == (["a", "c"], {"b": "a"})
-    words, good = S.sweep_verdict(df)
+    assert P._distinct_metrics(df, ["a", "b", "c"]) == (["a", "c"], {"b": "a"})
+    words, good = T.sweep_verdict(df)
     assert "within U(mu) (k = 2) in 3 of 4 (75 %" in words and good is False
-    words, good = S.sweep_verdict(df.assign(within_U=True))
+    words, good = T.sweep_verdict(df.assign(within_U=True))
     assert "4 of 4 (100 %" in words and good is True

@@ -154,9 +154,9 @@ def handle_validate(args) -> int:
     import os
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    import synth.pipeline
     from rollfric.output.folder import check_folder, check_not_input
     from validation import case as case_mod
-    from validation import e2e
 
     check_not_input(args.out, (args.case,))
     # a folder that is refused before the case is read (without the report's file names, which
@@ -178,8 +178,11 @@ def handle_validate(args) -> int:
     base = case_mod.load_case_dict(args.case) if args.case else case_mod.default_case_dict()
     case = case_mod.case_from_dict(case_mod.apply_overrides(base, overrides),
                                    source=args.case or "built-in case")
-    # run_case starts the render's fork server first (its imports, ~1 s, on the other core
-    # while this process imports the measurement and the report, ~1.2 s)
+    # the render's fork server first: its imports (~1 s) on the other core while this process
+    # imports the measurement and the report (~1.2 s)
+    synth.pipeline.prepare_render(case.scene, case.scenario.n_samples)
+    from validation import e2e
+
     result = e2e.run_case(case, keep_recording=args.keep_recording, report_dir=args.out,
                           progress=not args.no_progress and not args.json,
                           overwrite=args.overwrite)
@@ -204,7 +207,9 @@ def handle_sweep(args) -> int:
             print(f"{name:14s} {doc}   ({path})")
         return 0
     if args.from_recordings:
-        spec = sweep_mod.recorded_sweep(args.from_recordings, _parse_set(args.set))
+        from validation.sweep_table import recorded_sweep
+
+        spec = recorded_sweep(args.from_recordings, _parse_set(args.set))
         if args.sweep and sweep_mod.load_sweep(args.sweep).name != spec.name:
             raise InputError(f"--from-recordings {args.from_recordings} holds sweep "
                              f"{spec.name!r}, not {args.sweep!r}")
@@ -225,9 +230,11 @@ def handle_sweep(args) -> int:
         return 0
     if not args.out:
         raise InputError("--out DIR is required to run a sweep")
-    summary = sweep_mod.run_sweep(spec, args.out, scheduler=args.scheduler,
-                                  n_workers=args.workers, keep_recordings=args.keep_recordings,
-                                  retry_failed=args.retry_failed, progress=not args.no_progress,
-                                  overwrite=args.overwrite)
+    from validation.sweep_run import run_sweep  # the measurement's imports: not for --list
+
+    summary = run_sweep(spec, args.out, scheduler=args.scheduler, n_workers=args.workers,
+                        keep_recordings=args.keep_recordings,
+                        retry_failed=args.retry_failed, progress=not args.no_progress,
+                        overwrite=args.overwrite)
     print(summary.text())
     return 0 if summary.n_failed == 0 else 1

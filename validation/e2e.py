@@ -24,14 +24,36 @@ import contextlib
 import dataclasses
 import json
 import math
+import re
+import secrets
 import shutil
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
+import sim
+import synth
+import synth.pipeline
+from rollfric.fit.estimate import fit_mu
+from rollfric.fit.offset import resolve_offset
+from rollfric.io import readers as io
+from rollfric.measurement import measure
+from rollfric.output.atomic import remove_leftovers, temp_path
+from rollfric.output.folder import check_folder, staged_folder
+from rollfric.setup.model import setup_from_dict
+from rollfric.track.setup_checks import setup_from_recording
+from synth.store import read_truth, scratch_dir
+from synth.video import export_video
 from validation.case import Case, case_from_dict
+from validation.metrics import (
+    budget_metrics,
+    compute_metrics,
+    finite,
+    mode_metrics,
+    timing_metrics,
+    true_center,
+)
+from validation.report import OUTPUTS, write_report
 
 STAGES = ("simulate", "fit_truth", "render", "measure", "metrics")
 
@@ -85,8 +107,6 @@ def is_metric(name: str) -> bool:
     bool
         Whether a case can report it.
     """
-    import re
-
     return name in METRICS or any(re.fullmatch(p, name) for p in METRIC_PATTERNS)
 
 
@@ -139,10 +159,7 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
         raise ValueError("keep_recording needs report_dir (or recording=PATH)")
     if isinstance(case, dict):
         case = case_from_dict(case)
-    _start_render_early(case, render_workers)  # before the imports below
-    from rollfric.output.folder import check_folder, staged_folder
-    from validation.report import OUTPUTS
-
+    _start_render_early(case, render_workers)
     if report_dir is None:
         return _run_case(case, recording, None, render_workers, render_threads, progress)
     check_folder(report_dir, OUTPUTS, overwrite=overwrite, command="validate")
@@ -159,8 +176,6 @@ def run_case(case: Case | dict, *, recording: str | Path | None = None,
 
 def _simulate(case: Case, timings: dict):
     """The case's trajectory, timed as the stage "simulate"."""
-    import sim
-
     with _timer(timings, "simulate"):
         return sim.simulate(case.scenario)
 
@@ -168,21 +183,18 @@ def _simulate(case: Case, timings: dict):
 def _fit_truth(case: Case, traj, timings: dict):
     """The fit of the trajectory's exact angles (the engine's mu), timed as the stage
     "fit_truth"."""
-    from rollfric.fit.estimate import fit_mu
-
     setup_truth = case.scenario.setup()
     with _timer(timings, "fit_truth"):
         return fit_mu(traj.t, traj.theta, setup_truth, method=case.fit,
-                      offset=_offset(case, traj.t, traj.theta, setup_truth))
+                      offset=case_offset(case, traj.t, traj.theta, setup_truth))
 
 
 def _start_render_early(case: Case, render_workers: int | None = None) -> bool:
     """Start the fork server the case's render processes will be forked from, now
     (:func:`synth.pipeline.prepare_render`): its imports (~1 s of one core) then run on the
-    other core while this process imports the measurement and the report (:func:`run_case`
-    calls it first thing). Whether one runs for the case's render."""
-    import synth.pipeline
-
+    other core while this process simulates the case (:func:`run_case` calls it first thing;
+    ``rollfric validate`` before it imports this module). Whether one runs for the case's
+    render."""
     return synth.pipeline.prepare_render(case.scene, case.scenario.n_samples, render_workers)
 
 
@@ -212,11 +224,6 @@ def case_scratch(n_frames: int, folder: str | Path | None = None) -> Path:
     pathlib.Path
         The new, empty folder (mode 0o700).
     """
-    import secrets
-
-    from rollfric.output.atomic import remove_leftovers, temp_path
-    from synth.store import scratch_dir
-
     if folder is None:
         folder = scratch_dir(n_frames) or tempfile.gettempdir()
     remove_leftovers(folder, prefix=f".{CASE_SCRATCH}-")
@@ -231,8 +238,6 @@ def case_scratch(n_frames: int, folder: str | Path | None = None) -> Path:
 
 def _run_case(case, recording, report_tmp, render_workers, render_threads,
               progress) -> CaseResult:
-    import synth
-
     if isinstance(case, dict):
         case = case_from_dict(case)
     timings: dict = {}
@@ -263,8 +268,6 @@ def _run_case(case, recording, report_tmp, render_workers, render_threads,
         result = _measure_and_score(case, rec_path, traj, fit_truth, timings, t_start,
                                     progress, beside)
         if report_tmp is not None:
-            from validation.report import write_report
-
             write_report(result, report_tmp)  # while the recording exists (overlay frames)
     finally:
         if tmpdir is not None:
@@ -279,8 +282,6 @@ def _measure_and_score(case: Case, rec_path: Path, traj, fit_truth, timings: dic
     """What follows the render: rollfric measures the recording, the metrics against the
     truth (the recording's truth table and ``traj``), the budget, the stage times
     (``beside``: the fit of the true angles ran during the render)."""
-    from synth.store import read_truth
-
     truth, attrs = read_truth(rec_path)
     with _timer(timings, "measure"):
         track, info, fit, setup, setup_dict = measure_recording(rec_path, case,
@@ -290,7 +291,7 @@ def _measure_and_score(case: Case, rec_path: Path, traj, fit_truth, timings: dic
         metrics.update(mode_metrics(case, info, truth))
         metrics.update(timing_metrics(case, attrs, info))
         if case.data.get("measure", {}).get("budget", True):
-            metrics.update(budget_metrics(case, track, info, fit, _true_center(metrics)))
+            metrics.update(budget_metrics(case, track, info, fit, true_center(metrics)))
     timings["total"] = time.perf_counter() - t_start
     # the stages in the order they start
     order = ("simulate", "fit_truth", "render", "measure", "metrics", "total")
@@ -342,8 +343,6 @@ def remeasure_case(case: Case | dict, recording: str | Path, *,
     RecordingMismatch
         The recording was made from another scenario or render seed.
     """
-    import synth
-
     if isinstance(case, dict):
         case = case_from_dict(case)
     rec_path = Path(recording)
@@ -377,282 +376,30 @@ def measure_recording(path: Path, case: Case, *, progress: bool = False):
     lab's (:meth:`validation.case.Case.lab_setup_dict`); oracle mode: the setup the recording
     carries (the renderer's exact geometry and center_px).
     """
-    from rollfric.io import readers as io
-    from rollfric.measurement import measure
-    from rollfric.setup.model import setup_from_dict
-    from rollfric.track import tracker as track_mod
-
     src = io.open_recording(path)
     if case.oracle:
-        setup = track_mod.setup_from_recording(src)
+        setup = setup_from_recording(src)
         setup_dict = setup.to_toml_dict()
     else:
         setup_dict = case.lab_setup_dict()
         setup = setup_from_dict(setup_dict, source="the lab's setup")
     if case.video is None:
         track, info, fit = measure(src, setup, method=case.locator,
-                                             fit_method=case.fit, offset=case.offset,
-                                             progress=progress)
+                                   fit_method=case.fit, offset=case.offset, progress=progress)
         return track, info, fit, setup, setup_dict
-    from synth.video import export_video
-
     with tempfile.TemporaryDirectory(prefix="rollfric-video-") as tmp:
         # the lab's path: the camera software's video export and its background
         files = export_video(path, tmp, case.video, progress=progress)
         src = io.open_recording(files["frames"])
         background = io.open_recording(files["background"])[0]
         track, info, fit = measure(src, setup, background, method=case.locator,
-                                             fit_method=case.fit, offset=case.offset,
-                                             progress=progress)
+                                   fit_method=case.fit, offset=case.offset, progress=progress)
     return track, info, fit, setup, setup_dict
 
 
-def _offset(case: Case, t, theta, setup) -> bool:
+def case_offset(case: Case, t, theta, setup) -> bool:
     """The case's offset choice for a fit of theta(t) ("auto": as rollfric decides)."""
-    from rollfric.fit.offset import resolve_offset
-
     return resolve_offset(case.offset, t, theta, setup, case.fit)[0]
-
-
-def mode_metrics(case: Case, info, truth) -> dict:
-    """Blind or oracle, the lab's errors and the trough centre rollfric used against the true
-    one (px, in the image rollfric measured in)."""
-    cx = float(np.asarray(truth["cx_px"], float)[0])
-    cy = float(np.asarray(truth["cy_px"], float)[0])
-    if not info.undistorted:  # rollfric worked in the recorded image
-        cx, cy = (float(v) for v in case.scene.camera.recorded(np.array([cx, cy])))
-    used = info.center_px
-    m = {"mode": case.mode,
-         "lab_center_measured": bool(not case.oracle
-                                     and case.lab.center_error_px is not None),
-         "lab_draw": bool(case.lab.draw),
-         "undistorted": bool(info.undistorted),
-         "offset_fitted": bool(info.offset_fitted),
-         "camera_roll_deg": math.degrees(case.scene.camera.roll),
-         "trough_center_x_px": float(used[0]), "trough_center_y_px": float(used[1]),
-         "trough_center_err_x_px": float(used[0]) - cx,
-         "trough_center_err_y_px": float(used[1]) - cy}
-    for key, value in case.lab.asbuilt.items():
-        name = key.replace(".", "_")
-        m[f"asbuilt_{name}"] = float(value)
-        m[f"lab_{name}"] = float(case.lab.nominal[key])
-        m[f"lab_err_{name}"] = 0.0 if case.oracle else float(case.lab.nominal[key] - value)
-    return m
-
-
-def _true_center(metrics: dict) -> tuple[float, float]:
-    """The true trough centre (px, in the image rollfric measured in) from mode_metrics'."""
-    return (metrics["trough_center_x_px"] - metrics["trough_center_err_x_px"],
-            metrics["trough_center_y_px"] - metrics["trough_center_err_y_px"])
-
-
-def timing_metrics(case: Case, attrs: dict, info) -> dict:
-    """The camera's timing and how rollfric saw it: the jitter (us), the camera frames lost
-    (``frames_dropped_true``), the ones rollfric found from the motion (``..._found``) and
-    how many of those sit where a frame was lost (``..._matched``), the irregular steps, whether
-    the recording's timestamps were used; the video codec and quality (or "none", -1)."""
-    lost = list((attrs.get("timing") or {}).get("dropped_frames", []))
-    # a camera frame lost between recorded frames k and k + 1: k = its number - the frames lost
-    # before it - 1
-    true_k = {}
-    for j, f in enumerate(lost):
-        k = int(f) - j - 1
-        true_k[k] = true_k.get(k, 0) + 1
-    found = {int(k): int(m) for k, m in info.frames_dropped}
-    matched = sum(min(m, true_k.get(k, 0)) for k, m in found.items())
-    t = case.timing
-    return {"timing_jitter_us": 0.0 if t is None else t.jitter * 1e6,
-            "frames_dropped_true": len(lost),
-            "frames_dropped_found": sum(found.values()),
-            "frames_dropped_matched": matched,
-            "timing_irregular": len(info.timing_irregular),
-            "timestamps_used": info.times != "frame / camera.fps",
-            "video_codec": "none" if case.video is None else case.video.codec,
-            "video_quality": -1 if case.video is None else case.video.quality}
-
-
-def budget_metrics(case: Case, track, info, fit, truth_center=None) -> dict:
-    """rollfric's uncertainty budget of the measured mu (:mod:`rollfric.uncertainty.budget`) against
-    the truth: u_mu, U_mu (k = 2), z_budget = (mu - truth) / u_mu, within_u / within_U (1 or
-    0), the statistical part alone (u_stat, z_stat), the largest source and the budget's time;
-    with ``measure.second_order = true`` the second-order row (``u_second_order``, else 0) and
-    z and within U without it (the first-order budget: ``z_first_order``,
-    ``within_U_first_order``). ``z_linear``: the error the budget's
-    own first-order model predicts from the case's drawn setup errors, sum of sensitivity x
-    (nominal - as built) over its rows, / u_mu (the as-built values of the case's lab, the
-    true trough centre ``truth_center``, px); its coverage is what an exactly linear budget
-    would reach with these draws. Oracle mode: the setup is exact, the budget is its
-    statistical part."""
-    from rollfric.uncertainty.budget import SECOND_ORDER, budget, measurement_from_track
-
-    if fit.method != "lsq":
-        return {}
-    second = bool(case.data.get("measure", {}).get("second_order", False))
-    b = budget(measurement_from_track(track, info), fit, order=2 if second else 1)
-    mu_true = float(case.scenario.mu)
-    u_stat = next(r.u_mu for r in b.rows if r.source == "statistical")
-    u2 = next((r.u_mu for r in b.rows if r.source == SECOND_ORDER), 0.0)
-    u1 = math.sqrt(max(b.u_mu**2 - u2**2, 0.0))
-    truth = dict(case.lab.asbuilt) if case.lab is not None else {}
-    if truth_center is not None:
-        truth["cylinder.center_px[x]"], truth["cylinder.center_px[y]"] = truth_center
-    pred = sum(r.sensitivity * (r.value - truth[r.source]) for r in b.rows
-               if r.source in truth and r.sensitivity is not None and r.value is not None)
-    return {"u_mu": b.u_mu, "U_mu": b.U_mu, "z_budget": (b.mu - mu_true) / b.u_mu,
-            "within_u": float(abs(b.mu - mu_true) <= b.u_mu),
-            "within_U": float(abs(b.mu - mu_true) <= b.U_mu),
-            "u_stat": u_stat, "z_stat": (b.mu - mu_true) / u_stat if u_stat > 0 else math.nan,
-            "budget_top_source": b.rows[0].source, "budget_n_sources":
-            sum(r.u_mu > 0 and r.source != SECOND_ORDER for r in b.rows),
-            "u_second_order": u2,
-            "z_first_order": (b.mu - mu_true) / u1 if u1 > 0 else math.nan,
-            "within_U_first_order": float(abs(b.mu - mu_true) <= b.coverage_factor * u1),
-            "z_linear": pred / b.u_mu if b.u_mu > 0 else math.nan,
-            "t_budget_s": b.seconds}
-
-
-# -- metrics ----------------------------------------------------------------------------------
-
-def _f(x) -> float:
-    return float(x) if x is not None and math.isfinite(float(x)) else math.nan
-
-
-def compute_metrics(case: Case, traj, truth, track, fit, fit_truth, setup) -> dict:
-    """The flat metric dict of one case (see the module docstring and docs/guide/validate.md)."""
-    import pandas as pd
-
-    mu_true = float(case.scenario.mu)
-    m: dict = {"case_id": case.case_id, "name": case.name, "mu_true": mu_true}
-    mu = _f(fit.mu)
-    se = _f(fit.mu_stderr)
-    mu_eng = _f(fit_truth.mu)
-    m.update({
-        "mu_recovered": mu,
-        "mu_stderr": se,
-        "mu_bias": mu - mu_true,
-        "mu_bias_rel": (mu - mu_true) / mu_true if mu_true > 0 else math.nan,
-        "mu_engine": mu_eng,
-        "mu_engine_stderr": _f(fit_truth.mu_stderr),
-        "mu_engine_bias_rel": (mu_eng - mu_true) / mu_true if mu_true > 0 else math.nan,
-        "mu_pipeline_bias_rel": (mu - mu_eng) / mu_eng if mu_eng > 0 else math.nan,
-        "mu_true_within_stderr": bool(abs(mu - mu_true) <= se) if math.isfinite(se) else False,
-        "mu_true_within_2stderr": bool(abs(mu - mu_true) <= 2 * se) if math.isfinite(se)
-        else False,
-        "mu_engine_within_stderr": bool(abs(mu - mu_eng) <= se) if math.isfinite(se)
-        else False,
-        "mu_z": (mu - mu_true) / se if se > 0 else math.nan,
-        "fit_rms_residual_rad": _f(fit.rms_residual),
-        "fit_relative_error": _f(getattr(fit, "relative_error", math.nan)),
-        "fit_offset_rad": _f(getattr(fit, "offset", 0.0)),
-        "fit_method": case.fit,
-        # rollfric's own verdict (rollfric.uncertainty.quality): "ok" or "suspect", and the
-        # reasons' codes
-        "fit_quality": getattr(fit, "quality", "ok"),
-        "fit_quality_reasons": ",".join(r.code for r in getattr(fit, "quality_reasons", ())),
-        "locator": case.locator, "renderer": case.scene.renderer,
-        "engine": case.scenario.engine,
-        "surface": case.scenario.surface,
-    })
-    # is the stated uncertainty honest? The fit's stderr assumes white residuals; locator
-    # errors are correlated from frame to frame. Inflate by the AR(1) factor of the residuals
-    # (effective sample size n (1 - rho) / (1 + rho)); never below the formal stderr.
-    rho = _lag1_autocorr(np.asarray(track["theta_rad"], float) - np.asarray(fit.curve, float)) \
-        if len(track) == len(fit.curve) else math.nan
-    k = math.sqrt((1 + max(rho, 0.0)) / (1 - max(rho, 0.0))) \
-        if math.isfinite(rho) and rho < 1 else math.nan
-    se_ar = se * k if math.isfinite(k) else math.nan
-    m.update({
-        "residual_lag1_autocorr": rho,
-        "mu_stderr_ar1": se_ar,
-        "mu_true_within_stderr_ar1": bool(abs(mu - mu_true) <= se_ar)
-        if math.isfinite(se_ar) else False,
-    })
-    # per-frame comparison, aligned on the frame number
-    tr = track.set_index("frame") if "frame" in track.columns else track
-    tt = truth
-    n = len(tt)
-    found = np.zeros(n, dtype=bool)
-    fx = np.full(n, np.nan)
-    fy = np.full(n, np.nan)
-    fth = np.full(n, np.nan)
-    idx = np.asarray(tr.index, dtype=int)
-    ok = (idx >= 0) & (idx < n)
-    idx = idx[ok]
-    f_found = np.asarray(tr["found"], dtype=bool)[ok] if "found" in tr.columns \
-        else np.isfinite(np.asarray(tr["x_px"], float))[ok]
-    found[idx] = f_found
-    fx[idx] = np.asarray(tr["x_px"], float)[ok]
-    fy[idx] = np.asarray(tr["y_px"], float)[ok]
-    fth[idx] = np.asarray(tr["theta_rad"], float)[ok]
-    good = found & np.isfinite(fx) & np.isfinite(fy)
-    tx = np.asarray(tt["sil_x_px"], float)
-    ty = np.asarray(tt["sil_y_px"], float)
-    ex, ey = fx - tx, fy - ty
-    e = np.hypot(ex, ey)
-    m["found_fraction"] = float(good.mean()) if n else math.nan
-    m["n_found"] = int(good.sum())
-    if good.any():
-        eg = e[good]
-        m.update({
-            "center_rms_px": float(np.sqrt(np.mean(eg ** 2))),
-            "center_max_px": float(np.max(eg)),
-            "center_p95_px": float(np.percentile(eg, 95)),
-            "center_median_px": float(np.median(eg)),
-            "center_bias_x_px": float(np.mean(ex[good])),
-            "center_bias_y_px": float(np.mean(ey[good])),
-            "center_std_x_px": float(np.std(ex[good])),
-            "center_std_y_px": float(np.std(ey[good])),
-            "center_within_1px": float(np.mean(eg <= 1.0)),
-        })
-        ax, ay = np.asarray(tt["cx_px"], float), np.asarray(tt["cy_px"], float)
-        rx, ry = tx - ax, ty - ay
-        rn = np.hypot(rx, ry)
-        rx, ry = rx / rn, ry / rn  # unit vector from the trough axis to the ball
-        er = (ex * rx + ey * ry)[good]
-        et_ = (ex * ry - ey * rx)[good]  # (ry, -rx): the direction theta grows in the image
-        m.update({"center_radial_bias_px": float(np.mean(er)),
-                  "center_radial_rms_px": float(np.sqrt(np.mean(er ** 2))),
-                  "center_tangential_bias_px": float(np.mean(et_)),
-                  "center_tangential_rms_px": float(np.sqrt(np.mean(et_ ** 2)))})
-    else:
-        for k in ("center_rms_px", "center_max_px", "center_p95_px", "center_median_px",
-                  "center_bias_x_px", "center_bias_y_px", "center_std_x_px",
-                  "center_std_y_px", "center_within_1px", "center_radial_bias_px",
-                  "center_radial_rms_px", "center_tangential_bias_px",
-                  "center_tangential_rms_px"):
-            m[k] = math.nan
-    th_true = np.asarray(tt["theta_rad"], float)
-    et = fth - th_true
-    gt = good & np.isfinite(et)
-    if gt.any():
-        m.update({
-            "theta_rms_rad": float(np.sqrt(np.mean(et[gt] ** 2))),
-            "theta_max_rad": float(np.max(np.abs(et[gt]))),
-            "theta_bias_rad": float(np.mean(et[gt])),
-        })
-    else:
-        m.update(theta_rms_rad=math.nan, theta_max_rad=math.nan, theta_bias_rad=math.nan)
-    # the fitted model against the true angle (what the fit would have to reproduce)
-    curve = np.asarray(fit.curve, float)
-    if curve.shape == th_true.shape:
-        d = curve - th_true
-        d = d[np.isfinite(d)]
-        m["model_vs_truth_rms_rad"] = float(np.sqrt(np.mean(d ** 2))) if d.size else math.nan
-    m["ball_radius_px"] = float(setup.ball_radius / setup.pixel_size)
-    m["amplitude0_deg"] = float(np.degrees(abs(case.scenario.theta0)))
-    _ = pd  # pandas is used through the DataFrames' methods
-    return m
-
-
-def _lag1_autocorr(r: np.ndarray) -> float:
-    """Lag-1 autocorrelation of a residual series (NaN gaps split the pairs)."""
-    a, b = r[:-1], r[1:]
-    ok = np.isfinite(a) & np.isfinite(b)
-    if ok.sum() < 10:
-        return math.nan
-    a, b = a[ok] - np.mean(r[np.isfinite(r)]), b[ok] - np.mean(r[np.isfinite(r)])
-    den = math.sqrt(float(a @ a) * float(b @ b))
-    return float(a @ b) / den if den > 0 else math.nan
 
 
 def sim_only_case(case: Case | dict) -> dict:
@@ -671,9 +418,9 @@ def sim_only_case(case: Case | dict) -> dict:
     timings["total"] = time.perf_counter() - t0
     mu_true = float(case.scenario.mu)
     m = {"case_id": case.case_id, "name": case.name, "mu_true": mu_true,
-         "mu_engine": _f(ft.mu), "mu_engine_stderr": _f(ft.mu_stderr),
-         "mu_engine_bias_rel": (_f(ft.mu) - mu_true) / mu_true if mu_true > 0 else math.nan,
-         "fit_rms_residual_rad": _f(ft.rms_residual), "engine": case.scenario.engine,
+         "mu_engine": finite(ft.mu), "mu_engine_stderr": finite(ft.mu_stderr),
+         "mu_engine_bias_rel": (finite(ft.mu) - mu_true) / mu_true if mu_true > 0 else math.nan,
+         "fit_rms_residual_rad": finite(ft.rms_residual), "engine": case.scenario.engine,
          "surface": case.scenario.surface, "fit_method": case.fit,
          "n_frames": int(len(traj))}
     m.update({f"t_{k}_s": float(v) for k, v in timings.items()})

@@ -46,6 +46,7 @@ import math
 import numpy as np
 
 from rollfric.errors import InputError
+from rollfric.setup.model import setup_from_dict, thesis_setup
 from rollfric.setup.schema import Key, Messages, Schema, check_section, check_value
 
 # the lab-file keys a case may state as nominal values (section -> keys); the same keys name
@@ -156,8 +157,6 @@ class Lab:
 def setup_reads_tolerances() -> bool:
     """Whether rollfric's setup file takes ``_u`` keys (stated uncertainties); until it does,
     the lab's tolerances drive only the as-built draws and are left out of its setup file."""
-    from rollfric.setup.model import setup_from_dict, thesis_setup
-
     d = thesis_setup().to_toml_dict()
     d["cylinder"]["radius_mm_u"] = 0.1
     try:

@@ -29,6 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
+import sim
+import synth
+from rollfric.setup.model import save_setup, setup_from_dict
+from validation.case import ROOM_AIR_DENSITY
+
 DEFAULT_OUT = Path(__file__).resolve().parent.parent / "rollfric" / "data" / "sample"
 FRAMES = 400
 THETA0_DEG = 15.0  # released at rest: a 392 x 112 px band, 400 frames in ~9 MB
@@ -58,12 +63,7 @@ def make_sample(out=DEFAULT_OUT, *, seed: int = 0, frames: int = FRAMES,
     """
     import tifffile
 
-    import sim
-    import synth
-    from rollfric.setup.model import save_setup, setup_from_dict
-
     out = Path(out)
-    from validation.case import ROOM_AIR_DENSITY
 
     scenario = sim.Scenario(theta0=math.radians(THETA0_DEG), duration=frames / 1000.0, seed=seed,
                             air_density=ROOM_AIR_DENSITY, air_drag="law")

@@ -25,8 +25,16 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from rollfric.fit.estimate import json_safe  # noqa: F401  (validation.cli prints with it)
+from rollfric.fit.estimate import (
+    json_safe,  # noqa: F401  (validation.cli prints with it)
+    save_fit,
+)
+from rollfric.io import readers as io
 from rollfric.output.atomic import replacing, write_text
+from rollfric.output.overlay import plot_full_frame
+from rollfric.output.plots import plot_fit
+from validation import html_report
+from validation.case import dumps_case
 
 # everything a report folder may hold from validate (rollfric.output.folder: --overwrite replaces or
 # removes only these names; recording.zarr with --keep-recording)
@@ -44,10 +52,6 @@ def _savefig(fig, path: Path) -> None:
 
 def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
     """Write the report of a :class:`validation.e2e.CaseResult` into ``out`` (created)."""
-    from rollfric.fit.estimate import save_fit
-    from rollfric.output.plots import plot_fit
-    from validation.case import dumps_case
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     m = result.metrics
@@ -105,9 +109,6 @@ def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
     _savefig(fig, out / "center_error_vs_time.png")
 
     if result.recording is not None:
-        from rollfric.io import readers as io
-        from rollfric.output.overlay import plot_full_frame
-
         _overlays(result, pf, out / "overlays.png", overlay_frames)
         plot_full_frame(io.open_recording(result.recording), result.track, result.track_info,
                         out / "full_frame.png")
@@ -117,8 +118,6 @@ def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
 
 def write_html(result, out: Path) -> Path:
     """``out/report.html``: the verdict, the summary and the report's figures on one page."""
-    from validation import html_report
-
     m = result.metrics
     verdict = _verdict_lines(m)
     words = verdict[0].split("verdict", 1)[1].strip() if verdict else (
@@ -143,8 +142,6 @@ def write_html(result, out: Path) -> Path:
 
 def _overlays(result, pf, path: Path, k: int) -> None:
     """Zoomed frames with the located circle (blue), its centre (+) and the true centre (x)."""
-    from rollfric.io import readers as io
-
     src = io.open_recording(result.recording)
     n = len(pf)
     # the worst-located frame and frames spread over the record

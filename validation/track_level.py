@@ -37,8 +37,22 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pandas as pd
 
+import sim
+import synth
+from rollfric.fit.estimate import fit_mu
+from rollfric.fit.offset import resolve_offset
+from rollfric.geometry.theta import angles
+from rollfric.geometry.trough import find_cylinder_center
+from rollfric.io import readers as io
+from rollfric.io.background_choice import resolve_background
+from rollfric.setup.lens import Calibration
+from rollfric.setup.model import Setup, setup_from_dict
+from synth.pipeline import truth_table
 from validation.case import Case, case_from_dict
+from validation.e2e import case_offset
+from validation.metrics import budget_metrics, compute_metrics, mode_metrics, true_center
 
 LOCATOR_SIGMA_PX = 0.017  # per axis: 0.024 px rms in 2-D, the blind default case's centre error
 
@@ -91,9 +105,6 @@ def located_centres(truth: dict, sigma_px: float, seed: int) -> tuple[np.ndarray
 
 def oracle_setup(case: Case):
     """The setup synth stores with a recording of ``case`` (exact geometry, center_px, lens)."""
-    from rollfric.setup.lens import Calibration
-    from rollfric.setup.model import Setup
-
     base = case.scenario.setup()
     cam = case.scene.camera
     return Setup(cylinder_radius=base.cylinder_radius, ball_diameter=base.ball_diameter,
@@ -121,13 +132,6 @@ def _contour(case: Case, radius_px: float, lens) -> tuple[tuple[float, float], s
     key = _background_key(case, radius_px, lens)
     if key in _CONTOURS:
         return _CONTOURS[key]
-    import sim
-    import synth
-    from rollfric.geometry.trough import find_cylinder_center
-    from rollfric.io import readers as io
-    from rollfric.io.background_choice import resolve_background
-    from rollfric.setup.lens import Calibration
-
     cal = None if lens is None else Calibration(lens["matrix"], lens["distortion"])
     traj = sim.simulate(case.scenario.replace(duration=2.0 / case.scenario.fps))
     tmp = Path(tempfile.mkdtemp(prefix="rollfric-bg-"))
@@ -208,16 +212,6 @@ def measure_track(case: Case | dict, *, sigma_px: float = LOCATOR_SIGMA_PX) -> T
     -------
     TrackCase
     """
-    import pandas as pd
-
-    import sim
-    from rollfric.fit.estimate import fit_mu
-    from rollfric.fit.offset import resolve_offset
-    from rollfric.geometry.theta import angles
-    from rollfric.setup.model import setup_from_dict
-    from synth.pipeline import truth_table
-    from validation.e2e import _offset
-
     if isinstance(case, dict):
         case = case_from_dict(case)
     timings: dict = {}
@@ -225,7 +219,7 @@ def measure_track(case: Case | dict, *, sigma_px: float = LOCATOR_SIGMA_PX) -> T
     traj = sim.simulate(case.scenario)
     setup_truth = case.scenario.setup()
     fit_truth = fit_mu(traj.t, traj.theta, setup_truth, method=case.fit,
-                       offset=_offset(case, traj.t, traj.theta, setup_truth))
+                       offset=case_offset(case, traj.t, traj.theta, setup_truth))
     timings["simulate"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     cam = case.scene.camera
@@ -267,11 +261,9 @@ def run_track_case(case: Case | dict, *, sigma_px: float = LOCATOR_SIGMA_PX) -> 
     Returns
     -------
     dict
-        :func:`validation.e2e.compute_metrics` and :func:`validation.e2e.mode_metrics`, with
+        :func:`validation.metrics.compute_metrics` and :func:`validation.metrics.mode_metrics`, with
         ``stages`` = "track", ``locator_sigma_px`` and the stage times.
     """
-    from validation.e2e import compute_metrics, mode_metrics
-
     tc = measure_track(case, sigma_px=sigma_px)
     metrics = compute_metrics(tc.case, tc.trajectory, tc.truth, tc.track, tc.fit, tc.fit_truth,
                               tc.setup)
@@ -279,13 +271,11 @@ def run_track_case(case: Case | dict, *, sigma_px: float = LOCATOR_SIGMA_PX) -> 
                            offset_fitted=tc.offset_fitted)
     metrics.update(mode_metrics(tc.case, info, tc.truth))
     if tc.case.data.get("measure", {}).get("budget") is True and tc.fit.method == "lsq":
-        from validation.e2e import _true_center, budget_metrics
-
         # what rollfric.measurement.measure tells the budget (TrackInfo's fields it reads)
         info = SimpleNamespace(**vars(info), setup=tc.setup, angle="atan2",
                                times="frame / camera.fps")
         metrics.update(budget_metrics(tc.case, tc.track, info, tc.fit,  # with t_budget_s
-                                      _true_center(metrics)))
+                                      true_center(metrics)))
     metrics.update({f"t_{k}_s": float(v) for k, v in tc.timings.items()})
     cam = tc.case.scene.camera
     metrics.update({"stages": "track", "locator_sigma_px": float(sigma_px),

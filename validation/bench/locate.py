@@ -23,8 +23,14 @@ import warnings
 import cv2
 import numpy as np
 
+import sim
+import synth
 from rollfric import locate
+from rollfric.setup.model import THESIS_BALLS, thesis_setup
+from rollfric.track.tracker import track_recording
 from synth.drawn.frames import Scene, make_frames
+from synth.drawn.mirror import MirrorScene, make_mirror_frames
+from synth.drawn.shadow import ShadowScene, background, draw
 from validation.bench.table import Row
 
 BALLS = {"10mm": 5.0 / 0.1343, "12.69mm": 6.345 / 0.1343, "1.58mm": 0.79 / 0.1343}
@@ -60,8 +66,6 @@ def mirror_case(n: int, *, noise: float = 2.0, seed: int = 0) -> Case:
     """``n`` full frames of the 10 mm ball drawn as a polished steel mirror
     (:mod:`synth.drawn.mirror`: its rim mirrors the backdrop above, the trough below),
     spread over +-0.35 rad of the track, with the sphere's exact centre."""
-    from synth.drawn.mirror import MirrorScene, make_mirror_frames
-
     scene = MirrorScene(noise=noise)
     rng = np.random.default_rng(seed)
     truth = np.array([scene.ball_center(t) for t in rng.uniform(-0.35, 0.35, n)])
@@ -76,8 +80,6 @@ def shadow_case(n: int, *, noise: float = 8.0, seed: int = 0) -> Case:
     disc with a bright central spot and a limb shading into its inside, blurred, on a bright
     field; about the real 12-bit clip's, r 63.6 px) at sub-pixel centres spread over a pixel,
     with their exact centres."""
-    from synth.drawn.shadow import ShadowScene, background, draw
-
     scene = ShadowScene(noise=noise)
     rng = np.random.default_rng(seed)
     c0 = 0.5 * (scene.width - 1)
@@ -98,10 +100,6 @@ def rendered_case(ball: str, n: int, *, noise: str = "none", lighting: str = "th
     render's levels just outside and just inside the silhouette, and the rms difference of
     the noisy frame from the clean one in the band around the edge."""
     import tempfile
-
-    import sim
-    import synth
-    from rollfric.setup.model import THESIS_BALLS
 
     diameter, mass = THESIS_BALLS[ball]
     # frames 20 ms apart: positions spread over the swing
@@ -291,9 +289,6 @@ def run_case(case: Case, *, seed: int = 0) -> list[dict]:
 def throughput(ball: str = "10mm", n: int = 300, method: str = "subpixel") -> float:
     """Frames per second of the whole streaming loop (prediction, ROI locator, angles) on
     in-memory 1280 x 1024 8-bit frames of a ball swinging on the track (one core)."""
-    from rollfric.setup.model import thesis_setup
-    from rollfric.track.tracker import track_recording
-
     scene = Scene(r_px=BALLS[ball])
     setup = thesis_setup(ball, center_px=scene.center)
     t = np.arange(n) / setup.fps

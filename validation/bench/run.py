@@ -8,7 +8,8 @@ Sections: fitting (least squares vs the thesis's grid search and eps iteration),
 (each engine's accurate contact vs the naive mesh surface), rendering (tile renderer vs plain
 full-frame pyrender of the same scene), recognition (default locator vs the thesis's locators,
 OpenCV HoughCircles and scikit-image RANSAC circle fit, beside the Cramer-Rao bound), and the
-default ``rollfric validate`` case end to end.
+default ``rollfric validate`` case end to end (:mod:`validation.bench.e2e`), a sweep on Dask
+(:mod:`validation.bench.sweep`).
 """
 
 from __future__ import annotations
@@ -19,17 +20,25 @@ import math
 import os
 import platform
 import statistics
-import subprocess
-import sys
-import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
+import sim
+from rollfric.fit import eom
+from rollfric.fit.estimate import fit_mu, initial_guess
+from rollfric.fit.thesis import PAPER2_GRID, fit_paper2_grid
+from rollfric.output.folder import check_folder, staged_folder
+from rollfric.setup.model import thesis_setup
+from synth.mitsuba_scene import available
+from synth.pipeline import make_renderer, subframe_positions
+from validation.bench import e2e, locate, sweep
+from validation.bench.render import render_benchmark
 from validation.bench.table import Row
 from validation.bench.table import fmt as _fmt
+from validation.case import case_from_dict
 
 
 def median_time(fn, repeats: int, warmup: bool = True) -> tuple[float, object]:
@@ -47,11 +56,6 @@ def median_time(fn, repeats: int, warmup: bool = True) -> tuple[float, object]:
 # --------------------------------------------------------------------------------- fitting
 def bench_fit(quick: bool) -> list[Row]:
     """Least-squares fit vs the thesis's grid search (paper 2) and eps iteration (paper 1)."""
-    from rollfric.fit import eom
-    from rollfric.fit.estimate import fit_mu, initial_guess
-    from rollfric.fit.thesis import PAPER2_GRID, fit_paper2_grid
-    from rollfric.setup.model import thesis_setup
-
     rows = []
     t = np.arange(4000) / 1000.0
     cases = [("10mm", 0.0079, 20.0)] if quick else [
@@ -115,9 +119,6 @@ def bench_fit(quick: bool) -> list[Row]:
 # ------------------------------------------------------------------------------ simulation
 def bench_sim(quick: bool) -> list[Row]:
     """Seconds for 4 s of motion per engine (accurate contact) and mu bias vs the naive mesh."""
-    import sim
-    from rollfric.fit.estimate import fit_mu
-
     rows = []
     base = sim.Scenario()
     ref = sim.simulate(base)
@@ -150,8 +151,6 @@ def bench_render(quick: bool) -> list[Row]:
     """synth's tile frames (lean path, pyrender's path) vs stock pyrender's full frame of the
     same scene, where a frame's time goes, a whole recording, its size and reads
     (validation.bench.render)."""
-    from validation.bench.render import render_benchmark
-
     r = render_benchmark(quick=quick)
     frame = f"{r['frame']} {r['projection']}, {r['lamps']} lamps, shadows {r['shadows']}"
     stages = r["lean_frame_stages_ms"]
@@ -243,10 +242,6 @@ def mitsuba_frames(frames: int = 4) -> dict:
         sampling, ``uniform_wall_s``, ``uniform_cpu_s``, ``uniform_samples`` of the baseline,
         ``compiled`` (kernels compiled after the first frame), ``spp``, ``base_spp``.
     """
-    import sim
-    from synth.pipeline import make_renderer, subframe_positions
-    from validation.case import case_from_dict
-
     case = case_from_dict({"render": {"renderer": "mitsuba"},
                            "scenario": {"motion": {"seconds": 0.3}}})
     traj = sim.simulate(case.scenario)
@@ -287,7 +282,6 @@ def _mitsuba_rows(quick: bool) -> list[Row]:
     if quick:
         return [Row("rendering", item, math.nan, "s/frame",
                     note="not run with --quick (~20 s; docs/how/renderers.md)")]
-    from synth.mitsuba_scene import available
 
     why = available()
     if why is not None:
@@ -306,178 +300,6 @@ def _mitsuba_rows(quick: bool) -> list[Row]:
 def _pixels(frame: str) -> int:
     w, h = frame.split("x")
     return int(w) * int(h)
-
-
-# ----------------------------------------------------------------------------- recognition
-def bench_recognition(quick: bool) -> list[Row]:
-    from validation.bench.locate import bench_recognition as rows
-
-    return rows(quick)
-
-
-# ------------------------------------------------------------------------------ end to end
-def _child_env() -> dict:
-    """The environment of a new Python process that finds the packages where this process
-    found them (an uninstalled checkout included)."""
-    return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-
-
-def _case_in_new_process(case: dict) -> tuple[dict, dict]:
-    """:func:`validation.e2e.run_case`'s metrics and the measure stage's parts (wall seconds)
-    from a new Python process, as ``rollfric validate`` runs a case: its render processes' fork
-    server starts with it (in the bench's own process it would already be running from the
-    rendering section, ~1 s of a 4001-frame case's render stage)."""
-    code = ("import json, sys\n"
-            "from validation.e2e import run_case\n"
-            "res = run_case(json.load(sys.stdin))\n"
-            "parts = dict(getattr(res.track_info, 'seconds', None) or {})\n"
-            "print(json.dumps({'metrics': res.metrics, 'parts': parts}, default=float))\n")
-    out = subprocess.run([sys.executable, "-c", code], input=json.dumps(case), text=True,
-                         capture_output=True, env=_child_env())
-    if out.returncode != 0:
-        raise RuntimeError(f"the default validate case failed in a new process:\n{out.stderr}")
-    res = json.loads(out.stdout.strip().splitlines()[-1])
-    return res["metrics"], res["parts"]
-
-
-def validate_command(seconds: float, out: str | Path) -> tuple[float, dict]:
-    """Run the real ``rollfric validate --set scenario.motion.seconds=SECONDS --out OUT
-    --no-progress`` in a new process, as a user does; its wall time as the user waits (the
-    interpreter's start, the imports, the case, the report's files and plots, the exit) and the
-    metrics it wrote (OUT/metrics.json: ``t_total_s`` is the total it printed).
-
-    Parameters
-    ----------
-    seconds : float
-        The default case's duration (s).
-    out : str or pathlib.Path
-        The report folder (must not hold anything).
-
-    Returns
-    -------
-    wall : float
-        Seconds from the start of the process to its end.
-    metrics : dict
-        The case's metrics.
-
-    Raises
-    ------
-    RuntimeError
-        The command failed.
-    """
-    # the console script when it sits beside this Python (a virtual environment), else its
-    # equivalent: rollfric.cli.main's main in a new interpreter
-    script = Path(sys.executable).with_name("rollfric")
-    cmd = [str(script)] if script.is_file() else [
-        sys.executable, "-c", "import sys; from rollfric.cli.main import main; sys.exit(main())"]
-    cmd += ["validate", "--set", f"scenario.motion.seconds={seconds:g}", "--out", str(out),
-            "--no-progress"]
-    # its output into files, not pipes: the wait ends with the command's process, as a
-    # terminal's prompt comes back (a pipe's end would also wait for the render's fork server,
-    # which holds the output too and ends ~0.2 s after it)
-    with tempfile.TemporaryFile() as log:
-        t0 = time.perf_counter()
-        res = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT,
-                             env=_child_env())
-        wall = time.perf_counter() - t0
-        if res.returncode != 0:
-            log.seek(0)
-            raise RuntimeError(f"rollfric validate failed (exit {res.returncode}):\n"
-                               f"{log.read().decode(errors='replace')}")
-    return wall, json.loads((Path(out) / "metrics.json").read_text(encoding="utf-8"))
-
-
-E2E_RUNS = 3  # runs of the validate case; the one with the median ratio is reported
-
-
-def bench_e2e(quick: bool) -> list[Row]:
-    """Seconds per stage of the default ``rollfric validate`` case run for 4 s (0.3 s with
-    --quick), and its total against as many stock pyrender full frames: the case is run
-    :data:`E2E_RUNS` times (once with --quick), each between stock frames measured just
-    before and just after it, and the run with the median ratio is reported (its stages, its
-    measure rate), with every run's ratio in the note."""
-    from validation.case import default_case_dict
-
-    case = default_case_dict()
-    case["scenario"]["motion"]["seconds"] = 4.0
-    note = "the default validate case, 4 s (4001 frames), in a new process"
-    if quick:
-        case["scenario"]["motion"]["seconds"] = 0.3
-        note = "the default validate case cut to 0.3 s (--quick), in a new process"
-    from validation.bench.render import stock_frame_times
-
-    # the baseline beside each run: stock frames just before and just after it (the machine's
-    # speed drifts within minutes, by more than 10 %: one run's ratio ranged 92.6-124x over
-    # seven quiet benches of 2026-11-24); the stock frames after a run are the next one's
-    # before
-    runs = []
-    before = stock_frame_times(repeats=3)
-    for _ in range(1 if quick else E2E_RUNS):
-        m_k, parts_k = _case_in_new_process(case)
-        after = stock_frame_times(repeats=3)
-        ratio = m_k["n_frames"] * float(np.median(before + after)) / m_k["t_total_s"]
-        runs.append((ratio, m_k, parts_k, before, after))
-        before = after
-    ratios = [r[0] for r in runs]
-    _, m, parts, before, after = sorted(runs, key=lambda r: r[0])[len(runs) // 2]
-    totals = [r[1]["t_total_s"] for r in runs]
-    runs_note = "" if len(runs) == 1 else (
-        f"; the median of {len(runs)} runs of the case, in order "
-        + " / ".join(f"{r:.1f}x" for r in ratios)
-        + " (totals " + " / ".join(f"{t:.1f}" for t in totals) + " s)")
-    rows = [Row("end-to-end", f"stage {k[2:-2]}", v, "s", note=note)
-            for k, v in sorted(m.items()) if k.startswith("t_") and k.endswith("_s")
-            and k != "t_total_s"]
-    if m.get("t_measure_s", 0) > 0:
-        from validation.bench.locate import throughput
-
-        fps = m["n_frames"] / m["t_measure_s"]
-        rows.append(Row("end-to-end", "measure a synth recording end to end, open to fit, "
-                        "reading included (frames/s)", fps,
-                        "frames/s", "target 1000 frames/s", 1000.0, fps / 1000.0, "speed-up",
-                        "wall time of the case's measure stage: the store opened, background, "
-                        "trough centre, each tracked region read with the sensor model, the "
-                        "locator (the recording's halves, on 2 threads when a core is free), fits, "
-                        "checks and budget "
-                        "(the process's imports not counted)"))
-        # where the measure stage's wall time goes (rollfric.measurement.measure's own stages)
-        if parts:
-            parts["the store opened, the setup read (before measure())"] = max(
-                0.0, m["t_measure_s"] - sum(parts.values()))
-            rows += [Row("end-to-end", f"measure stage: {k}", v, "s", note=(
-                f"wall time, {100 * v / m['t_measure_s']:.0f} % of the measure stage; fits on "
-                "2 threads and the recording's halves on 2 threads when a core is free"))
-                for k, v in parts.items()]
-        alone = throughput("10mm", 150 if quick else 600)
-        rows.append(Row("end-to-end", "measure end to end beside the locator alone (frames/s)",
-                        fps, "frames/s", "the streaming loop alone (recognition section)",
-                        alone, fps / alone, "x the locator alone",
-                        "the locator alone: in-memory frames, no reads, fit or checks, CPU time "
-                        "of one core; end to end: wall time"))
-    stock_frame = float(np.median(before + after))
-    stock = m["n_frames"] * stock_frame
-    rows.append(Row("end-to-end", "total", m["t_total_s"], "s",
-                    f"{m['n_frames']} stock pyrender full frames alone", stock,
-                    stock / m["t_total_s"], "speed-up",
-                    f"{m['n_frames']} frames; mu bias {100 * m['mu_bias_rel']:+.3f} %, "
-                    f"centre rms {m['center_rms_px']:.3f} px; the stock frame "
-                    f"{1e3 * stock_frame:.0f} ms, the median of 3 just before the case "
-                    f"({1e3 * np.median(before):.0f} ms) and 3 just after it "
-                    f"({1e3 * np.median(after):.0f} ms){runs_note}; target >= 100x"))
-    # the whole command as a user waits for it, beside the total it prints
-    seconds = case["scenario"]["motion"]["seconds"]
-    with tempfile.TemporaryDirectory(prefix="rollfric-bench-") as tmp:
-        wall, mc = validate_command(seconds, Path(tmp) / "report")
-    rows.append(Row("end-to-end", "rollfric validate command, wall time as a user waits", wall,
-                    "s", "the total it printed", mc["t_total_s"], mc["t_total_s"] / wall,
-                    "of the wall time",
-                    f"`rollfric validate --set scenario.motion.seconds={seconds:g} "
-                    "--no-progress` in a new process: the total (simulate to metrics) and "
-                    "before it Python's start, the imports and the case, after it the report "
-                    "(metrics.json, fit.json, frames.csv, plots, overlays) and the exit; "
-                    f"{mc['n_frames']} frames, against the stock frames: "
-                    f"{stock / wall:.1f}x"))
-    return rows
 
 
 # --------------------------------------------------------------------------------- report
@@ -508,19 +330,13 @@ def to_markdown(rows: list[Row], meta: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def bench_sweeps(quick: bool) -> list[Row]:
-    from validation.bench.sweep import bench_sweeps as rows
-
-    return rows(quick)
-
-
 SECTIONS = {
     "fitting": bench_fit,
     "simulation": bench_sim,
     "rendering": bench_render,
-    "recognition": bench_recognition,
-    "end-to-end": bench_e2e,
-    "sweeps": bench_sweeps,
+    "recognition": locate.bench_recognition,
+    "end-to-end": e2e.bench_e2e,
+    "sweeps": sweep.bench_sweeps,
 }  # keys match validation.bench.cli.SECTION_NAMES
 
 
@@ -535,8 +351,6 @@ def run_bench(out: str | Path, *, quick: bool = False, sections=None, progress: 
     An existing non-empty ``out`` is refused before any work unless ``overwrite`` (then only
     bench.md and bench.json are replaced; :mod:`rollfric.output.folder`)."""
     from tqdm.auto import tqdm
-
-    from rollfric.output.folder import check_folder, staged_folder
 
     out = Path(out)
     check_folder(out, OUTPUTS, overwrite=overwrite, command="bench")

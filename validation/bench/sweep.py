@@ -19,14 +19,14 @@ import time
 from pathlib import Path
 
 from validation.bench.table import Row
+from validation.sweep import sweep_from_dict
+from validation.sweep_run import run_sweep
 
 WORKERS = 2
 
 
 def _spec(quick: bool):
     """The benchmark's sweep: the default case cut short, one case per render seed."""
-    from validation.sweep import sweep_from_dict
-
     n, seconds = (4, 0.2) if quick else (8, 0.8)
     return sweep_from_dict({"sweep": {"name": "bench", "seeds": n},
                             "base": {"scenario": {"motion": {"seconds": seconds}}}},
@@ -85,8 +85,6 @@ def bench_sweeps(quick: bool) -> list[Row]:
     """Cases/hour of the same sweep on a local 2-worker cluster and on an external scheduler
     with 2 workers started apart, beside the cases' own time one after another."""
     import pandas as pd
-
-    from validation.sweep import run_sweep
 
     spec, n, seconds = _spec(quick)
     label = f"{n} cases of {seconds:g} s ({int(seconds * 1000) + 1} frames)"

@@ -38,6 +38,7 @@ from rollfric.io.source import BaseSource
 from rollfric.setup.model import Setup
 from synth.drawn.frames import Scene, make_frames
 from validation.faults import camera as camera_faults
+from validation.faults.glitches import glitch_frames
 
 R = 85.3e-3  # the trough's radius (m), 200 px
 PIX = R / 200.0
@@ -269,7 +270,6 @@ def faulty(fault: str, magnitude: float, *, seed: int = 0,
         return _with(rec, fault, magnitude, true_setup=s, **{k: float(v)
                                                               for k, v in wrong.items()})
     # glitches
-    from validation.faults.glitches import glitch_frames
 
     frames, glitches = glitch_frames(np.stack(rec.source.frames), seed=seed, rate=magnitude,
                                      centers=rec.centers, r_px=rec.scene.r_px)

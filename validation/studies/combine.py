@@ -38,7 +38,7 @@ from rollfric.fit.estimate import fit_mu
 from rollfric.setup.model import THESIS_BALLS, Setup
 from rollfric.uncertainty.budget import Measurement, budget
 from rollfric.uncertainty.combine import birge_range, combine, run_from_fit
-from validation.studies.coverage import _centres, drawn_as_built, drawn_setups, misses
+from validation.studies.coverage import drawn_as_built, drawn_centres, drawn_setups, misses
 
 RELEASE_SEEDS = 1000  # release k of setup s draws its noise with seed s * RELEASE_SEEDS + k
 
@@ -104,7 +104,7 @@ def release_fit(case: dict, k: int, order: int = 1) -> dict:
     true, lab = _setups(case)
     release = {**case, "theta0_deg": case["theta0_deg"][k],
                "seed": case["seed"] * RELEASE_SEEDS + k}
-    frames, x, y = _centres(release, true)
+    frames, x, y = drawn_centres(release, true)
     meas = Measurement(setup=lab, frames=frames, x=x, y=y, center=lab.center_px)
     res = fit_mu(*meas.series(lab), lab)
     b = budget(meas, res, order=order)

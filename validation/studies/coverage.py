@@ -38,8 +38,11 @@ import pandas as pd
 
 from rollfric.fit import eom
 from rollfric.fit.estimate import fit_mu
+from rollfric.geometry.trough import ContourError, find_cylinder_center
+from rollfric.output.atomic import replacing
 from rollfric.setup.model import THESIS_BALLS, Setup
 from rollfric.uncertainty.budget import Measurement, budget
+from synth.drawn.frames import disk_coverage
 
 # the lab's nominal setup and its standard uncertainties (lab units), issue 14's lab
 NOMINAL = {"radius_mm": 85.3, "center_px": (640.0, 380.0), "fps": 1000.0,
@@ -84,7 +87,7 @@ def draw_case(seed: int) -> dict:
     }
 
 
-def _centres(case: dict, true: Setup):
+def drawn_centres(case: dict, true: Setup):
     """Frames and located centres (px) of the case: the reference ODE on the as-built trough,
     sampled at the as-built rate, plus AR(1) locator noise of rms ``noise_px``."""
     n = int(case["seconds"] * NOMINAL["fps"])
@@ -110,8 +113,6 @@ def contour_background(case: dict, true: Setup) -> np.ndarray:
     trough's contour circle (its centre and radius in px), the trough's face in a 70 px ring
     around it, drawn with exact area coverage in linear light; a lighting gradient, a blur
     and a sensor noise drawn with the case's seed (``contour_*`` keys of the case)."""
-    from synth.drawn.frames import disk_coverage
-
     w, h = FRAME
     xc, yc = true.center_px
     radius = true.cylinder_radius / true.pixel_size
@@ -154,12 +155,10 @@ def run_case(case: dict, *, fit_length: bool = False, oracle: bool = True,
     exact as-built setup. ``contour``: the lab gives no centre; rollfric finds it, with its
     uncertainty, from the case's background (:func:`contour_background`)."""
     true, lab = drawn_setups(case)
-    frames, x, y = _centres(case, true)
+    frames, x, y = drawn_centres(case, true)
     out = {k: v for k, v in case.items() if not isinstance(v, tuple)}
     center, center_u = lab.center_px, None
     if contour:
-        from rollfric.geometry.trough import ContourError, find_cylinder_center
-
         try:
             found = find_cylinder_center(contour_background(case, true),
                                          radius_px=lab.cylinder_radius / lab.pixel_size)
@@ -379,8 +378,6 @@ def plot(df: pd.DataFrame, path: Path) -> None:
     """Histograms of z (blind, full budget) and of the oracle's z (statistical part, and with
     the method row)."""
     from matplotlib.figure import Figure  # no pyplot: no backend, no global figure state
-
-    from rollfric.output.atomic import replacing
 
     cols = [("z", "blind: (mu - truth) / u_mu"),
             ("z_oracle", "oracle: / statistical u (corrected)"),

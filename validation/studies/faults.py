@@ -25,6 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
+from rollfric.errors import InputError
+from rollfric.measurement import measure
+from rollfric.setup.model import SetupError
+from rollfric.uncertainty.budget import budget, measurement_from_track, with_budget_reason
 from validation.faults.recordings import Family, Recording, clean, faulty
 
 # fault -> the sizes studied (units in validation.faults.recordings)
@@ -160,11 +164,6 @@ def run_one(rec: Recording) -> dict:
         ``err_rel`` (mu / truth - 1), ``err_U`` ((mu - truth) / U), ``reasons`` (codes),
         ``findings``, ``named``, ``message`` (why refused), ``seconds``.
     """
-    from rollfric.errors import InputError
-    from rollfric.measurement import measure
-    from rollfric.setup.model import SetupError
-    from rollfric.uncertainty.budget import budget, measurement_from_track, with_budget_reason
-
     row = {"fault": rec.fault, "magnitude": rec.magnitude}
     t0 = time.perf_counter()
     try:

@@ -35,11 +35,21 @@ import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
 
+from rollfric.fit.estimate import fit_mu
+from rollfric.fit.offset import resolve_offset
+from rollfric.setup.model import setup_from_dict
+from rollfric.uncertainty.budget import budget, measurement_from_track
 from validation.case import Case, case_from_dict
+from validation.e2e import measure_recording
+from validation.lab import standard_normal
+from validation.studies.coverage import misses
+from validation.sweep_table import recorded_sweep
+from validation.track_level import measure_track
 
 _TAG = 0x726564726177  # "redraw": the draws' own stream, apart from the study's
 
@@ -66,8 +76,6 @@ def redrawn_lab(case: Case, draw: int):
     rng_seed = [int(lab.seed), _TAG, int(draw)]
 
     def z(key: str) -> float:
-        from validation.lab import standard_normal
-
         return standard_normal(int(np.random.SeedSequence(rng_seed).generate_state(1)[0]),
                                key)
 
@@ -95,8 +103,6 @@ def redrawn_setup(case: Case, draw: int):
     -------
     rollfric.setup.model.Setup
     """
-    from rollfric.setup.model import setup_from_dict
-
     cam = case.scene.camera
     d = redrawn_lab(case, draw).setup_dict(cam.center_px, cam)
     return setup_from_dict(d, source="the redrawn lab's setup")
@@ -126,10 +132,6 @@ def refit(track, info, setup, offset: str = "auto"):
     fit : rollfric.fit.estimate.FitResult
     budget : rollfric.uncertainty.budget.Budget
     """
-    from rollfric.fit.estimate import fit_mu
-    from rollfric.fit.offset import resolve_offset
-    from rollfric.uncertainty.budget import budget, measurement_from_track
-
     if setup.center_px is None:
         raise ValueError("refit needs a setup with center_px")
     meas = measurement_from_track(track, info)
@@ -168,18 +170,12 @@ def redraw_case(case: Case | dict, recording: str | Path | None, draws: int) -> 
     if case.lab is None or case.oracle:
         raise ValueError("redraw needs a blind case with a [lab]")
     if recording is None:
-        from types import SimpleNamespace
-
-        from validation.track_level import measure_track
-
         tc = measure_track(case)
         track, fit0 = tc.track, tc.fit
         # what rollfric.measurement.measure tells the budget (as validation.track_level does)
         info = SimpleNamespace(center_px=tc.center_px, undistorted=tc.undistorted,
                                setup=tc.setup, angle="atan2", times="frame / camera.fps")
     else:
-        from validation.e2e import measure_recording
-
         track, info, fit0, _, _ = measure_recording(Path(recording), case)
     mu_true = float(case.scenario.mu)
     rows = []
@@ -206,8 +202,6 @@ def redraw_case(case: Case | dict, recording: str | Path | None, draws: int) -> 
 
 
 def _recorded_cases(src: Path) -> list[tuple[dict, str]]:
-    from validation.sweep import recorded_sweep
-
     spec = recorded_sweep(src)
     return [(sc.case, sc.recording) for sc in spec.cases]
 
@@ -241,8 +235,6 @@ def summarize(df: pd.DataFrame) -> dict:
         ``{"draw 0": ..., "fresh": ..., "all": ...}``, each with n, the fractions within
         u and U, the miss counts and their binomial tails, mean and sd of z.
     """
-    from validation.studies.coverage import misses
-
     out = {}
     for name, sel in (("draw 0", df["draw"] == 0), ("fresh", df["draw"] > 0),
                       ("all", df["draw"] >= 0)):

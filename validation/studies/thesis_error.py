@@ -27,7 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from rollfric.output.atomic import replacing, write_text
 from validation.case import apply_overrides, default_case_dict
+from validation.track_level import LOCATOR_SIGMA_PX, measure_track
 
 BALLS = {  # thesis ball -> (diameter_mm, mass_g, mu, the thesis's relative error)
     "10mm": (10.0, 4.07612, 0.0079, 0.058372),
@@ -114,8 +116,6 @@ COMBINATION = {"camera roll": 0.3, "trough centre x error": 1.0, "trough centre 
 
 def _case(ball: str, items: dict) -> tuple[dict, float]:
     """The case with several candidates' magnitudes, and the locator's sigma."""
-    from validation.track_level import LOCATOR_SIGMA_PX
-
     by = {c.name: c for c in CANDIDATES}
     over: dict = {}
     sigma = LOCATOR_SIGMA_PX
@@ -145,8 +145,6 @@ def measure(ball: str, items: dict):
     -------
     validation.track_level.TrackCase
     """
-    from validation.track_level import measure_track
-
     case, sigma = _case(ball, items)
     return measure_track(case, sigma_px=sigma)
 
@@ -254,8 +252,6 @@ def plot_residuals(ball: str, runs: list, path: Path, target: float) -> Path:
     """
     from matplotlib.figure import Figure
 
-    from rollfric.output.atomic import replacing
-
     fig = Figure(figsize=(3.2 * len(runs), 7.5))
     axes = fig.subplots(3, len(runs), squeeze=False)
     for j, (label, items) in enumerate(runs):
@@ -344,8 +340,6 @@ def render_markdown(data: dict) -> str:
 def main(argv=None) -> int:
     """``python -m validation.studies.thesis_error --json PATH [--plots DIR]``."""
     import argparse
-
-    from rollfric.output.atomic import write_text
 
     ap = argparse.ArgumentParser(prog="python -m validation.studies.thesis_error",
                                  description=__doc__.split("\n\n")[0])
