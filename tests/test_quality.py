@@ -9,7 +9,8 @@ import pytest
 from rollfric.cli.main import main
 from rollfric.errors import InputError
 from rollfric.fit import eom, filtering
-from rollfric.fit.estimate import fit_lsq, fit_mu
+from rollfric.fit.estimate import fit_mu
+from rollfric.fit.lsq import fit_lsq
 from rollfric.setup.model import save_setup, thesis_setup
 from rollfric.uncertainty import quality
 

@@ -10,7 +10,7 @@ import tifffile
 from measure_data import make_recording
 
 from rollfric.cli.main import main
-from rollfric.fit.estimate import MIN_SAMPLES
+from rollfric.fit.start import MIN_SAMPLES
 from rollfric.setup.model import save_setup
 from rollfric.track import tracker as trackmod
 

@@ -25,8 +25,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from rollfric.fit.estimate import json_safe  # noqa: F401  (validation.cli prints with it)
 from rollfric.output.atomic import replacing, write_text
+from rollfric.output.jsonfile import json_safe  # noqa: F401  (validation.cli prints with it)
 
 # everything a report folder may hold from validate (rollfric.output.folder: --overwrite replaces or
 # removes only these names; recording.zarr with --keep-recording)
@@ -44,7 +44,7 @@ def _savefig(fig, path: Path) -> None:
 
 def write_report(result, out: str | Path, *, overlay_frames: int = 6) -> Path:
     """Write the report of a :class:`validation.e2e.CaseResult` into ``out`` (created)."""
-    from rollfric.fit.estimate import save_fit
+    from rollfric.output.jsonfile import save_fit
     from rollfric.output.plots import plot_fit
     from validation.case import dumps_case
 

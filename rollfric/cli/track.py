@@ -70,9 +70,9 @@ def _run(args) -> int:
     import json
 
     from rollfric.cli.measure import check_tracking_outputs, track_summary, write_track_csv
-    from rollfric.fit.estimate import json_safe
     from rollfric.output.atomic import write_text
     from rollfric.output.folder import staged_folder
+    from rollfric.output.jsonfile import json_safe
     from rollfric.track.tracker import measure
 
     out = check_tracking_outputs(args, OUTPUTS, "track")

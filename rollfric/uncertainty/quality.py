@@ -25,7 +25,7 @@ Reason codes:
   frames cover little of the outer half of the swing on one side of the bottom),
   ``camera_orientation`` (the ball's path is an ellipse that a tilted camera and an
   out-of-round bore explain alike, with mu readings apart: :mod:`rollfric.geometry.pathshape`).
-- ``uncertainty`` (``fit``, ``measure``: :func:`rollfric.uncertainty.budget.budget_reason`): the
+- ``uncertainty`` (``fit``, ``measure``: :func:`rollfric.uncertainty.report.budget_reason`): the
   budget's expanded uncertainty reaches mu.
 """
 
@@ -310,11 +310,11 @@ def period_with_image(reason: Reason, setup, track_radius_seen: float) -> Reason
 def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "coulomb",
               guess: dict | None = None, mu_max: float = 1.0,
               noise_floor: float = 1e-8) -> list[Reason]:
-    """The quality reasons of a fit ``result`` (:class:`rollfric.fit.estimate.FitResult`) of
+    """The quality reasons of a fit ``result`` (:class:`rollfric.fit.result.FitResult`) of
     theta(t).
 
     ``offset``, ``model``: what was fitted (they set how many half-swings are needed).
-    ``guess``: the fitter's self-start of the data (:func:`rollfric.fit.estimate.initial_guess`: the
+    ``guess``: the fitter's self-start of the data (:func:`rollfric.fit.start.initial_guess`: the
     turning points; None skips the swing checks); ``mu_max``: the fitter's upper bound of mu;
     ``noise_floor``: the smallest noise (rad) a residual is compared with.
 
@@ -322,7 +322,7 @@ def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "co
     ----------
     t, theta : array_like
         The track: times (s) and angles (rad), NaN where the ball was not found.
-    result : rollfric.fit.estimate.FitResult
+    result : rollfric.fit.result.FitResult
         The fit of theta(t).
     setup : rollfric.setup.model.Setup
         The setup the fit used.
@@ -559,7 +559,7 @@ def track_radius_seen(df, setup, center) -> float | None:
 def swing_coverage(found, result, setup) -> dict:
     """The located share of the outer half of the swing on either side of the bottom.
 
-    The fitted model (:func:`rollfric.fit.estimate.model_theta`, by :func:`rollfric.fit.eom.solve`)
+    The fitted model (:func:`rollfric.fit.result.model_theta`, by :func:`rollfric.fit.eom.solve`)
     from
     the fit's first sample on is cut into half-swings (the model's sign changes about its
     offset); a frame is in a half-swing's outer half when |theta - offset| is at least half
@@ -570,7 +570,7 @@ def swing_coverage(found, result, setup) -> dict:
     ----------
     found : array_like of bool
         Which frames were located and kept, one a sample of ``result.t``.
-    result : rollfric.fit.estimate.FitResult
+    result : rollfric.fit.result.FitResult
         The fit.
     setup : rollfric.setup.model.Setup
         The setup fitted with.
@@ -590,7 +590,7 @@ def swing_coverage(found, result, setup) -> dict:
     if after.sum() < 3 or np.any(np.diff(t[after]) <= 0):
         return {}
     try:
-        # rollfric.fit.estimate.model_theta less its offset (quality may not import fit)
+        # rollfric.fit.result.model_theta less its offset (quality may not import fit)
         model, _, _ = eom.solve(result.theta0 - result.offset, result.omega0, result.mu,
                                 t[after], track_radius=setup.track_radius,
                                 gravity=setup.gravity, mu1=result.mu1,
@@ -623,7 +623,7 @@ def swing_coverage_reason(found, result, setup) -> Reason | None:
     ----------
     found : array_like of bool
         Which frames were located and kept (one a sample of the fit).
-    result : rollfric.fit.estimate.FitResult
+    result : rollfric.fit.result.FitResult
         The fit.
     setup : rollfric.setup.model.Setup
         The setup fitted with.

@@ -163,7 +163,8 @@ def run_one(rec: Recording) -> dict:
     from rollfric.errors import InputError
     from rollfric.setup.model import SetupError
     from rollfric.track.tracker import measure
-    from rollfric.uncertainty.budget import budget, measurement_from_track, with_budget_reason
+    from rollfric.uncertainty.budget import budget, measurement_from_track
+    from rollfric.uncertainty.report import with_budget_reason
 
     row = {"fault": rec.fault, "magnitude": rec.magnitude}
     t0 = time.perf_counter()
