@@ -41,6 +41,10 @@ from pathlib import Path
 import numpy as np
 
 from rollfric.errors import InputError
+from rollfric.io.bitdepth import bits_for, check_bits, dtype_bits
+from rollfric.io.formats.cine import CineSource
+from rollfric.io.formats.photron import PhotronSource
+from rollfric.io.limits import check_memory
 from rollfric.io.source import (  # noqa: F401  (FrameSource, RegionSource: the readers' protocol)
     BaseSource,
     FrameSource,
@@ -96,8 +100,6 @@ class TiffSource(_Source):
             try:
                 self._stack = self._tif.asarray(out="memmap")
             except Exception:
-                from rollfric.io.limits import check_memory
-
                 check_memory(math.prod(shape) * np.dtype(first.dtype).itemsize,
                              f"{path}: its one compressed page of {shape} pixels")
                 try:
@@ -152,8 +154,6 @@ def _tiff_bit_depth(page, dtype) -> int | None:
     """The camera's bit depth a TIFF page states: from ``MaxSampleValue`` (4095: 12 bits), else
     ``BitsPerSample`` unless it is only the 16-bit word every writer uses for uint16 data (that
     says nothing of the camera: the setup's ``camera.bit_depth`` or the data then tell)."""
-    from rollfric.io.bitdepth import bits_for, dtype_bits
-
     word = dtype_bits(dtype)
     try:
         tag = page.tags.get("MaxSampleValue")
@@ -395,8 +395,6 @@ class ZarrArraySource(_Source):
 def _stated_bits(value, dtype, name: str) -> int | None:
     """A bit depth a store or reader states (``bit_depth``), checked against its frames' word;
     None when it states none."""
-    from rollfric.io.bitdepth import check_bits, dtype_bits
-
     if value is None:
         return None
     try:
@@ -537,12 +535,8 @@ def open_recording(path: str | Path):
     if suffix in VIDEO_SUFFIXES:
         return VideoSource(path)
     if suffix in CINE_SUFFIXES:
-        from rollfric.io.formats.cine import CineSource
-
         return CineSource(path)
     if suffix in PHOTRON_SUFFIXES:
-        from rollfric.io.formats.photron import PhotronSource
-
         return PhotronSource(path)
     raise RecordingError(f"{path}: unknown recording format '{suffix}' (TIFF stack, folder of "
                          f"images, video {', '.join(VIDEO_SUFFIXES)}, Phantom .cine, Photron "

@@ -39,6 +39,7 @@ from scipy import optimize, special
 
 from rollfric.fit import eom, filtering
 from rollfric.fit.air import coefficients_of
+from rollfric.fit.filtering import on_grid
 
 # --- thresholds -------------------------------------------------------------------------
 # residual_noise: a model that describes the data leaves the noise: rms / noise ~ 1 (1.0-1.3
@@ -342,8 +343,6 @@ def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "co
     list of Reason
         The checks that failed; an empty list means the fit passed every check.
     """
-    from rollfric.fit.filtering import on_grid
-
 
     t = np.asarray(t, dtype=float)
     theta = np.asarray(theta, dtype=float)
