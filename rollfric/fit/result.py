@@ -76,7 +76,7 @@ class FitResult:
     seconds: float = 0.0
     # samples that entered the fit (finite, moving, not outliers); None: every finite one
     used: np.ndarray | None = dataclasses.field(default=None, repr=False)
-    quality_reasons: tuple = ()  # rollfric.uncertainty.quality.Reason: why the fit is suspect
+    quality_reasons: tuple = ()  # rollfric.uncertainty.reasons.Reason: why the fit is suspect
 
     @property
     def quality(self) -> str:

@@ -12,7 +12,7 @@ from rollfric.errors import InputError
 from rollfric.uncertainty.anglemap import METHOD
 from rollfric.uncertainty.budget import CONTOUR_NOTE, Budget, Measurement, budget
 from rollfric.uncertainty.propagation import SECOND_ORDER
-from rollfric.uncertainty.quality import Reason
+from rollfric.uncertainty.reasons import Reason
 
 
 def format_budget(b: Budget) -> str:
@@ -103,7 +103,7 @@ def budget_reason(b: Budget | None):
 
     Returns
     -------
-    rollfric.uncertainty.quality.Reason or None
+    rollfric.uncertainty.reasons.Reason or None
         ``uncertainty`` when mu < BUDGET_MU_SIGMAS_MIN u(mu) (U(mu) >= mu at k = 2), naming
         the row that dominates u(mu)^2 and, for a setup key, its ``_u`` key.
     """
