@@ -30,7 +30,7 @@ def _format(src, path: Path) -> str:
     if isinstance(fmt, str):
         return fmt
     return {"TiffSource": "tiff", "FolderSource": "image folder", "VideoSource": "video",
-            "ZarrArraySource": "zarr", "_WrappedSource": "zarr (entry-point reader)"}.get(
+            "ZarrArraySource": "zarr", "EntryPointSource": "zarr (entry-point reader)"}.get(
         type(src).__name__, type(src).__name__)
 
 
