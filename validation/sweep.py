@@ -545,7 +545,7 @@ def _remove_own_outputs(out: Path) -> None:
     recordings, sweep.toml); files that are not the sweep's stay."""
     import re
 
-    from rollfric.output.atomic import _remove
+    from rollfric.output.atomic import remove_path as _remove
 
     own_part = re.compile(r"^[0-9a-f]{12}\.(parquet|zarr)$")
     for sub, keep_names in (("parts", ()), ("recordings", ("index.csv",)), ("plots", ())):

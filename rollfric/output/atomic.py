@@ -128,12 +128,19 @@ def remove_leftovers(folder: str | Path, prefix: str = ".") -> list[Path]:
         return removed
     for e in entries:
         if e.name.startswith(".") and e.name.startswith(prefix) and is_leftover(e.path):
-            _remove(Path(e.path))
+            remove_path(Path(e.path))
             removed.append(Path(e.path))
     return removed
 
 
-def _remove(path: Path) -> None:
+def remove_path(path: Path) -> None:
+    """Remove a file, a link or a folder with its contents; one that is gone already, or that
+    cannot be removed, is left alone.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+    """
     if path.is_dir() and not path.is_symlink():
         shutil.rmtree(path, ignore_errors=True)
     else:
@@ -172,14 +179,14 @@ def install(tmp: Path, path: Path, *, folder_ok: bool = False) -> None:
     if not folder_ok:
         raise InputError(f"{path} is an existing folder: not replaced")
     aside = temp_path(path, "old")
-    _remove(aside)
+    remove_path(aside)
     os.replace(path, aside)
     try:
         os.replace(tmp, path)
     except BaseException:
         os.replace(aside, path)
         raise
-    _remove(aside)
+    remove_path(aside)
 
 
 @contextlib.contextmanager
@@ -202,12 +209,12 @@ def replacing(path: str | Path, *, folder_ok: bool = False) -> Iterator[Path]:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = temp_path(path)
-    _remove(tmp)
+    remove_path(tmp)
     try:
         yield tmp
         install(tmp, path, folder_ok=folder_ok)
     except BaseException:
-        _remove(tmp)
+        remove_path(tmp)
         raise
 
 

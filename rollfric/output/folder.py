@@ -27,7 +27,13 @@ from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
 from rollfric.errors import InputError
-from rollfric.output.atomic import _remove, install, is_leftover, remove_leftovers, temp_path
+from rollfric.output.atomic import (
+    install,
+    is_leftover,
+    remove_leftovers,
+    remove_path,
+    temp_path,
+)
 from rollfric.output.swap import claim, exchange
 
 FILE = "file"
@@ -251,7 +257,7 @@ def remove_stale(folder: str | Path, names: Iterable[str]) -> list[Path]:
     for name in names:
         p = Path(folder) / name
         if p.exists() or p.is_symlink():
-            _remove(p)
+            remove_path(p)
             removed.append(p)
     return removed
 
@@ -307,7 +313,7 @@ def staged_folder(out: str | Path, own: Mapping[str, str], *, overwrite: bool,
         check_folder(out, own, overwrite=overwrite, what=what, command=command)
         remove_leftovers(out.parent)
         tmp = temp_path(out)
-        _remove(tmp)
+        remove_path(tmp)
         tmp.mkdir()
         try:
             yield tmp
@@ -321,7 +327,7 @@ def staged_folder(out: str | Path, own: Mapping[str, str], *, overwrite: bool,
                 raise Interrupted(signals_received[-1])
             _put_in_place(tmp, out, own, written, what)
         finally:
-            _remove(tmp)
+            remove_path(tmp)
 
 
 def _put_in_place(tmp: Path, out: Path, own: Mapping[str, str], written: list[str],
@@ -356,7 +362,7 @@ def _put_in_place(tmp: Path, out: Path, own: Mapping[str, str], written: list[st
             return
         for e in os.scandir(tmp):  # no swap here: the links go again
             if e.name not in written:
-                _remove(Path(e.path))
+                remove_path(Path(e.path))
     out.mkdir(exist_ok=True)
     remove_leftovers(out)
     for name in written:
@@ -389,6 +395,6 @@ def _link_others(tmp: Path, out: Path, own: Mapping[str, str]) -> bool:
             done.append(tmp / e.name)
     except OSError:
         for p in done:
-            _remove(p)
+            remove_path(p)
         return False
     return True
