@@ -42,7 +42,7 @@ _WHERE = {
     "Calibration": "rollfric.setup.lens",
     # fitting mu and its uncertainty
     "fit_mu": "rollfric.fit.estimate",
-    "FitResult": "rollfric.fit.estimate",
+    "FitResult": "rollfric.fit.result",
     "Measurement": "rollfric.uncertainty.budget",
     "measurement_from_track": "rollfric.uncertainty.budget",
     "budget": "rollfric.uncertainty.budget",

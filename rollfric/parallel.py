@@ -1,15 +1,15 @@
 """Independent computations on the CPUs that are free, with the results of a plain loop.
 
-The tracker's segments (:func:`rollfric.track.tracker.track_recording`) and the fits that do not
-depend
-on one another (the least-squares fit's coarse starts, the refits of the dropped-frame search at
-turning points, the uncertainty budget's refits) run on threads when CPUs are free: their
-numerical kernels (the locator's, the equation of motion's RK4, LAPACK) release the GIL. Each
-computation is the same function call with the same inputs as in a loop, so the results are the
-same; only the order in which they finish differs, and :func:`map_ordered` hands them back in
-the order of the inputs. On a busy machine (no CPU free at the start) everything runs one after
-another in the calling thread, as before: a second thread would only wait for the GIL while the
-first is descheduled.
+Every thread rollfric starts is started here: the tracker's segments
+(:func:`rollfric.track.tracker.track_recording`) and the refits of the dropped-frame search at
+turning points run on threads when CPUs are free; their numerical kernels (the locator's, the
+equation of motion's RK4) release the GIL. The least-squares fit's coarse starts and the
+uncertainty budget's refits run one after another: on threads they did not pay on the bench.
+Each computation is the same function call with the same inputs as in a loop, so the results
+are the same; only the order in which they finish differs, and :func:`map_ordered` hands them
+back in the order of the inputs. On a busy machine (no CPU free at the start) everything runs
+one after another in the calling thread: a second thread would only wait for the GIL while
+the first is descheduled.
 """
 
 from __future__ import annotations
@@ -36,9 +36,8 @@ def cpus() -> int:
 def free_cpus(samples: int = 1, interval: float = 0.002) -> int:
     """The CPUs this thread and the ones it may start have now: this process's CPUs less the
     threads running elsewhere (Linux's /proc/loadavg; all of them where it cannot be read). On
-    a busy machine a second tracking thread only waits for the GIL while the first is
-    descheduled: measured at load 8-12 on 2 cores, 4001 frames took a median 31.6 s on two
-    threads against 23.4 s on one.
+    a busy machine a second thread only waits for the GIL while the first is descheduled, and
+    the tracking is then slower on two threads than on one.
 
     The count of running threads is an instant's: a process that runs for a millisecond (a
     render process exiting, a kernel worker) could cost a long computation its second thread.

@@ -104,7 +104,7 @@ LOCATORS = Registry("locator", {
 
 #: Fit methods (:class:`rollfric.fit.estimate.FitMethod`), the default first.
 FIT_METHODS = Registry("fit method", {
-    "lsq": "rollfric.fit.estimate:fit_lsq",
+    "lsq": "rollfric.fit.lsq:fit_lsq",
     "paper1_eps": "rollfric.fit.thesis:paper1_eps_method",
     "paper2_grid": "rollfric.fit.thesis:paper2_grid_method",
 })

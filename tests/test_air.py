@@ -11,6 +11,7 @@ from rollfric.fit import air
 from rollfric.fit import estimate as fit
 from rollfric.setup.model import setup_from_dict, thesis_setup
 from rollfric.uncertainty import budget as uncertainty
+from rollfric.uncertainty.sensitivity import AIR_LAW
 
 SIGMA = 1e-6  # rad: the test's white noise (0 would give a standard error of 0)
 
@@ -142,7 +143,7 @@ def test_budget_air_rows_match_finite_differences():
     b = uncertainty.budget(meas, res)
     rows = {r.source: r for r in b.rows}
     rho_row = rows["environment.air_density_kg_m3"]
-    law_row = rows[uncertainty.AIR_LAW]
+    law_row = rows[AIR_LAW]
     # full fits with the input moved: the rows' sensitivities are those central differences
     for row, field, value, u in ((rho_row, "air_density", 1.2, 0.03),
                                  (law_row, "air_wall_factor", air.WALL_FACTOR,
@@ -196,6 +197,6 @@ def test_a_given_cd_is_its_own_budget_row():
     assert res.extra["air"]["law"] == "given" and res.extra["air"]["cd"] == cd
     rows = {r.source: r for r in uncertainty.budget(
         uncertainty.Measurement(setup=setup, t=t, theta=y), res).rows}
-    assert uncertainty.AIR_LAW not in rows
+    assert AIR_LAW not in rows
     share = fit.fit_mu(t, y, setup.replace(air_density=0.0)).mu - res.mu
     assert rows["environment.air_cd"].u_mu == pytest.approx(share * u_cd / cd, rel=0.05)

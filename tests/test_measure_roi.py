@@ -12,6 +12,7 @@ import zarr
 from measure_data import make_recording, messages
 
 from rollfric.io import readers as io
+from rollfric.io.formats.zarrstore import EntryPointSource
 from rollfric.locate import LazyFrame, locate_subpixel
 from rollfric.measurement import measure
 
@@ -126,7 +127,7 @@ class _WithRead(_Plain):
 
 def test_entry_point_source_forwards_read():
     inner = _WithRead(list(FR16))
-    src = io._WrappedSource(inner, "fake", _Group())
+    src = EntryPointSource(inner, "fake", _Group())
     _check_reads(src, FR16)
     assert len(inner.rois) == 4 * 30 + 1  # every region asked of the reader itself
     n_full = inner.full_reads
@@ -134,7 +135,7 @@ def test_entry_point_source_forwards_read():
     assert inner.rois[-1] == (2, 9, 3, 20) and inner.full_reads == n_full
     # without read(): the crop of the full frame
     plain = _Plain(list(FR16))
-    src = io._WrappedSource(plain, "fake", _Group())
+    src = EntryPointSource(plain, "fake", _Group())
     _check_reads(src, FR16)
 
     class _Bad(_WithRead):
@@ -142,7 +143,7 @@ def test_entry_point_source_forwards_read():
             return super().read(i, roi)[:-1]
 
     with pytest.raises(io.RecordingError, match="read"):
-        io._WrappedSource(_Bad(list(FR16)), "fake", _Group()).read(0, (0, 5, 0, 5))
+        EntryPointSource(_Bad(list(FR16)), "fake", _Group()).read(0, (0, 5, 0, 5))
 
 
 def test_lazy_frame_crops_equal_the_full_frame():

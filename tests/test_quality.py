@@ -9,9 +9,11 @@ import pytest
 from rollfric.cli.main import main
 from rollfric.errors import InputError
 from rollfric.fit import eom, filtering
-from rollfric.fit.estimate import fit_lsq, fit_mu
+from rollfric.fit.estimate import fit_mu
+from rollfric.fit.lsq import fit_lsq
 from rollfric.setup.model import save_setup, thesis_setup
 from rollfric.uncertainty import quality
+from rollfric.uncertainty.period import half_period_frictionless
 
 T4 = np.arange(4000) / 1000.0
 
@@ -163,7 +165,7 @@ def test_half_period_matches_the_integrated_swing():
     th, om, _ = eom.solve_reference(math.radians(40), 0.0, 0.0, t,
                                     track_radius=setup.track_radius)
     turn = t[1:-1][(np.sign(om[1:-1]) != np.sign(om[2:])) & (np.abs(th[1:-1]) > 0.5)]
-    expected = quality.half_period_frictionless(math.radians(40), setup.track_radius, 9.81)
+    expected = half_period_frictionless(math.radians(40), setup.track_radius, 9.81)
     assert np.diff(turn)[0] == pytest.approx(expected, abs=2e-5)
 
 

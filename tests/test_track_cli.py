@@ -11,7 +11,7 @@ from measure_data import make_recording
 
 from rollfric import measurement as trackmod
 from rollfric.cli.main import main
-from rollfric.fit.estimate import MIN_SAMPLES
+from rollfric.fit.start import MIN_SAMPLES
 from rollfric.setup.model import save_setup
 
 

@@ -392,7 +392,7 @@ def test_second_order_terms_are_exact_for_a_known_interaction():
     y = a x1 + b x2 + c x1 x2 + d x1^2 with independent normal inputs (sd u1, u2) the exact
     variance is a^2 u1^2 + b^2 u2^2 + c^2 u1^2 u2^2 + 2 d^2 u1^4; the first-order law gives
     the first two terms, the next-order terms the rest (exactly: no higher derivatives)."""
-    from rollfric.uncertainty.budget import second_order
+    from rollfric.uncertainty.propagation import second_order
 
     a, b, c, d, u1, u2 = 3.0, -2.0, 1.5, 0.7, 0.4, 1.3
 
@@ -418,7 +418,7 @@ def test_second_order_terms_of_a_cubic_and_of_a_mixed_third_derivative():
     is exact to u^4 (a^2 u^2 + 6 a e u^4, + 5 e^2 u^6 of the 15), smaller than the secant's
     square when the cubic narrows the distribution. y = a x1 + b x2 + g x1 x2^2: the pair's
     f_i f_ijj term is 2 a g u1^2 u2^2 (the exact variance adds 3 g^2 u1^2 u2^4 beyond)."""
-    from rollfric.uncertainty.budget import second_order
+    from rollfric.uncertainty.propagation import second_order
 
     a, e, u = 2.0, -0.3, 0.5
     var2, _ = second_order(lambda k: a * k[0] * u + e * (k[0] * u) ** 3, 1)
@@ -437,7 +437,7 @@ def test_second_order_row_is_that_of_independent_full_fits(tmp_path):
     independent full fits at every moved setup (trough radius +- 0.5 mm and the lab's centre
     x +- 2 px, 2 px off), and the first-order budget (order=1, the default) is the same
     without it."""
-    from rollfric.uncertainty.budget import SECOND_ORDER, second_order
+    from rollfric.uncertainty.propagation import SECOND_ORDER, second_order
 
     lab = _lab_setup(tmp_path).replace(uncertainty=(("cylinder_radius", 5e-4),
                                                     ("center_px", (2.0, 0.0))))

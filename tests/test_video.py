@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("av")
 
-from rollfric import io  # noqa: E402
+from rollfric.io import readers as io  # noqa: E402
 from synth.video import VideoSpec, write_video  # noqa: E402
 from tests.measure_data import make_recording  # noqa: E402
 

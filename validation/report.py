@@ -25,12 +25,12 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from rollfric.fit.estimate import (
+from rollfric.io import readers as io
+from rollfric.output.atomic import replacing, write_text
+from rollfric.output.jsonfile import (
     json_safe,  # noqa: F401  (validation.cli prints with it)
     save_fit,
 )
-from rollfric.io import readers as io
-from rollfric.output.atomic import replacing, write_text
 from rollfric.output.overlay import plot_full_frame
 from rollfric.output.plots import plot_fit
 from validation import html_report

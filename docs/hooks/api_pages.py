@@ -21,6 +21,7 @@ TITLES = {
     "rollfric.setup.model": "Setup and calibration",
     "rollfric.setup.lens": "Setup and calibration",
     "rollfric.fit.estimate": "Fitting mu",
+    "rollfric.fit.result": "Fitting mu",
     "rollfric.uncertainty.budget": "Uncertainty",
     "rollfric.errors": "Errors",
 }

@@ -73,7 +73,7 @@ def measure_steps(df, setup, src, out):
 def mu_effect(setup, out):
     """How mu shows in theta(t): the swing's amplitude falls by the same step each half-swing
     (a constant torque), a step proportional to mu."""
-    from rollfric.fit.estimate import model_theta
+    from rollfric.fit.result import model_theta
 
     t = np.arange(0.0, 3.0, 1e-3)
     fig, ax = plt.subplots(figsize=(8, 3.6), constrained_layout=True)

@@ -69,9 +69,9 @@ def _run(args) -> int:
     import json
     import sys
 
-    from rollfric.fit.estimate import json_safe
     from rollfric.output.atomic import write_text
     from rollfric.output.folder import check_file, check_not_input
+    from rollfric.output.jsonfile import json_safe
     from rollfric.uncertainty.combine import combine_files, format_summary
 
     out = None

@@ -226,15 +226,11 @@ def _run(args) -> int:
 
     from rollfric.cli.fit import report_quality
     from rollfric.errors import InputError
-    from rollfric.fit.estimate import save_fit
     from rollfric.measurement import measure
     from rollfric.output.folder import staged_folder
-    from rollfric.uncertainty.budget import (
-        check_arguments,
-        measurement_from_track,
-        run_budget,
-        with_budget_reason,
-    )
+    from rollfric.output.jsonfile import save_fit
+    from rollfric.uncertainty.budget import measurement_from_track
+    from rollfric.uncertainty.report import check_arguments, run_budget, with_budget_reason
 
     out = check_tracking_outputs(args, OUTPUTS, "measure")
     frames = None

@@ -70,11 +70,11 @@ def _run(args) -> int:
     import json
 
     from rollfric.cli.measure import check_tracking_outputs, write_track_csv
-    from rollfric.fit.estimate import json_safe
     from rollfric.io.readers import open_recording
     from rollfric.measurement import measure
     from rollfric.output.atomic import write_text
     from rollfric.output.folder import staged_folder
+    from rollfric.output.jsonfile import json_safe
 
     out = check_tracking_outputs(args, OUTPUTS, "track")
     source = open_recording(args.recording)  # tracked, then its overlay frames drawn

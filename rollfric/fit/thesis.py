@@ -25,14 +25,8 @@ from tqdm.auto import tqdm
 from rollfric.errors import InputError
 from rollfric.fit import analytic, eom, filtering
 from rollfric.fit.air import coefficients_of
-from rollfric.fit.estimate import (
-    FitResult,
-    _clean,
-    _relative_error,
-    initial_guess,
-    model_theta,
-    turning_points,
-)
+from rollfric.fit.result import FitResult, model_theta, relative_error
+from rollfric.fit.start import clean_series, initial_guess, turning_points
 from rollfric.setup.model import Setup
 
 # Paper 2's grid: (half-width, step) for mu, theta(0) [rad], theta'(0) [rad/s]
@@ -86,7 +80,7 @@ def fit_paper1_eps(t, theta, setup: Setup, *, eps_step: float = PAPER1_EPS_STEP)
         two turning points.
     """
     start = time.perf_counter()
-    t, theta, good = _clean(t, theta)
+    t, theta, good = clean_series(t, theta)
     if not good.all():
         raise InputError("paper1_eps needs a gap-free record (frames without a ball found)")
     fps = 1.0 / np.median(np.diff(t))
@@ -164,7 +158,7 @@ def fit_paper2_grid(t, theta, setup: Setup, *, first: dict | None = None, grid: 
     setup : Setup
     first : dict, optional
         The first estimate {"mu", "theta0", "omega0"}; by default the self-start of
-        :func:`rollfric.fit.estimate.initial_guess` (mu from the amplitude decay, theta(0) and
+        :func:`rollfric.fit.start.initial_guess` (mu from the amplitude decay, theta(0) and
         theta'(0)
         measured from the record), which is what the thesis had before its grid search.
     grid : dict, optional
@@ -188,7 +182,7 @@ def fit_paper2_grid(t, theta, setup: Setup, *, first: dict | None = None, grid: 
     if offset:
         raise InputError("paper2_grid fits no angle offset (the thesis's procedure has none)")
     start = time.perf_counter()
-    t, theta, good = _clean(t, theta)
+    t, theta, good = clean_series(t, theta)
     tg, yg = t[good], theta[good]
     first = first or initial_guess(t, theta, setup)
     spec = dict(PAPER2_GRID, **(grid or {}))
@@ -226,7 +220,7 @@ def fit_paper2_grid(t, theta, setup: Setup, *, first: dict | None = None, grid: 
         omega0=float(om0),
         t0=float(tg[0]),
         rms_residual=float(np.sqrt(np.mean(res**2))),
-        relative_error=_relative_error(curve[good], yg),
+        relative_error=relative_error(curve[good], yg),
         n_samples=int(good.sum()),
         t=t,
         curve=curve,

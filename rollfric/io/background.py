@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from rollfric import locate
+from rollfric.io.limits import check_memory
 
 # a place counts as the median's ball when a change sits there in this share of the frames
 # that show any change (the moving ball visits one place in far fewer)
@@ -44,8 +45,6 @@ def sample(source, max_frames: int = 41) -> tuple[np.ndarray, np.ndarray]:
     stack : numpy.ndarray
         The sampled frames, shape (k, H, W), the recording's dtype.
     """
-    from rollfric.io.limits import check_memory
-
     n = len(source)
     k = min(n, max(3, int(max_frames)))
     idx = np.unique(np.linspace(0, n - 1, k).round().astype(int))

@@ -24,6 +24,7 @@ import numpy as np
 
 from rollfric import locate
 from rollfric.errors import InputError
+from rollfric.io.background import HOLE_SHARE, MIN_FRAMES_SHOWING, median
 
 # the backgrounds `rollfric measure --background-from` offers
 KINDS = ("median", "clip", "max")
@@ -114,8 +115,6 @@ def clip_background(stack: np.ndarray) -> tuple[np.ndarray, float]:
     level : float
         The level (DN).
     """
-    from rollfric.io.background import median
-
     level = float(np.percentile(median(stack), CLIP_PERCENTILE))
     bg = np.full(stack.shape[1:], level)
     return np.rint(bg).astype(stack.dtype), level
@@ -169,8 +168,6 @@ def seen_places(stack: np.ndarray, background: np.ndarray, r_px: float, *,
     holes : list of (x, y)
         The holes.
     """
-    from rollfric.io.background import HOLE_SHARE, MIN_FRAMES_SHOWING
-
     seen = [[(c[0], c[1]) for c in locate.coarse_candidates(f, background, r_px,
                                                             n_candidates=3,
                                                             full_scale=full_scale)]

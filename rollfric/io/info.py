@@ -14,6 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+from rollfric.fit.start import MIN_SAMPLES
+from rollfric.io.readers import open_recording
+from rollfric.track.timestamps import TIMES_RATE_TOL, fps_mismatch, frame_times
+
 # the keys of recording_info's dict, in the order `rollfric info` prints them
 KEYS = ("recording", "format", "n_frames", "width", "height", "dtype", "bit_depth",
         "bit_depth_from", "colour", "fps", "fps_timestamps", "timestamp_resolution_s",
@@ -26,7 +30,7 @@ def _format(src, path: Path) -> str:
     if isinstance(fmt, str):
         return fmt
     return {"TiffSource": "tiff", "FolderSource": "image folder", "VideoSource": "video",
-            "ZarrArraySource": "zarr", "_WrappedSource": "zarr (entry-point reader)"}.get(
+            "ZarrArraySource": "zarr", "EntryPointSource": "zarr (entry-point reader)"}.get(
         type(src).__name__, type(src).__name__)
 
 
@@ -121,10 +125,6 @@ def recording_info(recording, setup_fps: float | None = None) -> dict:
     rollfric.io.readers.RecordingError
         The recording cannot be read (the message names it).
     """
-    from rollfric.fit.estimate import MIN_SAMPLES
-    from rollfric.io.readers import open_recording
-    from rollfric.track.timestamps import TIMES_RATE_TOL, fps_mismatch, frame_times
-
     path = Path(recording)
     src = open_recording(path)
     n, h, w = src.shape

@@ -21,11 +21,10 @@ Regions of interest (an optional part of the FrameSource contract): a FrameSourc
 ``read(i, roi)``, roi = (y0, y1, x0, x1) integers with ``0 <= y0 < y1 <= H`` and
 ``0 <= x0 < x1 <= W``, returning frame i's region ``[y0:y1, x0:x1]``: the same bytes as
 ``src[i][y0:y1, x0:x1]``, ideally without making the rest of the frame. The tracking loop
-(:mod:`rollfric.track.tracker`) uses it when present. All the readers here have it: a crop of the
-full
-frame, except that a Zarr ``frames`` array is sliced (only the chunks touched are decoded), an
-uncompressed TIFF, a cine and an MRAW file are memory-mapped (only the region's bytes are
-read), and an entry-point reader that has ``read`` is asked for the region itself.
+(:mod:`rollfric.track.tracker`) uses it when present. All the readers here have it: a crop of
+the full frame, except that a Zarr ``frames`` array is sliced (only the chunks touched are
+decoded), an uncompressed TIFF, a cine and an MRAW file are memory-mapped (only the region's
+bytes are read), and an entry-point reader that has ``read`` is asked for the region itself.
 
 Bad input (unreadable, truncated, mixed frame sizes, unsupported depth) raises
 :class:`RecordingError`, naming the file and the frame.
@@ -33,14 +32,16 @@ Bad input (unreadable, truncated, mixed frame sizes, unsupported depth) raises
 
 from __future__ import annotations
 
-import importlib.metadata
 import math
 import re
 from pathlib import Path
 
 import numpy as np
 
-from rollfric.errors import InputError
+from rollfric.io.formats.cine import CineSource
+from rollfric.io.formats.photron import PhotronSource
+from rollfric.io.formats.tiff import TiffSource, tiff_bit_depth
+from rollfric.io.formats.zarrstore import open_zarr
 from rollfric.io.source import (  # noqa: F401  (FrameSource, RegionSource: the readers' protocol)
     BaseSource,
     FrameSource,
@@ -58,144 +59,6 @@ VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov", ".m4v", ".mpg", ".mpeg", ".wmv
 TIFF_SUFFIXES = (".tif", ".tiff")
 CINE_SUFFIXES = (".cine",)
 PHOTRON_SUFFIXES = (".cih", ".cihx", ".mraw")
-ZARR_ENTRY_POINT_GROUP = "rollfric.zarr_readers"
-
-
-class TiffSource(_Source):
-    """A multi-page TIFF, one page a frame (or a single page holding a (T, H, W) stack)."""
-
-    def __init__(self, path: Path) -> None:
-        import logging
-
-        import tifffile
-
-        # tifffile logs what it finds wrong in a file's structure; the checks below refuse
-        # such a file with a message of their own, so its log line would only say it twice
-        tiff_log = logging.getLogger("tifffile")
-        tiff_log.addFilter(_drop_record)
-        try:
-            try:
-                self._tif = tifffile.TiffFile(path)
-                pages = self._tif.pages
-                n = len(pages)
-                first = pages.first
-                shape = tuple(first.shape)
-            except Exception as exc:  # tifffile raises several types for broken files
-                raise RecordingError(f"{path}: not a readable TIFF file ({exc})") from None
-            _check_ifd_chain(self._tif, path, n)
-        finally:
-            tiff_log.removeFilter(_drop_record)
-        colour = len(shape) == 3 and shape[-1] in (3, 4)
-        if not (len(shape) == 2 or colour or (n == 1 and len(shape) == 3)) \
-                or not all(isinstance(v, int) and v > 0 for v in shape):
-            raise RecordingError(f"{path}: the first page holds an array of shape {shape}, not "
-                                 "an image (corrupt file?)")
-        self._stack = None
-        if n == 1 and len(shape) == 3 and not colour:
-            # one page holding a whole (T, H, W) stack: memory-map it if possible
-            try:
-                self._stack = self._tif.asarray(out="memmap")
-            except Exception:
-                from rollfric.io.limits import check_memory
-
-                check_memory(math.prod(shape) * np.dtype(first.dtype).itemsize,
-                             f"{path}: its one compressed page of {shape} pixels")
-                try:
-                    self._stack = self._tif.asarray()
-                except Exception as exc:  # tifffile raises several types for broken files
-                    raise RecordingError(f"{path}: cannot read the stack (truncated or corrupt "
-                                         f"file? {exc})") from None
-            n, hw = self._stack.shape[0], self._stack.shape[1:]
-        else:
-            hw = shape[:2]
-        self._path = path
-        self._mmap = None  # the whole file, memory-mapped for region reads of plain pages
-        super().__init__(str(path), n, hw, first.dtype)
-        self.bit_depth_stated = _tiff_bit_depth(first, self.dtype)
-
-    def __getitem__(self, i: int) -> np.ndarray:
-        i = self._index(i)
-        if self._stack is not None:
-            return self._check(np.asarray(self._stack[i]), i)
-        try:
-            page = self._tif.pages[i]
-            img = page.asarray()
-        except Exception as exc:
-            raise RecordingError(f"{self.name}: cannot read frame {i} (truncated or corrupt "
-                                 f"file? {exc})") from None
-        return self._check(img, i)
-
-    def _read_roi(self, i: int, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
-        if self._stack is not None:  # (T, H, W) of one dtype, memory-mapped when possible
-            return np.array(self._stack[i, y0:y1, x0:x1])
-        try:
-            page = self._tif.pages[i]
-            plain = (page.is_memmappable and tuple(page.shape) == self.shape[1:]
-                     and np.dtype(page.dtype) == self.dtype)
-        except Exception:
-            plain = False
-        if not plain:  # compressed, tiled, colour, ...: decode the page, then crop
-            return self[i][y0:y1, x0:x1]
-        if self._mmap is None:
-            self._mmap = np.memmap(self._path, dtype=np.uint8, mode="r")
-        h, w = self.shape[1:]
-        dt = self.dtype.newbyteorder(self._tif.byteorder)
-        off = int(page.dataoffsets[0])
-        if off < 0 or off + h * w * dt.itemsize > self._mmap.size:
-            raise RecordingError(f"{self.name}: cannot read frame {i}: its data lies beyond the "
-                                 f"end of the file (truncated or corrupt file?)")
-        img = self._mmap[off:off + h * w * dt.itemsize].view(dt).reshape(h, w)
-        return np.ascontiguousarray(img[y0:y1, x0:x1], dtype=self.dtype)
-
-
-def _tiff_bit_depth(page, dtype) -> int | None:
-    """The camera's bit depth a TIFF page states: from ``MaxSampleValue`` (4095: 12 bits), else
-    ``BitsPerSample`` unless it is only the 16-bit word every writer uses for uint16 data (that
-    says nothing of the camera: the setup's ``camera.bit_depth`` or the data then tell)."""
-    from rollfric.io.bitdepth import bits_for, dtype_bits
-
-    word = dtype_bits(dtype)
-    try:
-        tag = page.tags.get("MaxSampleValue")
-        vmax = tag.value if tag is not None else None
-        if isinstance(vmax, (tuple, list)):
-            vmax = max(vmax) if vmax else None
-        bps = page.bitspersample
-    except Exception:  # a tag tifffile cannot decode states nothing
-        return None if word > 8 else 8
-    if isinstance(vmax, (int, np.integer)) and 0 < int(vmax) < 2 ** word:
-        return bits_for(int(vmax))
-    if isinstance(bps, (int, np.integer)) and 0 < int(bps) < 16:
-        return min(int(bps), word)
-    return None
-
-
-def _drop_record(record) -> bool:
-    """A logging filter that drops every record."""
-    return False
-
-
-def _check_ifd_chain(tif, path: Path, n: int) -> None:
-    """Refuse a TIFF whose chain of page directories does not end: tifffile stops, with only a
-    log line, at a next-page offset beyond the end of the file or at a directory it cannot read,
-    so a file cut between two pages would read as a shorter recording."""
-    import struct
-
-    try:
-        t = tif.tiff
-        fh = tif.filehandle
-        offset = int(tif.pages[n - 1].offset)
-        fh.seek(offset)
-        tagno = struct.unpack(t.tagnoformat, fh.read(t.tagnosize))[0]
-        fh.seek(offset + t.tagnosize + tagno * t.tagsize)
-        nxt = int(struct.unpack(t.offsetformat, fh.read(t.offsetsize))[0])
-    except Exception as exc:  # struct, OSError, tifffile's own: the directory is cut short
-        raise RecordingError(f"{path}: cannot read the directory of page {n} (truncated or "
-                             f"corrupt file? {exc})") from None
-    if nxt != 0:
-        where = "lies beyond the end of the file" if nxt >= fh.size else "is unreadable"
-        raise RecordingError(f"{path}: the directory of page {n + 1} {where}: only {n} whole "
-                             f"page(s) (truncated or corrupt file?)")
 
 
 def natural_key(name: str) -> tuple:
@@ -240,7 +103,7 @@ class FolderSource(_Source):
 
             try:  # the first image's MaxSampleValue / BitsPerSample, as for a TIFF stack
                 with tifffile.TiffFile(files[0]) as tif:
-                    self.bit_depth_stated = _tiff_bit_depth(tif.pages.first, self.dtype)
+                    self.bit_depth_stated = tiff_bit_depth(tif.pages.first, self.dtype)
             except Exception:  # read by OpenCV above; a tag tifffile cannot read states nothing
                 self.bit_depth_stated = None
 
@@ -353,140 +216,6 @@ class VideoSource(_Source):
         return frame
 
 
-class ZarrArraySource(_Source):
-    """A Zarr store with an array ``frames`` (T, H, W) uint8/uint16 (optional ``background``
-    (H, W) and ``timestamps`` (T,): each frame's time in seconds)."""
-
-    def __init__(self, group, path: Path) -> None:
-        arr = group["frames"]
-        if arr.ndim != 3:
-            raise RecordingError(f"{path}: array 'frames' must be (T, H, W), got shape "
-                                 f"{arr.shape}")
-        if np.dtype(arr.dtype) not in (np.uint8, np.uint16):
-            raise RecordingError(f"{path}: array 'frames' has dtype {arr.dtype} "
-                                 "(uint8 or uint16 wanted)")
-        self._arr = arr
-        super().__init__(str(path), arr.shape[0], arr.shape[1:], arr.dtype)
-        self.attrs = dict(group.attrs)
-        self.bit_depth_stated = _stated_bits(self.attrs.get("bit_depth"), self.dtype, str(path))
-        fps = self.attrs.get("fps")
-        self.fps = float(fps) if isinstance(fps, (int, float)) and fps > 0 else None
-        if "background" in group:
-            self.background = np.asarray(group["background"][...])
-        if "timestamps" in group:  # the camera's time of each frame (s)
-            ts = np.asarray(group["timestamps"][...], dtype=float).reshape(-1)
-            self.timestamps = ts - ts[0] if ts.size else ts
-
-    def __getitem__(self, i: int) -> np.ndarray:
-        i = self._index(i)
-        try:
-            img = np.asarray(self._arr[i])
-        except Exception as exc:
-            raise RecordingError(f"{self.name}: cannot read frame {i} ({exc})") from None
-        return self._check(img, i)
-
-    def _read_roi(self, i: int, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
-        try:
-            return np.asarray(self._arr[i, y0:y1, x0:x1])
-        except Exception as exc:
-            raise RecordingError(f"{self.name}: cannot read frame {i} ({exc})") from None
-
-
-def _stated_bits(value, dtype, name: str) -> int | None:
-    """A bit depth a store or reader states (``bit_depth``), checked against its frames' word;
-    None when it states none."""
-    from rollfric.io.bitdepth import check_bits, dtype_bits
-
-    if value is None:
-        return None
-    try:
-        bits = check_bits(value, f"{name}: its bit_depth")
-    except InputError as exc:
-        raise RecordingError(str(exc)) from None
-    if bits > dtype_bits(dtype):
-        raise RecordingError(f"{name}: its bit_depth {bits} exceeds its {dtype_bits(dtype)}-bit "
-                             "frames")
-    return bits
-
-
-def zarr_reader_entry_points() -> list:
-    """The installed ``rollfric.zarr_readers`` entry points.
-
-    Returns
-    -------
-    list of importlib.metadata.EntryPoint
-        Sorted by name.
-    """
-    eps = importlib.metadata.entry_points(group=ZARR_ENTRY_POINT_GROUP)
-    return sorted(eps, key=lambda ep: ep.name)
-
-
-def _open_zarr(path: Path):
-    import zarr
-
-    try:
-        group = zarr.open_group(str(path), mode="r")
-    except Exception as exc:
-        raise RecordingError(f"{path}: not a readable Zarr store ({exc})") from None
-    if "frames" in group:
-        return ZarrArraySource(group, path)
-    tried = []
-    for ep in zarr_reader_entry_points():
-        tried.append(ep.name)
-        try:
-            opener = ep.load()
-        except Exception as exc:
-            raise RecordingError(f"{path}: the Zarr reader '{ep.name}' ({ep.value}) cannot be "
-                                 f"loaded: {exc}") from None
-        src = opener(group)
-        if src is not None:
-            return _WrappedSource(src, f"{path} (reader {ep.name})", group)
-    raise RecordingError(
-        f"{path}: Zarr store without an array 'frames', and no '{ZARR_ENTRY_POINT_GROUP}' "
-        f"reader accepted it (tried: {', '.join(tried) or 'none installed'})")
-
-
-class _WrappedSource(_Source):
-    """A FrameSource from an entry point, with rollfric's frame checks around it."""
-
-    def __init__(self, src, name: str, group) -> None:
-        self._src = src
-        shape = tuple(int(v) for v in src.shape)
-        if len(shape) != 3 or len(src) != shape[0]:
-            raise RecordingError(f"{name}: reader gave inconsistent shape {shape} for "
-                                 f"{len(src)} frames")
-        super().__init__(name, shape[0], shape[1:], src.dtype)
-        self.fps = getattr(src, "fps", None)
-        self.concurrent_reads = getattr(src, "concurrent_reads", False) is True
-        stamps = getattr(src, "timestamps", None)
-        self.timestamps = None if stamps is None else np.asarray(stamps, dtype=float)
-        bg = getattr(src, "background", None)
-        self.background = None if bg is None else np.asarray(bg)
-        attrs = dict(group.attrs)
-        attrs.update(dict(getattr(src, "attrs", None) or {}))
-        self.attrs = attrs
-        # the reader's own statement of the camera's depth, else the store's attribute
-        stated = getattr(src, "bit_depth_stated", None)
-        if stated is None and not isinstance(getattr(type(src), "bit_depth", None), property):
-            stated = getattr(src, "bit_depth", None)
-        self.bit_depth_stated = _stated_bits(attrs.get("bit_depth") if stated is None
-                                             else stated, self.dtype, name)
-
-    def __getitem__(self, i: int) -> np.ndarray:
-        i = self._index(i)
-        return self._check(np.asarray(self._src[i]), i)
-
-    def _read_roi(self, i: int, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
-        if not callable(getattr(self._src, "read", None)):
-            return self[i][y0:y1, x0:x1]
-        img = np.asarray(self._src.read(i, (y0, y1, x0, x1)))
-        if img.shape != (y1 - y0, x1 - x0) or img.dtype != self.dtype:
-            raise RecordingError(f"{self.name}: the reader's read({i}, {(y0, y1, x0, x1)}) gave "
-                                 f"a {img.dtype} array of shape {img.shape}, not "
-                                 f"{self.dtype} {(y1 - y0, x1 - x0)}")
-        return img
-
-
 def open_recording(path: str | Path):
     """Open a recording as a FrameSource.
 
@@ -529,7 +258,7 @@ def open_recording(path: str | Path):
     if path.is_dir():
         if (path / "zarr.json").exists() or (path / ".zgroup").exists() \
                 or path.suffix.lower() == ".zarr":
-            return _open_zarr(path)
+            return open_zarr(path)
         return FolderSource(path)
     suffix = path.suffix.lower()
     if suffix in TIFF_SUFFIXES:
@@ -537,12 +266,8 @@ def open_recording(path: str | Path):
     if suffix in VIDEO_SUFFIXES:
         return VideoSource(path)
     if suffix in CINE_SUFFIXES:
-        from rollfric.io.formats.cine import CineSource
-
         return CineSource(path)
     if suffix in PHOTRON_SUFFIXES:
-        from rollfric.io.formats.photron import PhotronSource
-
         return PhotronSource(path)
     raise RecordingError(f"{path}: unknown recording format '{suffix}' (TIFF stack, folder of "
                          f"images, video {', '.join(VIDEO_SUFFIXES)}, Phantom .cine, Photron "

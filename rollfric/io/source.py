@@ -7,11 +7,14 @@ The readers themselves are in :mod:`rollfric.io.readers` (TIFF, image folders, v
 
 from __future__ import annotations
 
+import logging
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from rollfric.errors import InputError
+from rollfric.io.bitdepth import resolve_bit_depth
+from rollfric.io.limits import MAX_FRAME_PIXELS
 
 
 @runtime_checkable
@@ -167,10 +170,6 @@ class BaseSource:
         :func:`rollfric.io.bitdepth.resolve_bit_depth`, which the measurement calls with the
         setup's ``camera.bit_depth``)."""
         if self._bit_depth_data is None:
-            import logging
-
-            from rollfric.io.bitdepth import resolve_bit_depth
-
             bits, _, notes = resolve_bit_depth(self)
             for msg in notes:
                 logging.getLogger(__name__).warning(msg)
@@ -178,8 +177,6 @@ class BaseSource:
         return self._bit_depth_data
 
     def __init__(self, name: str, n: int, hw: tuple[int, int], dtype) -> None:
-        from rollfric.io.limits import MAX_FRAME_PIXELS
-
         self.name = name
         self.shape = (int(n), int(hw[0]), int(hw[1]))
         self.dtype = np.dtype(dtype)

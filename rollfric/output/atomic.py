@@ -134,12 +134,12 @@ def remove_leftovers(folder: str | Path, prefix: str = ".") -> list[Path]:
 
 
 def remove_path(path: Path) -> None:
-    """Remove a file, a link or a folder with its contents, if it is there (errors ignored).
+    """Remove a file, a link or a folder with its contents; one that is gone already, or that
+    cannot be removed, is left alone.
 
     Parameters
     ----------
     path : pathlib.Path
-        What to remove.
     """
     if path.is_dir() and not path.is_symlink():
         shutil.rmtree(path, ignore_errors=True)

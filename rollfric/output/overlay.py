@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from rollfric.errors import InputError
 from rollfric.output.atomic import replacing
 
 
@@ -74,8 +75,6 @@ def plot_overlays(source, track, path, *, frames: list[int] | None = None,
     frames = choose_frames(track) if frames is None else list(frames)
     bad = [f for f in frames if not 0 <= int(f) < len(track)]
     if bad:
-        from rollfric.errors import InputError
-
         raise InputError(f"overlay frame(s) {bad} outside the recording's 0..{len(track) - 1}")
     if not frames:
         frames = [0]

@@ -25,20 +25,22 @@ Reason codes:
   frames cover little of the outer half of the swing on one side of the bottom),
   ``camera_orientation`` (the ball's path is an ellipse that a tilted camera and an
   out-of-round bore explain alike, with mu readings apart: :mod:`rollfric.geometry.pathshape`).
-- ``uncertainty`` (``fit``, ``measure``: :func:`rollfric.uncertainty.budget.budget_reason`): the
+- ``uncertainty`` (``fit``, ``measure``: :func:`rollfric.uncertainty.report.budget_reason`): the
   budget's expanded uncertainty reaches mu.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
-from scipy import optimize, special
+from scipy import optimize
 
 from rollfric.fit import eom, filtering
 from rollfric.fit.air import coefficients_of
+from rollfric.fit.filtering import on_grid
+from rollfric.uncertainty.period import TRACK_RADIUS_TOL, period_cause, period_reason
+from rollfric.uncertainty.reasons import Reason
 
 # --- thresholds -------------------------------------------------------------------------
 # residual_noise: a model that describes the data leaves the noise: rms / noise ~ 1 (1.0-1.3
@@ -59,19 +61,10 @@ OUTLIER_FRACTION_MAX = 0.05
 # mu_bound: mu within this many standard errors of 0 is not a measured friction
 MU_SIGMAS_MIN = 2.0
 MU_UPPER_NEAR = 0.9  # of the fitter's upper bound
-# period: a correct setup reproduces the swing period to the precision of the turning points
-# (a frame in a half-period of ~0.35 s: 0.3 %, averaged over the swings); the period goes as
-# sqrt(L), so 3 % is a 6 % error in L = R - r (5 mm on the thesis trough) or in the fps
-PERIOD_TOL = 0.03
-# gravity: where labs are, g is 9.78 (equator) .. 9.83 m/s^2 (poles); a setup's g outside
-# GRAVITY_SANE is itself a suspect, and the period names it when the swings fit a local g
-GRAVITY_LOCAL = (9.78, 9.83)
-GRAVITY_SANE = (9.7, 9.9)
 # center: the ball's centres lie on a circle of radius L about the trough axis; a horizontal
 # offset of the centre used of 0.3 % of L (2 px on the thesis camera's 630 px) biased mu by
-# -0.24 % on drawn recordings (NOTES); radius 2 % (pixel size or trough radius 2 % off)
+# -0.24 % on drawn recordings (NOTES); its radius: rollfric.uncertainty.period.TRACK_RADIUS_TOL
 CENTER_TOL_REL = 0.003
-TRACK_RADIUS_TOL = 0.02
 # flagged_frames: a lab recording with more rejected frames than this has a problem
 FLAGGED_FRACTION_MAX = 0.10
 # swing_coverage: the share of the frames in the outer half of each half-swing (|theta - offset|
@@ -85,46 +78,6 @@ FLAGGED_FRACTION_MAX = 0.10
 # side (about 5x the full track's sensitivity) the measurement is suspect.
 SIDE_COVERAGE_MIN = 0.8
 SIDE_COVERAGE_FRAMES = 20  # frames in a side's outer half before its coverage is judged
-
-
-@dataclasses.dataclass(frozen=True)
-class Reason:
-    """Why a result is suspect: a short ``code`` and a sentence for the user."""
-
-    code: str
-    message: str
-    # what the reason was judged from, for a later look with more of the measurement
-    detail: dict | None = dataclasses.field(default=None, compare=False, repr=False)
-
-    def to_dict(self) -> dict:
-        """The reason as fit.json writes it.
-
-        Returns
-        -------
-        dict
-            ``{"code": code, "message": message}``.
-        """
-        return {"code": self.code, "message": self.message}
-
-
-def summary(reasons) -> dict:
-    """The fit.json keys: ``quality`` ("ok" or "suspect") and ``quality_reasons``.
-
-    Parameters
-    ----------
-    reasons : iterable of Reason
-        The quality reasons of a result; none means "ok".
-
-    Returns
-    -------
-    dict
-        ``quality``: "suspect" when there is a reason, else "ok"; ``quality_reasons``: the
-        reasons as dicts (:meth:`Reason.to_dict`).
-    """
-    reasons = list(reasons)
-    return {"quality": "suspect" if reasons else "ok",
-            "quality_reasons": [r.to_dict() for r in reasons]}
-
 
 def lag1_autocorrelation(res: np.ndarray) -> float:
     """Lag-1 autocorrelation of a series with NaN gaps (pairs across a gap are skipped).
@@ -149,139 +102,6 @@ def lag1_autocorrelation(res: np.ndarray) -> float:
     a, b = a[ok] - m, b[ok] - m
     den = math.sqrt(float(a @ a) * float(b @ b))
     return float(a @ b) / den if den > 0 else float("nan")
-
-
-def half_period_frictionless(amplitude: float, track_radius: float, gravity: float) -> float:
-    """Half-period of the ball's swing of the given amplitude without friction.
-
-    (2 / omega) K(sin^2(A / 2)), omega^2 = 5 g / (7 L), K the complete elliptic integral.
-
-    Parameters
-    ----------
-    amplitude : float
-        The swing's amplitude A (rad); its magnitude is used, capped at pi / 2.
-    track_radius : float
-        L = R - r, the radius of the path of the ball's centre (m).
-    gravity : float
-        g (m/s^2).
-
-    Returns
-    -------
-    float
-        The half-period (s).
-    """
-    w = math.sqrt(eom.omega_squared(track_radius, gravity))
-    m = math.sin(min(abs(amplitude), math.pi / 2) / 2) ** 2
-    return 2.0 / w * float(special.ellipk(m))
-
-
-def _round_rate(fps: float) -> bool:
-    """True for a frame rate a camera is set to: 24, 25, 30, 50, 60, 100, 120, 125, 250, 500,
-    1000, 2000, 4000, 5000, ... (a mantissa of 1, 1.2, 1.25, 1.5, 2, 2.4, 2.5, 3, 4, 5, 6, 7.5
-    or 8 within 0.5 %)."""
-    if not fps > 0 or not math.isfinite(fps):
-        return False
-    m = fps / 10 ** math.floor(math.log10(fps))
-    return any(abs(m / v - 1) <= 0.005 for v in (1, 1.2, 1.25, 1.5, 2, 2.4, 2.5, 3, 4, 5, 6,
-                                                   7.5, 8, 10))
-
-
-def _period_reason(tp_t, tp_y, setup, unit_fps: float, t_data=None) -> Reason | None:
-    """Compare the half-periods between turning points with L = R - r's; with ``t_data``
-    (the times of the samples) only the half-swings the samples cover without a gap of a
-    quarter of the small-angle half-period: turning points inside a gap are not seen."""
-    if len(tp_t) < 3:
-        return None
-    keep = np.ones(len(tp_t) - 1, bool)
-    if t_data is not None:
-        t_data = np.sort(np.asarray(t_data, dtype=float))
-        half = math.pi / math.sqrt(eom.omega_squared(setup.track_radius, setup.gravity))
-        big = np.nonzero(np.diff(t_data) > 0.25 * half)[0]
-        for a, b in zip(t_data[big], t_data[big + 1], strict=True):
-            keep &= ~((tp_t[1:] >= a) & (tp_t[:-1] <= b))
-        if keep.sum() < 2:
-            return None
-    amps = (0.5 * np.abs(np.diff(tp_y)))[keep]
-    measured = float(np.diff(tp_t)[keep].sum())
-    L, g = setup.track_radius, setup.gravity
-    expected = sum(half_period_frictionless(a, L, g) for a in amps)
-    rho = measured / expected
-    if abs(rho - 1) <= PERIOD_TOL:
-        return None
-    in_deg = sum(half_period_frictionless(math.radians(a), L, g) for a in amps)
-    rho_deg = measured / in_deg
-    head = (f"the swings take {1e3 * measured / len(amps):.1f} ms per half-swing, the equation "
-            f"of motion with L = R - r = {1e3 * L:.2f} mm gives "
-            f"{1e3 * expected / len(amps):.1f} ms ({100 * (rho - 1):+.1f} %)")
-    detail = {"head": head, "rho": rho, "rho_deg": rho_deg, "unit_fps": unit_fps}
-    return Reason("period", head + period_cause(rho, rho_deg, setup, unit_fps), detail)
-
-
-def period_cause(rho: float, rho_deg: float, setup, unit_fps: float,
-                 track_radius_seen: float | None = None) -> str:
-    """The cause a period off by ``rho`` (measured / expected) most likely has, as text.
-
-    The period fixes sqrt(L / g) in the frame clock's time, so one ratio cannot tell the frame
-    rate, L = R - r and gravity apart; what else is known can: angles in degrees fit the
-    swings; a setup's g outside GRAVITY_SANE whose swings fit a local g; a round frame rate
-    the swings fit; the ball's path in the image (``track_radius_seen``, m: its radius in px
-    times camera.pixel_size_mm) that agrees with the setup's L (then not the radius, but the
-    camera's clock) or with the L the swings fit (then the radius).
-
-    Parameters
-    ----------
-    rho, rho_deg : float
-        The measured over the expected half-periods, the angles read as radians and as
-        degrees.
-    setup : rollfric.setup.model.Setup
-        The setup the fit used.
-    unit_fps : float
-        The frame rate the times were made with (Hz).
-    track_radius_seen : float, optional
-        L as the image shows it (m); None when not known (a track without its pixels).
-
-    Returns
-    -------
-    str
-        "; ..." or ": ...", to follow the reason's first sentence.
-    """
-    L, g = setup.track_radius, setup.gravity
-    L_fit, g_fit, fps_fit = L * rho * rho, g / (rho * rho), unit_fps * rho
-    lo, hi = GRAVITY_LOCAL
-    if abs(rho_deg - 1) <= PERIOD_TOL / 3 < abs(rho - 1):
-        return ("; the angles look like degrees (read as degrees, the swings fit within "
-                f"{100 * abs(rho_deg - 1):.1f} %): give theta in radians")
-    g_odd = not GRAVITY_SANE[0] <= g <= GRAVITY_SANE[1]
-    tol = 2 * PERIOD_TOL  # g goes as the period squared
-    if g_odd and lo * (1 - tol) <= g_fit <= hi * (1 + tol):
-        return (f": environment.gravity_m_s2 = {g:g} m/s^2 is not the local gravity "
-                f"({lo:g}-{hi:g} m/s^2): the swings fit g = {g_fit:.3g} m/s^2")
-    gravity_too = (f"; environment.gravity_m_s2 = {g:g} m/s^2 is not a local gravity "
-                   f"({lo:g}-{hi:g}) either" if g_odd else "")
-    if _round_rate(fps_fit):
-        return (f": most likely the frame rate is wrong (the swings fit {fps_fit:.4g} Hz, "
-                f"the setup says {unit_fps:g} Hz: camera.fps); else L would have to be "
-                f"{1e3 * L_fit:.1f} mm" + gravity_too)
-    if track_radius_seen is not None and math.isfinite(track_radius_seen):
-        seen = track_radius_seen / L - 1
-        if abs(seen) <= TRACK_RADIUS_TOL < abs(rho * rho - 1) / 2:
-            return (f": the camera's frame rate or clock is off (camera.fps = {unit_fps:g} Hz;"
-                    f" the swings fit {fps_fit:.4g} Hz, a clock {100 * (rho - 1):+.1f} % off),"
-                    f" not the radius: the ball's path in the image has L = "
-                    f"{1e3 * track_radius_seen:.2f} mm as the setup says, the swings would "
-                    f"need {1e3 * L_fit:.2f} mm" + gravity_too)
-        if abs(track_radius_seen / L_fit - 1) <= TRACK_RADIUS_TOL:
-            return (f": cylinder.radius_mm or ball.diameter_mm is off: the swings fit L = "
-                    f"{1e3 * L_fit:.2f} mm and the ball's path in the image has "
-                    f"{1e3 * track_radius_seen:.2f} mm" + gravity_too)
-    if abs(rho * rho - 1) <= 0.25:
-        return (f": most likely cylinder.radius_mm or ball.diameter_mm is off (the swings fit "
-                f"L = {1e3 * L_fit:.2f} mm), else the camera's frame rate or clock "
-                f"(camera.fps: they fit {fps_fit:.4g} Hz)" + gravity_too)
-    return (f": check camera.fps (the swings fit {fps_fit:.4g} Hz), the times' unit, "
-            f"and cylinder.radius_mm / ball.diameter_mm (they fit L = {1e3 * L_fit:.1f} mm)"
-            + gravity_too)
-
 
 def period_with_image(reason: Reason, setup, track_radius_seen: float) -> Reason:
     """A ``period`` reason judged again with the ball's path in the image (see
@@ -310,11 +130,11 @@ def period_with_image(reason: Reason, setup, track_radius_seen: float) -> Reason
 def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "coulomb",
               guess: dict | None = None, mu_max: float = 1.0,
               noise_floor: float = 1e-8) -> list[Reason]:
-    """The quality reasons of a fit ``result`` (:class:`rollfric.fit.estimate.FitResult`) of
+    """The quality reasons of a fit ``result`` (:class:`rollfric.fit.result.FitResult`) of
     theta(t).
 
     ``offset``, ``model``: what was fitted (they set how many half-swings are needed).
-    ``guess``: the fitter's self-start of the data (:func:`rollfric.fit.estimate.initial_guess`: the
+    ``guess``: the fitter's self-start of the data (:func:`rollfric.fit.start.initial_guess`: the
     turning points; None skips the swing checks); ``mu_max``: the fitter's upper bound of mu;
     ``noise_floor``: the smallest noise (rad) a residual is compared with.
 
@@ -322,7 +142,7 @@ def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "co
     ----------
     t, theta : array_like
         The track: times (s) and angles (rad), NaN where the ball was not found.
-    result : rollfric.fit.estimate.FitResult
+    result : rollfric.fit.result.FitResult
         The fit of theta(t).
     setup : rollfric.setup.model.Setup
         The setup the fit used.
@@ -342,14 +162,33 @@ def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "co
     list of Reason
         The checks that failed; an empty list means the fit passed every check.
     """
-    from rollfric.fit.filtering import on_grid
-
 
     t = np.asarray(t, dtype=float)
     theta = np.asarray(theta, dtype=float)
-    reasons: list[Reason] = []
     good = np.isfinite(t) & np.isfinite(theta)
     used = result.used if result.used is not None else good & np.isfinite(result.curve)
+    reasons = _search_reasons(result, mu_max)
+    # angles beyond the trough's side
+    n_out = int(np.sum(np.abs(theta[good]) > math.pi / 2))
+    if n_out:
+        reasons.append(Reason("angle_range", f"{n_out} angle(s) beyond +-90 deg (up to "
+                              f"{math.degrees(float(np.max(np.abs(theta[good])))):.0f} deg): a "
+                              "ball in a trough stays below its axis; check the units and the "
+                              "located frames"))
+    reasons += _residual_reasons(t, theta, good, used, result, setup, noise_floor)
+    n_outliers = int(result.extra.get("n_outliers", 0) or 0)
+    n_fit = n_outliers + int(result.n_samples)
+    if n_fit and n_outliers > OUTLIER_FRACTION_MAX * n_fit:
+        reasons.append(Reason("outliers", f"{n_outliers} of {n_fit} samples lay far off the "
+                              "model and were left out of the fit"))
+    if guess is not None:
+        reasons += _swing_reasons(t[good], guess, setup, offset=offset, model=model)
+    return reasons
+
+
+def _search_reasons(result, mu_max: float) -> list[Reason]:
+    """``not_converged`` and ``mu_bound``: what the least-squares search says of mu."""
+    reasons = []
     if result.extra.get("converged") is False:
         reasons.append(Reason("not_converged", "the fit did not converge within its budget of "
                               f"{result.extra.get('nfev')} evaluations: mu is not a minimum"))
@@ -364,13 +203,13 @@ def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "co
     elif result.mu >= MU_UPPER_NEAR * mu_max:
         reasons.append(Reason("mu_bound", f"mu = {result.mu:.3g} is at the fitter's upper bound "
                               f"{mu_max:g}"))
-    # angles beyond the trough's side
-    n_out = int(np.sum(np.abs(theta[good]) > math.pi / 2))
-    if n_out:
-        reasons.append(Reason("angle_range", f"{n_out} angle(s) beyond +-90 deg (up to "
-                              f"{math.degrees(float(np.max(np.abs(theta[good])))):.0f} deg): a "
-                              "ball in a trough stays below its axis; check the units and the "
-                              "located frames"))
+    return reasons
+
+
+def _residual_reasons(t, theta, good, used, result, setup, noise_floor: float) -> list[Reason]:
+    """``residual_noise`` and ``residual_structure``: the residual of the samples ``used``
+    against the noise of the data, once the smooth map a setup error makes is taken out."""
+    reasons = []
     # the residual against the noise of the data
     fps = 1.0 / float(np.median(np.diff(t[good]))) if good.sum() > 1 else 1.0
     tg = t[good]
@@ -408,28 +247,29 @@ def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "co
                                   f" rad vs noise {noise:.2g} rad): the model does not describe "
                                   "the data (friction law, angle offset, setup, or located "
                                   "frames)"))
-    n_outliers = int(result.extra.get("n_outliers", 0) or 0)
-    n_fit = n_outliers + int(result.n_samples)
-    if n_fit and n_outliers > OUTLIER_FRACTION_MAX * n_fit:
-        reasons.append(Reason("outliers", f"{n_outliers} of {n_fit} samples lay far off the "
-                              "model and were left out of the fit"))
-    # the swings: their number and their period
-    if guess is not None:
-        t_end = guess["t_rest"] - 0.25 * guess["period"]
-        tp_t = np.asarray(guess["turning_points_s"])
-        tp_y = np.asarray(guess["turning_points_theta"])[tp_t < t_end]
-        tp_t = tp_t[tp_t < t_end]
-        need = 1 + int(offset) + int(model == "velocity")
-        if tp_t.size + 1 < need:
-            what = " and ".join(["mu"] + (["the angle offset"] if offset else [])
-                                + (["mu1"] if model == "velocity" else []))
-            reasons.append(Reason("half_swings", f"the record has {tp_t.size + 1} half-swing(s),"
-                                  f" {need} are needed to tell {what} apart (without a turning "
-                                  "point the friction shifts the swing's centre just as an "
-                                  "offset does): record longer"))
-        period = _period_reason(tp_t, tp_y, setup, setup.fps, t_data=t[good])
-        if period is not None:
-            reasons.append(period)
+    return reasons
+
+
+def _swing_reasons(t_good, guess: dict, setup, *, offset: bool, model: str) -> list[Reason]:
+    """``half_swings`` and ``period``: the swings the self-start ``guess`` found before the
+    rest, their number against the parameters fitted and their period against L = R - r;
+    ``t_good``: the times of the located samples."""
+    reasons = []
+    t_end = guess["t_rest"] - 0.25 * guess["period"]
+    tp_t = np.asarray(guess["turning_points_s"])
+    tp_y = np.asarray(guess["turning_points_theta"])[tp_t < t_end]
+    tp_t = tp_t[tp_t < t_end]
+    need = 1 + int(offset) + int(model == "velocity")
+    if tp_t.size + 1 < need:
+        what = " and ".join(["mu"] + (["the angle offset"] if offset else [])
+                            + (["mu1"] if model == "velocity" else []))
+        reasons.append(Reason("half_swings", f"the record has {tp_t.size + 1} half-swing(s),"
+                              f" {need} are needed to tell {what} apart (without a turning "
+                              "point the friction shifts the swing's centre just as an "
+                              "offset does): record longer"))
+    period = period_reason(tp_t, tp_y, setup, setup.fps, t_data=t_good)
+    if period is not None:
+        reasons.append(period)
     return reasons
 
 
@@ -559,7 +399,7 @@ def track_radius_seen(df, setup, center) -> float | None:
 def swing_coverage(found, result, setup) -> dict:
     """The located share of the outer half of the swing on either side of the bottom.
 
-    The fitted model (:func:`rollfric.fit.estimate.model_theta`, by :func:`rollfric.fit.eom.solve`)
+    The fitted model (:func:`rollfric.fit.result.model_theta`, by :func:`rollfric.fit.eom.solve`)
     from
     the fit's first sample on is cut into half-swings (the model's sign changes about its
     offset); a frame is in a half-swing's outer half when |theta - offset| is at least half
@@ -570,7 +410,7 @@ def swing_coverage(found, result, setup) -> dict:
     ----------
     found : array_like of bool
         Which frames were located and kept, one a sample of ``result.t``.
-    result : rollfric.fit.estimate.FitResult
+    result : rollfric.fit.result.FitResult
         The fit.
     setup : rollfric.setup.model.Setup
         The setup fitted with.
@@ -590,7 +430,7 @@ def swing_coverage(found, result, setup) -> dict:
     if after.sum() < 3 or np.any(np.diff(t[after]) <= 0):
         return {}
     try:
-        # rollfric.fit.estimate.model_theta less its offset (quality may not import fit)
+        # rollfric.fit.result.model_theta less its offset (quality may not import fit)
         model, _, _ = eom.solve(result.theta0 - result.offset, result.omega0, result.mu,
                                 t[after], track_radius=setup.track_radius,
                                 gravity=setup.gravity, mu1=result.mu1,
@@ -623,7 +463,7 @@ def swing_coverage_reason(found, result, setup) -> Reason | None:
     ----------
     found : array_like of bool
         Which frames were located and kept (one a sample of the fit).
-    result : rollfric.fit.estimate.FitResult
+    result : rollfric.fit.result.FitResult
         The fit.
     setup : rollfric.setup.model.Setup
         The setup fitted with.
