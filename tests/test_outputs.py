@@ -18,6 +18,7 @@ from rollfric.cli.main import main
 from rollfric.errors import InputError
 from rollfric.output import atomic
 from rollfric.output.folder import OutputError, check_file, check_folder, staged_folder
+from validation.metrics import is_metric
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -374,8 +375,8 @@ def test_validate_report_overwrite_keeps_other_files(tmp_path):
         e2e.run_case(d, report_dir=out, render_workers=1)
     r = e2e.run_case(d, report_dir=out, render_workers=1, overwrite=True)
     # every metric a case reports can be named in a sweep file
-    assert [k for k in r.metrics if not e2e.is_metric(k)] == []
-    assert [k for k in e2e.sim_only_case(d) if not e2e.is_metric(k)] == []
+    assert [k for k in r.metrics if not is_metric(k)] == []
+    assert [k for k in e2e.sim_only_case(d) if not is_metric(k)] == []
     names = sorted(p.name for p in out.iterdir())
     assert "notes.txt" in names and "recording.zarr" not in names
     assert json.loads((out / "fit.json").read_text())["mu"] == pytest.approx(r.fit.mu)

@@ -24,7 +24,6 @@ import contextlib
 import dataclasses
 import json
 import math
-import re
 import secrets
 import shutil
 import tempfile
@@ -56,59 +55,6 @@ from validation.metrics import (
 from validation.report import OUTPUTS, write_report
 
 STAGES = ("simulate", "fit_truth", "render", "measure", "metrics")
-
-# every metric a case reports (run_case; sim_only_case reports a subset): what a sweep's
-# ``metrics`` may name. A new metric is added here (tests check run_case's keys against it).
-METRICS = frozenset((
-    "case_id", "name", "mu_true", "mu_recovered", "mu_stderr", "mu_bias", "mu_bias_rel",
-    "mu_engine", "mu_engine_stderr", "mu_engine_bias_rel", "mu_pipeline_bias_rel",
-    "mu_true_within_stderr", "mu_true_within_2stderr", "mu_engine_within_stderr", "mu_z",
-    "fit_rms_residual_rad", "fit_relative_error", "fit_offset_rad", "fit_quality",
-    "fit_quality_reasons", "fit_method", "locator", "engine", "surface",
-    "residual_lag1_autocorr", "mu_stderr_ar1", "mu_true_within_stderr_ar1", "found_fraction",
-    "n_found", "center_rms_px", "center_max_px", "center_p95_px", "center_median_px",
-    "center_bias_x_px", "center_bias_y_px", "center_std_x_px", "center_std_y_px",
-    "center_within_1px", "theta_rms_rad", "theta_max_rad", "theta_bias_rad",
-    # the centre error along the line from the trough axis (radial, + outward) and across it
-    # (tangential, + towards larger theta): a rim that looks different above and below moves
-    # the centre radially, which atan2 angles ignore
-    "center_radial_bias_px", "center_radial_rms_px", "center_tangential_bias_px",
-    "center_tangential_rms_px", "renderer",
-    "model_vs_truth_rms_rad", "ball_radius_px", "amplitude0_deg", "n_frames",
-    "frame_width_px", "frame_height_px", "render_fps", "fit_truth_beside_render",
-    # mode_metrics
-    "mode", "lab_center_measured", "lab_draw", "trough_center_x_px", "trough_center_y_px",
-    "trough_center_err_x_px", "trough_center_err_y_px", "undistorted", "offset_fitted",
-    "camera_roll_deg",
-    # validation.track_level (a case measured from the exact projection, not a render)
-    "stages", "locator_sigma_px",
-    # budget_metrics
-    "u_mu", "U_mu", "z_budget", "within_u", "within_U", "u_stat", "z_stat",
-    "budget_top_source", "budget_n_sources", "u_second_order", "z_first_order",
-    "within_U_first_order", "z_linear",
-    # timing_metrics
-    "timing_jitter_us", "frames_dropped_true", "frames_dropped_found",
-    "frames_dropped_matched", "timing_irregular", "timestamps_used", "video_codec",
-    "video_quality"))
-# families of metrics named after a stage or a lab key: t_<stage>_s, asbuilt_/lab_/lab_err_<key>
-METRIC_PATTERNS = (r"t_[a-z_]+_s", r"(asbuilt|lab|lab_err)_[A-Za-z0-9_]+")
-
-
-def is_metric(name: str) -> bool:
-    """True if ``name`` is a metric a case reports (:data:`METRICS`, :data:`METRIC_PATTERNS`).
-
-    Parameters
-    ----------
-    name : str
-        A metric name, e.g. from a sweep file's ``metrics``.
-
-    Returns
-    -------
-    bool
-        Whether a case can report it.
-    """
-    return name in METRICS or any(re.fullmatch(p, name) for p in METRIC_PATTERNS)
-
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class CaseResult:

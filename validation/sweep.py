@@ -58,6 +58,7 @@ from validation.case import (
     default_case_dict,
     merge_case,
 )
+from validation.metrics import METRICS, is_metric
 
 STAGES = ("full", "sim", "track")
 DEFAULT_METRICS = ("mu_bias_rel", "mu_pipeline_bias_rel", "center_rms_px", "center_max_px")
@@ -194,7 +195,6 @@ def _sweep_head(data: dict, source: str) -> dict:
     if not isinstance(metrics, (list, tuple)) or not all(isinstance(m, str) for m in metrics):
         raise SweepError(f"{source}: sweep.metrics must be a list of metric names")
     values = read_section(SWEEP_SCHEMA, "sweep", head, source)
-    from validation.e2e import METRICS, is_metric
 
     unknown_m = [m for m in metrics if not is_metric(m)]
     if unknown_m:
