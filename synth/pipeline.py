@@ -120,7 +120,7 @@ def make_renderer(scene: SceneConfig, ball_radius: float, cylinder_radius: float
     Parameters
     ----------
     scene : SceneConfig
-        The scene (its camera's lens is applied to the renders afterwards, by synth.lens).
+        The scene (its camera's lens is applied to the renders afterwards, by synth.distortion).
     ball_radius, cylinder_radius : float
         Sizes (m).
     seed : int, optional
@@ -159,7 +159,7 @@ def crash_report() -> bool:
     (a segfault, an abort: :mod:`faulthandler`), as render processes do. A render process dies
     now and then in libc's malloc (segfaults in the kernel log: 4 on 2026-11-23, over the day's
     studies and benches: a 4-byte zero written at +8 of a freed block, which glibc trips over
-    later; the writer not found, see :mod:`synth.heapprobe`): the lost batches are rendered
+    later; the writer not found, see tools/heapprobe): the lost batches are rendered
     again, and the stacks say where the process was when glibc tripped (not who wrote).
 
     Returns
@@ -271,7 +271,7 @@ def _worker_open(store_path, defocus=None, spec=None):
     _W["write"] = chunk_writer_at(layout)
     _W["lens"] = None
     if lens is not None:
-        from synth.lens import cached_window
+        from synth.distortion import cached_window
 
         _W["lens"] = (lens, cached_window(lens, cfg.camera.width, cfg.camera.height),
                       (cfg.camera.height, cfg.camera.width))
@@ -323,7 +323,7 @@ def _worker_batch(indices, centres):
 
 def _through_lens(tiles, rendered, bg, k, lens) -> list:
     """The ideal tiles' difference from the background, bent by the lens: [(box, values)]."""
-    from synth.lens import distort_tile
+    from synth.distortion import distort_tile
 
     lens_, win, shape = lens
     x0 = min(t[0] for t in tiles)
@@ -529,7 +529,7 @@ def _render_parallel(batches, centres, workers, init, bar, *, initializer=_worke
         bar.write(f"a render process died; rendering {len(failed)} batches again (its threads' "
                   "Python stacks, if it crashed, are above on stderr; to catch a write into "
                   "freed memory where it happens, run under synth's heap probe: "
-                  "LD_PRELOAD=$(python -m synth.heapprobe))", file=sys.stderr)
+                  "LD_PRELOAD=$(python tools/heapprobe/heapprobe.py))", file=sys.stderr)
         pending = sorted(failed)
 
 
@@ -547,7 +547,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     EGL context, or spawned, as EGL contexts do not survive fork), each with ``threads``
     llvmpipe threads (default 1 when several processes run); the sensor model is stored, not
     applied: frames get their noise when read. ``timing``
-    (:class:`synth.timing.FrameTiming`): the camera's jitter and dropped frames, drawn with
+    (:class:`synth.camera_clock.FrameTiming`): the camera's jitter and dropped frames, drawn with
     ``seed``; the frames and the truth are then at the real sample times (``truth/t_s``), the
     lost camera frames are listed in the attrs (``timing``), and with ``timing.timestamps`` the
     store carries each frame's time (array ``timestamps``, s). ``schedule``: a dict to receive
@@ -566,7 +566,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     traj = load_trajectory(trajectory)
     timing_attrs = None
     if timing is not None:
-        from synth.timing import frame_times, resample
+        from synth.camera_clock import frame_times, resample
 
         times, numbers = frame_times(len(traj), traj.fps, timing, seed)
         if not timing.ideal:
@@ -653,7 +653,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
             scale = sr.scale
         bg_ideal = None
         if lens is not None:
-            from synth.lens import cached_window, distort_image
+            from synth.distortion import cached_window, distort_image
 
             bg_ideal = bg
             bg = np.rint(distort_image(bg, cached_window(lens, cam.width, cam.height)))
