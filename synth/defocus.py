@@ -39,6 +39,8 @@ import math
 
 import numpy as np
 
+from synth.backends.footprint import merge_boxes
+
 OVERSAMPLE = 16  # sub-pixel samples per axis of the disc kernel's pixel coverage
 DEFAULT_FOCAL_LENGTH = 0.05  # m: CameraModel.focal_length's default
 
@@ -156,7 +158,7 @@ def layer_coverage(renderer) -> tuple[np.ndarray, np.ndarray]:
 
     Parameters
     ----------
-    renderer : synth.scene.SceneRenderer
+    renderer : synth.backends.raster.SceneRenderer
         The scene's renderer (its ideal, lens-free camera).
 
     Returns
@@ -173,7 +175,7 @@ def layer_coverage(renderer) -> tuple[np.ndarray, np.ndarray]:
             trough = node
         else:
             node.mesh.is_visible = False
-    prims = trough.mesh.primitives  # [bore (smooth), flat parts] (synth.scene)
+    prims = trough.mesh.primitives  # [bore (smooth), flat parts] (synth.backends.raster)
     colours = ([1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0])
     for prim, c in zip(prims, colours, strict=True):
         prim.material = pr.MetallicRoughnessMaterial(baseColorFactor=c)
@@ -316,8 +318,6 @@ class Defocus:
         m = self.margin
         boxes = [(max(x - m, 0), max(y - m, 0), min(x + w + m, W), min(y + h + m, H))
                  for x, y, w, h in tiles]
-        from synth.scene import merge_boxes
-
         boxes = merge_boxes(boxes, lambda a, b, u: a[0] < b[2] and b[0] < a[2]
                             and a[1] < b[3] and b[1] < a[3])
         return [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in boxes]
@@ -336,14 +336,14 @@ class Defocus:
 
         Parameters
         ----------
-        renderer : synth.scene.SceneRenderer
+        renderer : synth.backends.raster.SceneRenderer
             The scene's renderer (renders the widened tiles with the ball).
         poses : list
             The ball's poses, one per sub-frame.
         centres : numpy.ndarray
             (K, 3) the ball's centres at the sub-frames (m).
         tiles : list
-            The sharp frame's changed tiles (:meth:`synth.scene.SceneRenderer.tiles_for`).
+            The sharp frame's changed tiles (:meth:`synth.backends.raster.SceneRenderer.tiles_for`).
         sharp_bg : numpy.ndarray
             The ball-free frame, not blurred (levels, one sub-frame).
         index : int, optional

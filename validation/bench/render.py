@@ -5,7 +5,7 @@ Compares, side by side in one run on the same scene: the plain pyrender full-fra
 "stock" way: one OffscreenRenderer.render of the whole 1280 x 1024 frame with the ball, with
 pyrender's own shaders) and synth's tile frames (static background once, then only the ball's
 and shadows' tiles, shadow maps once per frame, the shadow filter read with gathers) drawn by
-synth's lean path (:mod:`synth.leandraw`) and by pyrender's renderer functions (the path before
+synth's lean path (:mod:`synth.backends.lean`) and by pyrender's renderer functions (the path before
 it); the largest difference from stock pyrender in 8-bit DN; where a lean tile frame's time
 goes; the throughput of a whole recording with both cores; the size of the store and the cost
 of reading it.
@@ -82,7 +82,7 @@ def stock_frame_times(scene=None, repeats: int = 3) -> list[float]:
     """
     import sim
     import synth
-    from synth.scene import SceneRenderer
+    from synth.backends.raster import SceneRenderer
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     scene = scene or synth.SceneConfig()
@@ -256,8 +256,8 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     import sim
     import synth
+    from synth.backends.raster import SceneRenderer
     from synth.pipeline import BATCH, _versions
-    from synth.scene import SceneRenderer
 
     scene = scene or synth.SceneConfig()
     n_full, n_tile, n_seq = (3, 30, 300) if quick else (6, 100, 4000)

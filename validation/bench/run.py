@@ -244,7 +244,8 @@ def mitsuba_frames(frames: int = 4) -> dict:
         ``compiled`` (kernels compiled after the first frame), ``spp``, ``base_spp``.
     """
     import sim
-    from synth.pipeline import make_renderer, subframe_positions
+    from synth.backends import make_backend
+    from synth.pipeline import subframe_positions
     from validation.case import case_from_dict
 
     case = case_from_dict({"render": {"renderer": "mitsuba"},
@@ -252,8 +253,8 @@ def mitsuba_frames(frames: int = 4) -> dict:
     traj = sim.simulate(case.scenario)
     st = traj.setup()
     centres = subframe_positions(traj, case.scene.motion_blur, case.sensor.exposure)
-    sr = make_renderer(case.scene, st.ball_radius, st.cylinder_radius, 0)
-    import drjit as dr  # after the renderer chose Dr.Jit's LLVM (synth.mitsuba_scene.load)
+    sr = make_backend(case.scene, st.ball_radius, st.cylinder_radius, 0)
+    import drjit as dr  # after the renderer chose Dr.Jit's LLVM (synth.backends.pathtrace.load)
 
     sr.set_background(np.zeros((sr.camera.height, sr.camera.width), dtype=np.int64))
     cfg = sr.config
@@ -287,7 +288,7 @@ def _mitsuba_rows(quick: bool) -> list[Row]:
     if quick:
         return [Row("rendering", item, math.nan, "s/frame",
                     note="not run with --quick (~20 s; docs/how/renderers.md)")]
-    from synth.mitsuba_scene import available
+    from synth.backends.pathtrace import available
 
     why = available()
     if why is not None:

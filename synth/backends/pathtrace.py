@@ -1,6 +1,6 @@
 """The physically based backend: synth's scene path traced by Mitsuba 3 on the CPU.
 
-The same scene description as the pyrender backend (:mod:`synth.scene`), translated once:
+The same scene description as the pyrender backend (:mod:`synth.backends.raster`), translated once:
 
 - the trough: the same annular-sector mesh (smooth bore, flat end faces), a diffuse surface of
   reflectance ``trough_color``; its front end face faces the camera;
@@ -20,7 +20,7 @@ The same scene description as the pyrender backend (:mod:`synth.scene`), transla
   trough, so lamps between the camera and the scene are not seen directly (pyrender's lights
   are invisible too), though the ball reflects them.
 
-Light transport: a path tracer (:class:`synth.mitsuba_integrator.RimPath`, next-event estimation
+Light transport: a path tracer (:class:`synth.backends.rim_path.RimPath`, next-event estimation
 with multiple importance sampling, ``mitsuba_max_depth`` vertices) that leaves out light
 reaching a diffuse surface by way of the ball (the ball is black seen from the trough or the
 backdrop): those caustics of a small lamp in a polished ball are found only by chance and show
@@ -47,6 +47,8 @@ import sys
 
 import numpy as np
 
+from synth.backends.footprint import Footprint
+from synth.backends.scene_model import SceneModel
 from synth.camera import CameraModel
 from synth.config import SceneConfig, SynthError
 
@@ -185,8 +187,8 @@ def _llvm_problem(dr) -> str | None:
 
 
 def _rim_path_class():
-    """The :class:`synth.mitsuba_integrator.RimPath` class (importable once a variant is set)."""
-    from synth.mitsuba_integrator import RimPath
+    """The :class:`synth.backends.rim_path.RimPath` class (importable once a variant is set)."""
+    from synth.backends.rim_path import RimPath
 
     return RimPath
 
@@ -293,23 +295,23 @@ def to_levels(rgb: np.ndarray) -> np.ndarray:
 
 
 class MitsubaRenderer:
-    """synth's scene in Mitsuba, with the interface of :class:`synth.scene.SceneRenderer`
+    """synth's scene in Mitsuba, with the interface of :class:`synth.backends.raster.SceneRenderer`
     that the pipeline uses (scale, render_full, ball_pose, tiles_for, render_tiles, close)."""
 
     def __init__(self, config: SceneConfig, ball_radius: float, cylinder_radius: float,
                  ovality: float = 0.0, ovality_angle: float = 0.0, seed: int = 0):
         mi = load()
-        from sim.section import Section
-        from synth.scene import _trough_meshes
-
         if config.camera.lens is not None:
             raise SynthError("MitsubaRenderer renders the ideal camera (pass camera.ideal())")
+        # the shared scene (an out-of-round bore as its ellipse, sim.section)
+        model = SceneModel.of(config, ball_radius, cylinder_radius, ovality, ovality_angle)
+        self.model = model
         self.config = config
         self.camera = config.camera
-        self.ball_radius = float(ball_radius)
-        self.cylinder_radius = float(cylinder_radius)
-        # an out-of-round bore (sim.section), as the pyrender scene builds it
-        self.section = Section(self.cylinder_radius, float(ovality), float(ovality_angle))
+        self.ball_radius = model.ball_radius
+        self.cylinder_radius = model.cylinder_radius
+        self.section = model.section
+        self.footprints = PathTracedFootprint(model)
         self.seed = int(seed)
         self.scale = 3 * UNIT
         self.lamps = config.lighting.lamps
@@ -329,9 +331,7 @@ class MitsubaRenderer:
                  # seldom (its light reaches the surfaces by BSDF sampling as well)
                  "ambient": {"type": "constant", "sampling_weight": AMBIENT_WEIGHT,
                              "radiance": {"type": "rgb", "value": [light.ambient] * 3}}}
-        parts = _trough_meshes(cylinder_radius, config.trough_wall, config.trough_length,
-                               config.trough_opening, section=self.section)
-        for k, (mesh, smooth) in enumerate(parts):
+        for k, (mesh, smooth) in enumerate(model.trough()):
             m = mi.Mesh(f"trough{k}", len(mesh.vertices), len(mesh.faces),
                         has_vertex_normals=smooth)
             p = mi.traverse(m)
@@ -346,11 +346,11 @@ class MitsubaRenderer:
             m.set_bsdf(mi.load_dict({"type": "diffuse",
                                      "reflectance": {"type": "rgb", "value": [tc] * 3}}))
             scene[f"trough{k}"] = m
-        size = 4.0 * cylinder_radius + 0.4
+        size = model.backdrop_half_size
         br = light.backdrop_reflectance
         scene["backdrop"] = {
             "type": "rectangle",
-            "to_world": mi.ScalarTransform4f().translate([0.0, 0.0, -config.backdrop_distance])
+            "to_world": mi.ScalarTransform4f().translate([0.0, 0.0, model.backdrop_z])
             .scale([size, size, 1.0]),
             "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [br] * 3}}}
         a = config.lamp_radius
@@ -509,7 +509,7 @@ class MitsubaRenderer:
             win = self._window(x0, y0, w, h)
             rgb = self.render_window_rgb(centre, win, self.config.mitsuba_spp, seed)
             return rgb[y0 - win[1]:y0 - win[1] + h, x0 - win[0]:x0 - win[0] + w], None
-        from synth.mitsuba_integrator import render_pixels
+        from synth.backends.rim_path import render_pixels
 
         mi = load()
         self.set_ball(centre)
@@ -654,29 +654,45 @@ class MitsubaRenderer:
     # -- footprint ---------------------------------------------------------------------------
 
     def tiles_for(self, centres: np.ndarray) -> list:
-        """Tiles (x0, y0, w, h) holding every pixel the ball changes: its silhouette and its
-        shadows (pyrender's footprint, :meth:`synth.scene.SceneRenderer.tiles_for`, widened by
-        the lamps' penumbra) and its ambient occlusion on the surfaces just around it."""
-        from synth.scene import SceneRenderer
+        """Tiles (x0, y0, w, h) holding every pixel the ball changes
+        (:class:`PathTracedFootprint`)."""
+        return self.footprints.tiles_for(centres)
 
-        return SceneRenderer.tiles_for(self, centres)
+    def tiles_for_many(self, frames) -> list:
+        """:meth:`tiles_for` of each frame's centres (K, 3), in order."""
+        return [self.footprints.tiles_for(c) for c in frames]
+
+    def ball_box(self, centres: np.ndarray, margin_px: float | None = None):
+        """The ball's box (:meth:`PathTracedFootprint.ball_box`)."""
+        return self.footprints.ball_box(centres, margin_px)
+
+    def shadow_boxes(self, centres: np.ndarray, margin_px: float = 1.5) -> list:
+        """The shadows' boxes (:meth:`PathTracedFootprint.shadow_boxes`)."""
+        return self.footprints.shadow_boxes(centres, margin_px)
+
+    def close(self) -> None:
+        """Drop the Mitsuba scenes."""
+        self._static = self._with_ball = self._params = None
+
+
+
+class PathTracedFootprint(Footprint):
+    """The pixels the ball changes in a path-traced frame: the rasterised scene's footprint
+    (:class:`synth.backends.footprint.Footprint`) widened by the lamps' penumbra and by the
+    ball's occlusion of ambient light on the surfaces just around it."""
 
     def ball_box(self, centres: np.ndarray, margin_px: float | None = None):
         """Pixel box (x0, y0, x1, y1) of the ball's silhouettes at ``centres`` (K, 3) with a
         margin of ``mitsuba_margin`` ball radii (the ball's occlusion of ambient light and
         the penumbra of its shadows on nearby surfaces)."""
-        from synth.scene import SceneRenderer
-
         uv, rad = self.camera.sphere_silhouette(centres, self.ball_radius)
         m = self.config.mitsuba_margin * float(rad.max()) + 1.5
-        return SceneRenderer.ball_box(self, centres, m if margin_px is None else margin_px)
+        return super().ball_box(centres, m if margin_px is None else margin_px)
 
     def shadow_boxes(self, centres: np.ndarray, margin_px: float = 1.5) -> list:
-        """Pyrender's shadow boxes widened by the lamps' penumbra: a s / (D - r) over the
+        """The rasterised shadow boxes widened by the lamps' penumbra: a s / (D - r) over the
         cosine of the incidence on the backdrop (lamp radius a, lamp to ball D, ball to the
         surface behind it s, at most to the backdrop along the lamp's ray), in px."""
-        from synth.scene import SceneRenderer
-
         cam = self.camera
         a, r = self.config.lamp_radius, self.ball_radius
         C = np.atleast_2d(np.asarray(centres, float))
@@ -688,16 +704,7 @@ class MitsubaRenderer:
             cos_inc = np.clip(np.abs(d[:, 2]) / D, 0.3, 1.0)  # the backdrop's normal is z
             s = (C[:, 2] - zb) / cos_inc + r  # the bore's hits are nearer than the backdrop
             pen = max(pen, float((a * s / (D - r) / cos_inc).max()) / cam.pixel_size)
-        return SceneRenderer.shadow_boxes(self, centres, margin_px + pen)
-
-    def _behind_trough(self, points: np.ndarray) -> np.ndarray:
-        from synth.scene import SceneRenderer
-
-        return SceneRenderer._behind_trough(self, points)
-
-    def close(self) -> None:
-        """Drop the Mitsuba scenes."""
-        self._static = self._with_ball = self._params = None
+        return super().shadow_boxes(centres, margin_px + pen)
 
 
 def set_threads(n: int) -> None:

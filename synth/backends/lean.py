@@ -7,7 +7,8 @@ Python a tile frame against ~9 ms of drawing (llvmpipe, one thread; cProfile wit
 Everything but the ball's pose is the same in every frame of a recording, so here:
 
 - pyrender itself draws the first tile frame (it compiles the programs, uploads the meshes,
-  renders and caches the trough's shadow maps: :meth:`synth.scene.SceneRenderer.render_tiles`);
+  renders and caches the trough's shadow maps:
+  :meth:`synth.backends.raster.SceneRenderer.render_tiles`);
 - the camera's and lamps' uniforms are then set once per program by pyrender's own functions
   (the same values: a GL program keeps its uniforms), again whenever pyrender drew in between
   (a full-frame render sets other projections) or the lamps' shadow cameras change;
@@ -19,14 +20,14 @@ Everything but the ball's pose is the same in every frame of a recording, so her
 - each frame then makes only the calls that draw: per lamp, the ball's depth into the
   scissored box of its shadow map over the cached trough; per tile, the static layer's samples
   copied in (a multisample blit), the static surfaces drawn again only in the boxes of the
-  ball's shadows (:meth:`synth.scene.SceneRenderer.shadow_boxes`: outside them the ball
+  ball's shadows (:meth:`synth.backends.raster.SceneRenderer.shadow_boxes`: outside them the ball
   changes no shadow lookup; once in their union, :func:`disjoint_boxes`) and the ball in its
   own box, with the model matrix and material
   uniforms at locations looked up once, in the GL state pyrender's draw sets; the tile
   resolved and read.
 
 The same programs (but for the ball's, whose fragment shader holds the lamps' and camera's
-uniform values as constants: :func:`synth.shaders.specialised_mesh_shader`, 0 DN), buffers,
+uniform values as constants: :func:`synth.backends.shaders.specialised_mesh_shader`, 0 DN), buffers,
 uniform values and GL state as pyrender's path; the static
 surfaces are drawn before the ball instead of in pyrender's order by distance, which changes
 nothing with the depth test and opaque surfaces (no two of them at the same depth), so the
@@ -53,7 +54,7 @@ def unsupported(sr) -> str | None:
 
     Parameters
     ----------
-    sr : synth.scene.SceneRenderer
+    sr : synth.backends.raster.SceneRenderer
         The renderer.
 
     Returns
@@ -222,7 +223,7 @@ class LeanDraw:
 
     Parameters
     ----------
-    sr : synth.scene.SceneRenderer
+    sr : synth.backends.raster.SceneRenderer
         The renderer; its scene must be drawable (:func:`unsupported` is None) and pyrender
         must have drawn one tile frame with it (programs, buffers and shadow cache exist).
     """
@@ -248,8 +249,8 @@ class LeanDraw:
         # "mesh" or "sphere" (SceneConfig.ball_model); set it and ``ready = False`` to switch
         self.ball_model = sr.config.ball_model
         # the ball's mesh drawn by a fragment shader with the lamps' and camera's uniforms held
-        # as constants (synth.shaders.specialised_mesh_shader); set it and ``ready = False``
-        # to switch
+        # as constants (synth.backends.shaders.specialised_mesh_shader); set it and
+        # ``ready = False`` to switch
         self.specialise = True
         # the static surfaces drawn again once in the union of the shadows' boxes (cut into
         # boxes that do not overlap: disjoint_boxes) rather than once per box, twice where two
@@ -319,11 +320,11 @@ class LeanDraw:
     def _sphere_draw(self, mesh_draw) -> dict:
         """The ball drawn as an exact sphere (``SceneConfig.ball_model = "sphere"``): one
         triangle over the viewport, scissored to the ball's box, whose fragment shader
-        (:func:`synth.shaders.sphere_shader`) intersects each pixel's ray with the sphere and
-        shades the hit with the mesh shader's own code; the ball mesh's material."""
+        (:func:`synth.backends.shaders.sphere_shader`) intersects each pixel's ray with the
+        sphere and shades the hit with the mesh shader's own code; the ball mesh's material."""
         from OpenGL import GL
 
-        from synth.shaders import SPHERE_FRAG, SPHERE_VERT, light_counts, program_cache
+        from synth.backends.shaders import SPHERE_FRAG, SPHERE_VERT, light_counts, program_cache
 
         sr = self.sr
         pr = sr._pyrender
@@ -514,7 +515,7 @@ class LeanDraw:
 
         from OpenGL import GL
 
-        from synth.shaders import (
+        from synth.backends.shaders import (
             light_counts,
             program_cache,
             shader_dir,
@@ -590,7 +591,7 @@ class LeanDraw:
 
     def render(self, poses, tiles, timings: dict | None = None) -> list[np.ndarray]:
         """Tiles [(x0, y0, w, h), ...] of the frame with the ball at each of ``poses``, summed
-        over the poses (as :meth:`synth.scene.SceneRenderer.render_tiles`).
+        over the poses (as :meth:`synth.backends.raster.SceneRenderer.render_tiles`).
 
         ``timings`` (the benchmark's): a dict to which the wall seconds of each stage are
         added ("set-up", "shadow maps", "static layer", "draw: shadowed surfaces",
@@ -682,7 +683,7 @@ class LeanDraw:
 
     def _footprint(self, poses) -> tuple:
         """The ball's box and the shadows' boxes (x0, y0, x1, y1) over all ``poses``: those
-        :meth:`synth.scene.SceneRenderer.tiles_for` found for the same centres, or found
+        :meth:`synth.backends.raster.SceneRenderer.tiles_for` found for the same centres, or found
         again."""
         sr = self.sr
         centres = np.array([np.asarray(p, float)[:3, 3] for p in poses])

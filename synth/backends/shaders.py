@@ -77,7 +77,8 @@ def fixed_light_loops(text: str, n_directional: int, n_spot: int, n_point: int) 
     for kind, head in _LOOPS.items():
         if text.count(head) != 1:
             raise RuntimeError(f"pyrender's mesh.frag has no single {kind}-light loop as "
-                               "expected: this pyrender version is not supported by synth.shaders")
+                               "expected: this pyrender version is not supported by "
+                               "synth.backends.shaders")
         n = int(counts[kind])
         if n < 0:
             raise ValueError(f"n_{kind} must be >= 0, got {n}")
@@ -95,13 +96,13 @@ def gather_mesh_shader(text: str) -> str:
     end = text.find(_NEXT, start)
     if start < 0 or end < 0 or not text.startswith(_VERSION):
         raise RuntimeError("pyrender's mesh.frag has no PCF function as expected: this pyrender "
-                           "version is not supported by synth.shaders")
+                           "version is not supported by synth.backends.shaders")
     body = text[start:end]
     # the function being replaced: 3 x 3 calls of the 2 x 2 bilinear compare
     for piece in ("x=-1; x<=1", "y=-1; y<=1", "texture2DShadowLerp", "result/9.0"):
         if piece not in body:
-            raise RuntimeError(f"pyrender's PCF differs from the one synth.shaders replaces "
-                               f"(no {piece!r})")
+            raise RuntimeError("pyrender's PCF differs from the one synth.backends.shaders "
+                               f"replaces (no {piece!r})")
     text = text[:start] + _GATHER_PCF + text[end:]
     # textureGather is core in GLSL 4.00; 3.30 needs the extension (llvmpipe has both)
     return text.replace(_VERSION, _VERSION + "\n#extension GL_ARB_texture_gather : require", 1)
@@ -276,7 +277,7 @@ def specialised_mesh_shader(text: str, values: dict, n_spot: int) -> str:
         nonlocal text
         if count is not None and text.count(old) != count or old not in text:
             raise RuntimeError(f"mesh.frag has no {old!r} as expected: this pyrender version is "
-                               "not supported by synth.shaders.specialised_mesh_shader")
+                               "not supported by synth.backends.shaders.specialised_mesh_shader")
         text = text.replace(old, new)
 
     consts = []
