@@ -43,7 +43,7 @@ RUN_DEPENDENT_META = ("wall_time_s",)
 
 __all__ = ["BATCH", "MAX_POOL_RESTARTS", "check_output", "is_recording", "load_trajectory",
            "prepare_render", "render", "render_workers", "sensor_noise",
-           "start_fork_server", "subframe_positions", "truth_table"]
+           "start_fork_server", "subframe_positions", "truth_table", "versions"]
 
 
 # -- trajectories ------------------------------------------------------------------------------
@@ -111,7 +111,14 @@ def truth_table(traj, camera: CameraModel, ball_radius: float) -> dict:
     }
 
 
-def _versions() -> dict:
+def versions() -> dict:
+    """The installed versions of what a recording depends on (a recording's ``versions``).
+
+    Returns
+    -------
+    dict
+        Distribution name -> version, for those installed.
+    """
     out = {}
     for dist in ("rollfric", "pyrender-maintained", "pyrender2", "pyrender", "numpy", "zarr",
                  "PyOpenGL", "trimesh", "mitsuba", "drjit"):
@@ -422,7 +429,7 @@ def _attrs(plan: _Plan, sensor: SensorConfig, scale: int, timing_attrs) -> dict:
         "seed": plan.seed,
         "scenario": _scenario_dict(traj),
         "engine_meta": _jsonable(_engine_meta(traj)),
-        "versions": _versions(),
+        "versions": versions(),
         "fps": float(plan.setup.fps),
         "n_frames": len(traj),
         "subframes": int(k_sub),

@@ -14,7 +14,7 @@ from synth.camera import CameraModel
 from synth.config import SceneConfig
 
 ms = pytest.importorskip("synth.backends.pathtrace")
-_WHY = ms.available()
+_WHY = pytest.importorskip("synth.backends.mitsuba_runtime").available()
 pytestmark = pytest.mark.skipif(_WHY is not None, reason=str(_WHY))
 
 R_CYL = 0.0853

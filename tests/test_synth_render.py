@@ -382,7 +382,7 @@ def test_lean_shadowed_surfaces_leave_out_what_the_ball_cannot_shadow():
 
 def test_disjoint_boxes_cover_the_union_once():
     """disjoint_boxes: the same pixels as the boxes' union, none in two boxes."""
-    from synth.backends.lean import disjoint_boxes
+    from synth.backends.footprint import disjoint_boxes
 
     rng = np.random.default_rng(3)
     cases = [[(0, 0, 10, 10), (5, 5, 15, 15)], [(0, 0, 10, 10), (2, 2, 4, 4)],
@@ -490,7 +490,7 @@ def test_lean_triangle_runs_equal_the_reference(projection):
     """LeanDraw._runs gives the runs of the reference (column tests, NumPy's cuts) for the
     shadows' boxes and random boxes, with and without the ball's reach; a draw of a few
     triangles (the backdrop's two) is drawn whole."""
-    from synth.backends.lean import RUN_GAP
+    from synth.backends.triangles import RUN_GAP
 
     cam = CameraModel(width=256, height=192, projection=projection, working_distance=0.6,
                       center_px=(128.0, -470.0))

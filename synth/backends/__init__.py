@@ -4,7 +4,8 @@
   after its first frame by synth's lean GL path (:mod:`synth.backends.lean`, with the shaders of
   :mod:`synth.backends.shaders`);
 - ``mitsuba`` (:mod:`synth.backends.pathtrace`): path traced by Mitsuba 3 on the CPU (the
-  integrator :mod:`synth.backends.rim_path`).
+  integrator :mod:`synth.backends.rim_path`; Mitsuba's import and variant:
+  :mod:`synth.backends.mitsuba_runtime`).
 
 Both build the same scene (:mod:`synth.backends.scene_model`) and render, per frame, only the
 pixels the ball and its shadows can change (:mod:`synth.backends.footprint`). Importing this
@@ -18,7 +19,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from synth.backends import pathtrace, raster
+from synth.backends import mitsuba_runtime, pathtrace, raster
 from synth.config import SceneConfig
 
 
@@ -81,7 +82,7 @@ def make_backend(scene: SceneConfig, ball_radius: float, cylinder_radius: float,
     ideal = scene.replace(camera=scene.camera.ideal())
     if scene.renderer == "mitsuba":
         if threads:
-            pathtrace.set_threads(threads)
+            mitsuba_runtime.set_threads(threads)
         return pathtrace.MitsubaRenderer(ideal, ball_radius, cylinder_radius, *oval, seed=seed)
     if threads:
         os.environ["LP_NUM_THREADS"] = str(threads)  # read when llvmpipe starts

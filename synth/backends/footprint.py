@@ -304,3 +304,45 @@ def merge_boxes(boxes: list, joinable) -> list:
             if merged:
                 break
     return boxes
+
+
+def meet(tile, box):
+    """The part (x0, y0, w, h) of ``tile`` (x0, y0, w, h) inside ``box`` (x0, y0, x1, y1),
+    or None."""
+    x0, y0 = max(tile[0], box[0]), max(tile[1], box[1])
+    x1, y1 = min(tile[0] + tile[2], box[2]), min(tile[1] + tile[3], box[3])
+    return (x0, y0, x1 - x0, y1 - y0) if x1 > x0 and y1 > y0 else None
+
+
+def disjoint_boxes(boxes) -> list:
+    """Boxes covering the union of ``boxes`` with no two overlapping: each box less the
+    ones before it, cut into at most four boxes each time.
+
+    Parameters
+    ----------
+    boxes : list of tuple
+        Boxes (x0, y0, x1, y1), px (x1, y1 exclusive).
+
+    Returns
+    -------
+    list of tuple
+        Boxes (x0, y0, x1, y1) whose union is that of ``boxes``, pairwise without a common
+        pixel; ``boxes`` themselves when none overlap.
+    """
+    out: list = []
+    for box in boxes:
+        parts = [tuple(box)]
+        for other in out:
+            parts = [q for p in parts for q in _less(p, other)]
+        out += parts
+    return out
+
+
+def _less(a, b) -> list:
+    """Box ``a`` less box ``b`` (both (x0, y0, x1, y1)) as at most four boxes."""
+    x0, y0, x1, y1 = max(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), min(a[3], b[3])
+    if x0 >= x1 or y0 >= y1:
+        return [a]
+    parts = [(a[0], a[1], a[2], y0), (a[0], y1, a[2], a[3]),  # below and above b
+             (a[0], y0, x0, y1), (x1, y0, a[2], y1)]  # left and right of b, beside it
+    return [p for p in parts if p[2] > p[0] and p[3] > p[1]]

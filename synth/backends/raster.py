@@ -25,7 +25,7 @@ import numpy as np
 
 from synth import pyrender_adapter
 from synth.backends.footprint import SHADOW_TEX_SZ, Footprint
-from synth.backends.lean import read_region
+from synth.backends.gl_calls import read_region
 from synth.backends.scene_model import SceneModel, look_at, view_sphere
 from synth.camera import CameraModel
 from synth.config import SceneConfig
@@ -37,8 +37,6 @@ class SceneRenderer:
 
     def __init__(self, config: SceneConfig, ball_radius: float, cylinder_radius: float,
                  ovality: float = 0.0, ovality_angle: float = 0.0):
-        import trimesh
-
         pyrender = pyrender_adapter.load()  # headless EGL unless PYOPENGL_PLATFORM says else
 
         # the shared scene (an out-of-round bore as its as-built ellipse, sim.section)
@@ -56,34 +54,8 @@ class SceneRenderer:
         light = config.lighting
         scene = pyrender.Scene(bg_color=[0.0, 0.0, 0.0, 1.0],
                                ambient_light=[light.ambient] * 3)
-        # trough
-        tc = config.trough_color
-        trough_mat = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=[tc, tc, tc, 1.0], metallicFactor=config.trough_metallic,
-            roughnessFactor=config.trough_roughness)
-        prims = []
-        parts = model.trough()
-        # two primitives (smooth bore, flat faces): each primitive costs a draw call with
-        # all its uniforms in every pass
-        flat = trimesh.util.concatenate([m for m, smooth in parts if not smooth])
-        for mesh, smooth in [*[(m, True) for m, sm in parts if sm], (flat, False)]:
-            prims += pyrender.Mesh.from_trimesh(mesh, material=trough_mat,
-                                                smooth=smooth).primitives
-        scene.add(pyrender.Mesh(primitives=prims), name="trough")
-        # paper backdrop
-        size = model.backdrop_half_size
-        zb = model.backdrop_z
-        quad = trimesh.Trimesh(
-            np.array([[-size, -size, zb], [size, -size, zb], [size, size, zb],
-                      [-size, size, zb]]), np.array([[0, 1, 2], [0, 2, 3]]), process=False)
-        br = light.backdrop_reflectance
-        # a backlight panel glows on its own (an emissive factor only then: the lit scenes'
-        # material and shader stay as they were)
-        bl = light.backlight
-        paper = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=[br, br, br, 1.0], metallicFactor=0.0, roughnessFactor=1.0,
-            **({"emissiveFactor": [bl, bl, bl]} if bl > 0 else {}))
-        self._backdrop_mesh = pyrender.Mesh.from_trimesh(quad, material=paper, smooth=False)
+        scene.add(_trough_mesh(pyrender, model), name="trough")
+        self._backdrop_mesh = _backdrop_mesh(pyrender, model)
         scene.add(self._backdrop_mesh, name="backdrop")
         # lamps
         self.lamps = light.lamps
@@ -93,22 +65,7 @@ class SceneRenderer:
                                     outerConeAngle=lamp.outer_cone)
             scene.add(sl, pose=look_at(lamp.position, lamp.target), name=f"lamp{i}")
         # ball (added/removed per render)
-        cam = self.camera
-        if cam.projection == "orthographic":
-            sil = math.pi / 2
-        else:
-            # the ball stays near the ball plane: its distance to the pinhole barely changes
-            sil = math.acos(self.ball_radius / cam.working_distance)
-        sphere = view_sphere(self.ball_radius, sil, n_silhouette=config.ball_silhouette_segments)
-        # the polar angles of the mesh's last ring before the silhouette and of the silhouette
-        # (view_sphere's 16 front rings): the sphere impostor continues the mesh's outermost
-        # band past the silhouette as the mesh's triangles do
-        self.ball_rings = (sil * 15 / 16, sil)
-        bc = config.ball_color
-        steel = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=[bc, bc, bc, 1.0], metallicFactor=config.ball_metallic,
-            roughnessFactor=config.ball_roughness)
-        self._ball_mesh = pyrender.Mesh.from_trimesh(sphere, material=steel, smooth=True)
+        self._ball_mesh, self.ball_rings = _ball_mesh(pyrender, model)
         self._ball_node = None
         self._bounds_memo = None  # (bounds, [(mesh node, world corners or None: the ball)])
         # camera whose projection we set per tile
@@ -554,6 +511,63 @@ class SceneRenderer:
     def set_background(self, levels) -> None:
         """Nothing: a rasterised tile is drawn whole (the Mitsuba backend takes the pixels the
         ball leaves unchanged from the ball-free frame)."""
+
+
+def _trough_mesh(pyrender, model: SceneModel):
+    """The trough (:meth:`SceneModel.trough`) as a pyrender mesh of two primitives (smooth
+    bore, flat faces): each primitive costs a draw call with all its uniforms in every pass."""
+    import trimesh
+
+    config = model.config
+    tc = config.trough_color
+    trough_mat = pyrender.MetallicRoughnessMaterial(
+        baseColorFactor=[tc, tc, tc, 1.0], metallicFactor=config.trough_metallic,
+        roughnessFactor=config.trough_roughness)
+    prims = []
+    parts = model.trough()
+    flat = trimesh.util.concatenate([m for m, smooth in parts if not smooth])
+    for mesh, smooth in [*[(m, True) for m, sm in parts if sm], (flat, False)]:
+        prims += pyrender.Mesh.from_trimesh(mesh, material=trough_mat,
+                                            smooth=smooth).primitives
+    return pyrender.Mesh(primitives=prims)
+
+
+def _backdrop_mesh(pyrender, model: SceneModel):
+    """The paper backdrop as a pyrender mesh (a square; a backlight panel glows on its own:
+    an emissive factor only then, so the lit scenes' material and shader stay as they were)."""
+    import trimesh
+
+    size = model.backdrop_half_size
+    zb = model.backdrop_z
+    quad = trimesh.Trimesh(
+        np.array([[-size, -size, zb], [size, -size, zb], [size, size, zb],
+                  [-size, size, zb]]), np.array([[0, 1, 2], [0, 2, 3]]), process=False)
+    light = model.config.lighting
+    br = light.backdrop_reflectance
+    bl = light.backlight
+    paper = pyrender.MetallicRoughnessMaterial(
+        baseColorFactor=[br, br, br, 1.0], metallicFactor=0.0, roughnessFactor=1.0,
+        **({"emissiveFactor": [bl, bl, bl]} if bl > 0 else {}))
+    return pyrender.Mesh.from_trimesh(quad, material=paper, smooth=False)
+
+
+def _ball_mesh(pyrender, model: SceneModel):
+    """(the steel ball as a pyrender mesh (:func:`view_sphere`, its silhouette ring where the
+    camera sees the sphere's edge), the polar angles of the mesh's last ring before the
+    silhouette and of the silhouette (view_sphere's 16 front rings): the sphere impostor
+    continues the mesh's outermost band past the silhouette as the mesh's triangles do)."""
+    config, cam, r = model.config, model.camera, model.ball_radius
+    if cam.projection == "orthographic":
+        sil = math.pi / 2
+    else:
+        # the ball stays near the ball plane: its distance to the pinhole barely changes
+        sil = math.acos(r / cam.working_distance)
+    sphere = view_sphere(r, sil, n_silhouette=config.ball_silhouette_segments)
+    bc = config.ball_color
+    steel = pyrender.MetallicRoughnessMaterial(
+        baseColorFactor=[bc, bc, bc, 1.0], metallicFactor=config.ball_metallic,
+        roughnessFactor=config.ball_roughness)
+    return pyrender.Mesh.from_trimesh(sphere, material=steel, smooth=True), (sil * 15 / 16, sil)
 
 
 def _cache_light_matrices(inner) -> None:

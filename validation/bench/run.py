@@ -254,7 +254,7 @@ def mitsuba_frames(frames: int = 4) -> dict:
     st = traj.setup()
     centres = subframe_positions(traj, case.scene.motion_blur, case.sensor.exposure)
     sr = make_backend(case.scene, st.ball_radius, st.cylinder_radius, 0)
-    import drjit as dr  # after the renderer chose Dr.Jit's LLVM (synth.backends.pathtrace.load)
+    import drjit as dr  # after the renderer chose Dr.Jit's LLVM (mitsuba_runtime.load)
 
     sr.set_background(np.zeros((sr.camera.height, sr.camera.width), dtype=np.int64))
     cfg = sr.config
@@ -288,7 +288,7 @@ def _mitsuba_rows(quick: bool) -> list[Row]:
     if quick:
         return [Row("rendering", item, math.nan, "s/frame",
                     note="not run with --quick (~20 s; docs/how/renderers.md)")]
-    from synth.backends.pathtrace import available
+    from synth.backends.mitsuba_runtime import available
 
     why = available()
     if why is not None:
