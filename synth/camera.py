@@ -53,6 +53,7 @@ import math
 import numpy as np
 
 from rollfric.errors import InputError
+from synth.distortion import Lens, cached_window, lens_of
 
 
 @dataclasses.dataclass(frozen=True)
@@ -120,8 +121,6 @@ class CameraModel:
         object.__setattr__(self, "lens_distortion", d)
         self._check_thin_lens()
         if self.lens_matrix is not None:
-            from synth.distortion import Lens
-
             object.__setattr__(self, "lens_matrix", Lens(self.lens_matrix, d).matrix)
 
     def _check_thin_lens(self) -> None:
@@ -154,8 +153,6 @@ class CameraModel:
     @property
     def lens(self):
         """The :class:`synth.distortion.Lens` (None without distortion)."""
-        from synth.distortion import lens_of
-
         return lens_of(self)
 
     def recorded(self, uv) -> np.ndarray:
@@ -170,8 +167,6 @@ class CameraModel:
         lens = self.lens
         if lens is None:
             return self
-        from synth.distortion import cached_window
-
         win = cached_window(lens, self.width, self.height)
         pp = None if self.principal_px is None else tuple(win.to_render(self.principal_px))
         return dataclasses.replace(

@@ -44,6 +44,15 @@ import numpy as np
 
 from synth import pyrender_adapter as pa
 from synth.backends import footprint, gl_calls, triangles
+from synth.backends.shaders import (
+    SPHERE_FRAG,
+    SPHERE_VERT,
+    light_counts,
+    program_cache,
+    shader_dir,
+    specialised_mesh_shader,
+    specialised_values_names,
+)
 
 STATIC_BLOCK = 32  # px: the static layer is drawn where tiles first need it, in such blocks
 
@@ -184,8 +193,6 @@ class LeanDraw:
         sphere and shades the hit with the mesh shader's own code; the ball mesh's material."""
         from OpenGL import GL
 
-        from synth.backends.shaders import SPHERE_FRAG, SPHERE_VERT, light_counts, program_cache
-
         sr = self.sr
         pr = sr._pyrender
         prim = self.ball.mesh.primitives[0]
@@ -311,14 +318,6 @@ class LeanDraw:
         import hashlib
 
         from OpenGL import GL
-
-        from synth.backends.shaders import (
-            light_counts,
-            program_cache,
-            shader_dir,
-            specialised_mesh_shader,
-            specialised_values_names,
-        )
 
         sr, inner = self.sr, self.inner
         counts = light_counts(sr.scene)

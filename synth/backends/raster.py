@@ -26,7 +26,9 @@ import numpy as np
 from synth import pyrender_adapter
 from synth.backends.footprint import SHADOW_TEX_SZ, Footprint
 from synth.backends.gl_calls import read_region
+from synth.backends.lean import LeanDraw, unsupported
 from synth.backends.scene_model import SceneModel, look_at, view_sphere
+from synth.backends.shaders import light_counts, program_cache
 from synth.camera import CameraModel
 from synth.config import SceneConfig
 
@@ -102,8 +104,6 @@ class SceneRenderer:
         """The offscreen renderer at w x h output pixels, compiling pyrender's own shaders
         (``stock_shaders``) or synth's (synth.backends.shaders: built for the scene's light
         counts, so a scene whose lights change gets programs for its new counts)."""
-        from synth.backends.shaders import light_counts, program_cache
-
         vw, vh = w * self.ss, h * self.ss
         if self._offscreen is None:
             self._offscreen = self._pyrender.OffscreenRenderer(vw, vh)
@@ -241,8 +241,6 @@ class SceneRenderer:
             return self._lean.render(poses, tiles, timings)
         out = self._render_tiles_pyrender(poses, tiles)
         if draw == "lean":
-            from synth.backends.lean import LeanDraw, unsupported
-
             if unsupported(self) is None:
                 pyrender_adapter.make_current(self._offscreen)
                 try:

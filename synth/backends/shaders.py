@@ -35,6 +35,8 @@ from multiprocessing.util import Finalize
 
 import numpy as np
 
+from synth.pyrender_adapter import load
+
 # pyrender's function, replaced from this line up to the next function
 _PCF_HEAD = "float PCF(sampler2D depths, vec2 size, vec2 uv, float compare){"
 _NEXT = "float shadow_calc("
@@ -113,8 +115,6 @@ def shader_dir(n_directional: int, n_spot: int, n_point: int) -> str:
     """A directory holding pyrender's shaders with ``mesh.frag`` patched for a scene with these
     numbers of lights (one per process and light counts, removed at exit, also by a forked
     render process)."""
-    from synth.pyrender_adapter import load
-
     src = os.path.join(os.path.dirname(load().__file__), "shaders")
     with open(os.path.join(src, "mesh.frag")) as f:
         text = fixed_light_loops(gather_mesh_shader(f.read()), n_directional, n_spot, n_point)
@@ -238,8 +238,6 @@ def light_counts(scene) -> tuple[int, int, int]:
 def program_cache(counts: tuple[int, int, int]):
     """A pyrender ShaderProgramCache compiling the patched shaders for a scene with ``counts``
     (directional, spot, point) lights."""
-    from synth.pyrender_adapter import load
-
     return load().shader_program.ShaderProgramCache(shader_dir=shader_dir(*counts))
 
 
