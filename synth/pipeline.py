@@ -12,7 +12,6 @@ import concurrent.futures as cf
 import dataclasses
 import functools
 import json
-import math
 import os
 import time
 from importlib.metadata import PackageNotFoundError, version
@@ -29,10 +28,10 @@ from rollfric.setup.model import Setup
 from synth import pool, worker
 from synth.backends import make_backend
 from synth.camera import CameraModel
-from synth.camera_clock import frame_times, resample
 from synth.config import SceneConfig, SensorConfig, SynthError
 from synth.defocus import Defocus, layer_coverage
 from synth.distortion import cached_window, distort_image
+from synth.motion import camera_frames, load_trajectory, subframe_positions, truth_table
 from synth.pool import BATCH, MAX_POOL_RESTARTS, start_fork_server
 from synth.store import CHUNK, FORMAT, TRUTH_COLUMNS, writer_layout
 
@@ -46,70 +45,7 @@ __all__ = ["BATCH", "MAX_POOL_RESTARTS", "check_output", "is_recording", "load_t
            "start_fork_server", "subframe_positions", "truth_table", "versions"]
 
 
-# -- trajectories ------------------------------------------------------------------------------
-
-def load_trajectory(source):
-    """A sim.Trajectory from a Trajectory, a trajectory CSV or a scenario TOML (simulated)."""
-    if isinstance(source, sim.Trajectory):
-        traj = source
-    else:
-        path = Path(source)
-        if not path.exists():
-            raise SynthError(f"trajectory not found: {path}")
-        if path.suffix.lower() == ".toml":
-            return sim.simulate(sim.load_scenario(path))
-        traj = sim.read_trajectory(path)
-    for name in ("t", "theta", "theta_dot", "position"):
-        if not np.all(np.isfinite(getattr(traj, name))):
-            raise SynthError(f"the trajectory has NaN or inf in {name}: it cannot be rendered")
-    return traj
-
-
-def subframe_positions(traj, n_sub: int, exposure: float) -> np.ndarray:
-    """(N, n_sub, 3) ball centres at the sub-frame times of each exposure.
-
-    The exposure of frame i is centred on t_i; sub-frame k sits at t_i + ((k + 0.5) / n_sub
-    - 0.5) * exposure. Positions between samples follow a cubic Hermite spline through the
-    sampled positions with the rolling velocity L theta_dot (cos theta, sin theta, 0); an
-    out-of-round or tilted trough (whose ball is not on that circle) uses a cubic spline
-    through the positions.
-    """
-    pos = np.asarray(traj.position, float)
-    if n_sub == 1:
-        return pos[:, None, :]
-    from scipy.interpolate import CubicHermiteSpline, CubicSpline
-
-    t = np.asarray(traj.t, float)
-    offs = ((np.arange(n_sub) + 0.5) / n_sub - 0.5) * exposure
-    sc = traj.scenario
-    if sc.ovality or sc.tilt:
-        return CubicSpline(t, pos, axis=0, extrapolate=True)(t[:, None] + offs[None, :])
-    L = math.hypot(pos[0, 0], pos[0, 1])
-    th, thd = np.asarray(traj.theta), np.asarray(traj.theta_dot)
-    vel = L * thd[:, None] * np.column_stack([np.cos(th), np.sin(th), np.zeros_like(th)])
-    spline = CubicHermiteSpline(t, pos, vel, axis=0, extrapolate=True)
-    return spline(t[:, None] + offs[None, :])
-
-
-def truth_table(traj, camera: CameraModel, ball_radius: float) -> dict:
-    """The truth columns (TRUTH_COLUMNS). Through a lens the ball's positions are the distorted
-    ones of its ideal projections (:meth:`CameraModel.recorded`: the sphere centre's and the
-    silhouette centre's); the axis (cx_px, cy_px) stays in the ideal (undistorted) image."""
-    pos = np.asarray(traj.position, float)
-    uv = camera.recorded(camera.project(pos))
-    sil, rad = camera.sphere_silhouette(pos, ball_radius)
-    sil = camera.recorded(sil)
-    n = len(pos)
-    return {
-        "t_s": np.asarray(traj.t, float),
-        "theta_rad": np.asarray(traj.theta, float),
-        "theta_dot_rad_s": np.asarray(traj.theta_dot, float),
-        "x_px": uv[:, 0], "y_px": uv[:, 1],
-        "sil_x_px": sil[:, 0], "sil_y_px": sil[:, 1],
-        "r_px": rad,
-        "cx_px": np.full(n, camera.center_px[0]), "cy_px": np.full(n, camera.center_px[1]),
-    }
-
+# -- the recording's metadata ------------------------------------------------------------------
 
 def versions() -> dict:
     """The installed versions of what a recording depends on (a recording's ``versions``).
@@ -209,7 +145,7 @@ def render(trajectory, out, *, scene: SceneConfig | None = None,
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise SynthError(f"seed must be a non-negative integer, got {seed!r}")
     out = check_output(out, overwrite=overwrite)
-    traj, timing_attrs = _camera_frames(load_trajectory(trajectory), frames, timing, seed)
+    traj, timing_attrs = camera_frames(load_trajectory(trajectory), frames, timing, seed)
     workers = render_workers(scene, len(traj), workers)
     if workers > 1 and not scene.camera.thin_lens:
         start_fork_server()  # its imports (~1 s) while this process prepares
@@ -290,24 +226,6 @@ class _Plan:
         """:func:`synth.worker.init`'s arguments."""
         return (self.scene.to_dict(), self.setup.ball_radius, self.setup.cylinder_radius,
                 str(store_path), self.threads, self.oval, self.seed, defocus)
-
-
-def _camera_frames(traj, frames, timing, seed):
-    """The trajectory at the camera's frames (its clock ``timing``, the first ``frames``) and
-    the attrs of the clock (None without one)."""
-    timing_attrs = None
-    if timing is not None:
-        times, numbers = frame_times(len(traj), traj.fps, timing, seed)
-        if not timing.ideal:
-            traj = resample(traj, times)
-        lost = np.setdiff1d(np.arange(numbers[-1] + 1), numbers)
-        timing_attrs = {**timing.to_dict(), "dropped_frames": lost.tolist()}
-    n = len(traj) if frames is None else int(frames)
-    if n < 1 or n > len(traj):
-        raise SynthError(f"frames must be 1..{len(traj)}, got {frames!r}")
-    if n < len(traj):
-        traj = _head(traj, n)
-    return traj, timing_attrs
 
 
 def _setup(traj, cam: CameraModel, sensor: SensorConfig) -> Setup:
@@ -512,11 +430,3 @@ def _engine_meta(traj) -> dict:
 def _jsonable(obj):
     return json.loads(json.dumps(obj, default=lambda o: o.tolist() if hasattr(o, "tolist")
                                  else str(o)))
-
-
-def _head(traj, n: int):
-    fields = {}
-    for f in dataclasses.fields(sim.Trajectory):
-        v = getattr(traj, f.name)
-        fields[f.name] = v[:n] if isinstance(v, np.ndarray) else v
-    return sim.Trajectory(**fields)
