@@ -23,8 +23,9 @@ are laid over each other from back to front, each over what lies behind it with 
 coverage (premultiplied "over": a near layer's blurred edge lets the blurred far layers show
 through; the backdrop hidden behind the trough is filled from its visible neighbourhood by a
 normalised blur). The trough's coverage comes from one flat render of its bore and its faces
-(:func:`layer_coverage`), the ball's from its exact silhouette. A pixel on a layer's edge gives
-its light to the layers in proportion to their coverage of it.
+(:meth:`synth.backends.raster.SceneRenderer.layer_coverage`), the ball's from its exact
+silhouette. A pixel on a layer's edge gives its light to the layers in proportion to their
+coverage of it.
 
 The background is blurred once, full frame; each frame's tiles are rendered larger by the
 blur's reach (:attr:`Defocus.margin`) on every side, composited, and cut back, so that every
@@ -150,48 +151,6 @@ def _blur(x: np.ndarray, k: np.ndarray) -> np.ndarray:
     return cv2.filter2D(x, cv2.CV_64F, k, borderType=cv2.BORDER_REPLICATE)
 
 
-def layer_coverage(renderer) -> tuple[np.ndarray, np.ndarray]:
-    """The trough's coverage of each pixel, front face and bore apart, from one flat render.
-
-    The renderer is changed for good (its backdrop and ball hidden, the trough drawn flat in
-    two colours): use a renderer of its own, or one that is closed afterwards.
-
-    Parameters
-    ----------
-    renderer : synth.backends.raster.SceneRenderer
-        The scene's renderer (its ideal, lens-free camera).
-
-    Returns
-    -------
-    face, bore : numpy.ndarray
-        float32 (H, W) coverage in [0, 1] of the trough's faces (the flat parts: front face,
-        outer surface) and of its bore (MSAA and supersampling resolve the edges).
-    """
-    pr = renderer._pyrender
-    renderer.set_ball(None)
-    trough = None
-    for node in renderer.scene.mesh_nodes:
-        if node.name == "trough":
-            trough = node
-        else:
-            node.mesh.is_visible = False
-    prims = trough.mesh.primitives  # [bore (smooth), flat parts] (synth.backends.raster)
-    colours = ([1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0])
-    for prim, c in zip(prims, colours, strict=True):
-        prim.material = pr.MetallicRoughnessMaterial(baseColorFactor=c)
-    renderer.flags = pr.RenderFlags.FLAT
-    renderer._lean = None
-    renderer._shadow_prev = {}
-    cam = renderer.camera
-    r = renderer._ensure_renderer(cam.width, cam.height)
-    renderer._cam.P = cam.tile_projection(0, 0, cam.width, cam.height)
-    color, _ = r.render(renderer.scene, renderer.flags)
-    s = renderer.ss
-    c = color.astype(np.float32).reshape(cam.height, s, cam.width, s, 3).sum(axis=(1, 3))
-    c /= 255.0 * s * s
-    return np.clip(c[..., 1], 0, 1), np.clip(c[..., 0], 0, 1)
-
-
 @dataclasses.dataclass(frozen=True)
 class Layers:
     """The depths (world z, m) of the scene's layers."""
@@ -215,7 +174,7 @@ class Defocus:
         The scene; its camera (the ideal one, without the lens's distortion) has
         ``f_number``.
     face, bore : numpy.ndarray
-        :func:`layer_coverage` of the frame.
+        :meth:`synth.backends.raster.SceneRenderer.layer_coverage` of the frame.
     ball_radius : float
         The ball's radius (m).
     """

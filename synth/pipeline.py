@@ -29,7 +29,7 @@ from synth import pool, worker
 from synth.backends import make_backend
 from synth.camera import CameraModel
 from synth.config import SceneConfig, SensorConfig, SynthError
-from synth.defocus import Defocus, layer_coverage
+from synth.defocus import Defocus
 from synth.distortion import cached_window, distort_image
 from synth.motion import camera_frames, load_trajectory, subframe_positions, truth_table
 from synth.pool import BATCH, MAX_POOL_RESTARTS, start_fork_server
@@ -266,7 +266,7 @@ def _background(plan: _Plan, drawn=None) -> tuple:
                           oval=plan.oval)
         bg = sr.render_full()
         if cam.thin_lens:  # the layers' blur (synth.defocus), in the ideal frame
-            face, bore = layer_coverage(sr)
+            face, bore = sr.layer_coverage()
             defocus = (face, bore, bg)
             blurred = Defocus(scene.replace(camera=cam.ideal()), face, bore,
                               plan.setup.ball_radius).background(bg)

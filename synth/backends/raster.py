@@ -98,6 +98,40 @@ class SceneRenderer:
         self.model = dataclasses.replace(self.model, config=self.config)
         self.footprints = Footprint(self.model)
 
+    def layer_coverage(self) -> tuple[np.ndarray, np.ndarray]:
+        """The trough's coverage of each pixel, front face and bore apart, from one flat render
+        (synth.defocus's layers). The renderer is changed for good (its backdrop and ball
+        hidden, the trough drawn flat in two colours): use one of its own, or close it after.
+
+        Returns
+        -------
+        face, bore : numpy.ndarray
+            float32 (H, W) coverage in [0, 1] of the trough's faces and of its bore.
+        """
+        pr = self._pyrender
+        self.set_ball(None)
+        trough = None
+        for node in self.scene.mesh_nodes:
+            if node.name == "trough":
+                trough = node
+            else:
+                node.mesh.is_visible = False
+        prims = trough.mesh.primitives  # [bore (smooth), flat parts] (_trough_mesh)
+        colours = ([1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0])
+        for prim, c in zip(prims, colours, strict=True):
+            prim.material = pr.MetallicRoughnessMaterial(baseColorFactor=c)
+        self.flags = pr.RenderFlags.FLAT
+        self._lean = None
+        self._shadow_prev = {}
+        cam = self.camera
+        r = self._ensure_renderer(cam.width, cam.height)
+        self._cam.P = cam.tile_projection(0, 0, cam.width, cam.height)
+        color, _ = r.render(self.scene, self.flags)
+        s = self.ss
+        c = color.astype(np.float32).reshape(cam.height, s, cam.width, s, 3).sum(axis=(1, 3))
+        c /= 255.0 * s * s
+        return np.clip(c[..., 1], 0, 1), np.clip(c[..., 0], 0, 1)
+
     # -- low level -------------------------------------------------------------------------
 
     def _ensure_renderer(self, w: int, h: int, stock_shaders: bool = False):
