@@ -120,7 +120,7 @@ def shader_dir(n_directional: int, n_spot: int, n_point: int) -> str:
         text = fixed_light_loops(gather_mesh_shader(f.read()), n_directional, n_spot, n_point)
     out = tempfile.mkdtemp(prefix="synth-shaders-")
     atexit.register(shutil.rmtree, out, ignore_errors=True)
-    # a forked render process (synth.pipeline.pool_context) leaves by os._exit, which runs no
+    # a forked render process (synth.pool.pool_context) leaves by os._exit, which runs no
     # atexit functions but multiprocessing's finalizers (in the process that made the folder)
     Finalize(None, shutil.rmtree, (out,), {"ignore_errors": True}, exitpriority=0)
     for name in os.listdir(src):
