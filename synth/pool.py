@@ -70,9 +70,8 @@ def _without_viewer() -> None:
 def crash_report() -> bool:
     """Have this process write the Python stacks of all its threads to stderr if it crashes
     (a segfault, an abort: :mod:`faulthandler`), as render processes do. A render process dies
-    now and then in libc's malloc (segfaults in the kernel log: 4 on 2026-11-23, over the day's
-    studies and benches: a 4-byte zero written at +8 of a freed block, which glibc trips over
-    later; the writer not found, see tools/heapprobe): the lost batches are rendered
+    now and then in libc's malloc (a 4-byte zero written at +8 of a freed block, which glibc
+    trips over later; the writer not found, see tools/heapprobe): the lost batches are rendered
     again, and the stacks say where the process was when glibc tripped (not who wrote).
 
     Returns
@@ -93,8 +92,8 @@ def exit_with_parent() -> bool:
     A pool's worker waits for its next task on a queue whose pipe it holds both ends of, so it
     never sees its parent die; forked from the fork server, it also keeps the server alive. A
     main process killed by SIGKILL (or by a SIGTERM it does not handle) left its render
-    processes (~370 MB each), the fork server and their semaphores behind for good (seen
-    2026-11-24). A daemon thread waits on the parent's sentinel
+    processes (~370 MB each), the fork server and their semaphores behind for good. A daemon
+    thread waits on the parent's sentinel
     (:func:`multiprocessing.parent_process`) and ends the process when it fires.
 
     Returns
