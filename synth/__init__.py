@@ -22,7 +22,8 @@ from synth.config import (
     lighting_preset,
     noise_preset,
 )
-from synth.pipeline import load_trajectory, render
+from synth.motion import load_trajectory
+from synth.pipeline import render
 from synth.store import Recording, SynthFrames, open_frames, open_recording
 
 __all__ = ["LIGHTING_PRESETS", "NOISE_PRESETS", "CameraModel", "Lamp", "Lighting", "Recording",

@@ -35,7 +35,7 @@ degree for the thesis's 15 mm half-length at 0.1343 mm/px; circles become ellips
 ratio cos(angle)).
 
 A lens (``lens_distortion`` = OpenCV's [k1, k2, p1, p2, k3] with ``lens_matrix``, default
-fx = fy = focal_px at the frame centre) bends the ideal image (:mod:`synth.lens`); the
+fx = fy = focal_px at the frame centre) bends the ideal image (:mod:`synth.distortion`); the
 projections here are the ideal ones, :meth:`CameraModel.recorded` maps them through the lens.
 
 A thin lens (``f_number``, ``focus_distance``, ``focal_length``) keeps these projections (the
@@ -53,6 +53,7 @@ import math
 import numpy as np
 
 from rollfric.errors import InputError
+from synth.distortion import Lens, cached_window, lens_of
 
 
 @dataclasses.dataclass(frozen=True)
@@ -120,8 +121,6 @@ class CameraModel:
         object.__setattr__(self, "lens_distortion", d)
         self._check_thin_lens()
         if self.lens_matrix is not None:
-            from synth.lens import Lens
-
             object.__setattr__(self, "lens_matrix", Lens(self.lens_matrix, d).matrix)
 
     def _check_thin_lens(self) -> None:
@@ -153,9 +152,7 @@ class CameraModel:
 
     @property
     def lens(self):
-        """The :class:`synth.lens.Lens` (None without distortion)."""
-        from synth.lens import lens_of
-
+        """The :class:`synth.distortion.Lens` (None without distortion)."""
         return lens_of(self)
 
     def recorded(self, uv) -> np.ndarray:
@@ -165,13 +162,11 @@ class CameraModel:
 
     def ideal(self) -> CameraModel:
         """The camera without its lens whose frame covers everything the lens shows, at
-        :data:`synth.lens.FACTOR` x FACTOR pixels per frame pixel: the render that
-        :mod:`synth.lens` bends into this camera's frames (self when no lens)."""
+        :data:`synth.distortion.FACTOR` x FACTOR pixels per frame pixel: the render that
+        :mod:`synth.distortion` bends into this camera's frames (self when no lens)."""
         lens = self.lens
         if lens is None:
             return self
-        from synth.lens import cached_window
-
         win = cached_window(lens, self.width, self.height)
         pp = None if self.principal_px is None else tuple(win.to_render(self.principal_px))
         return dataclasses.replace(

@@ -117,7 +117,7 @@ class SceneConfig:
     # stock pyrender) or "sphere" (an exact sphere per pixel, shaded by the same shader code)
     ball_model: str = "mesh"
     # the backend: "pyrender" (rasterised, fast, the default) or "mitsuba" (path traced, a
-    # physically based steel ball: synth.mitsuba_scene, the extra rollfric[mitsuba])
+    # physically based steel ball: synth.backends.pathtrace, the extra rollfric[mitsuba])
     renderer: str = "pyrender"
     # samples per pixel (powers of 4) on the ball and in its shadows' penumbra, and elsewhere in
     # the windows around the ball (at most mitsuba_spp)

@@ -23,8 +23,9 @@ are laid over each other from back to front, each over what lies behind it with 
 coverage (premultiplied "over": a near layer's blurred edge lets the blurred far layers show
 through; the backdrop hidden behind the trough is filled from its visible neighbourhood by a
 normalised blur). The trough's coverage comes from one flat render of its bore and its faces
-(:func:`layer_coverage`), the ball's from its exact silhouette. A pixel on a layer's edge gives
-its light to the layers in proportion to their coverage of it.
+(:meth:`synth.backends.raster.SceneRenderer.layer_coverage`), the ball's from its exact
+silhouette. A pixel on a layer's edge gives its light to the layers in proportion to their
+coverage of it.
 
 The background is blurred once, full frame; each frame's tiles are rendered larger by the
 blur's reach (:attr:`Defocus.margin`) on every side, composited, and cut back, so that every
@@ -38,6 +39,8 @@ import functools
 import math
 
 import numpy as np
+
+from synth.backends.footprint import merge_boxes
 
 OVERSAMPLE = 16  # sub-pixel samples per axis of the disc kernel's pixel coverage
 DEFAULT_FOCAL_LENGTH = 0.05  # m: CameraModel.focal_length's default
@@ -148,48 +151,6 @@ def _blur(x: np.ndarray, k: np.ndarray) -> np.ndarray:
     return cv2.filter2D(x, cv2.CV_64F, k, borderType=cv2.BORDER_REPLICATE)
 
 
-def layer_coverage(renderer) -> tuple[np.ndarray, np.ndarray]:
-    """The trough's coverage of each pixel, front face and bore apart, from one flat render.
-
-    The renderer is changed for good (its backdrop and ball hidden, the trough drawn flat in
-    two colours): use a renderer of its own, or one that is closed afterwards.
-
-    Parameters
-    ----------
-    renderer : synth.scene.SceneRenderer
-        The scene's renderer (its ideal, lens-free camera).
-
-    Returns
-    -------
-    face, bore : numpy.ndarray
-        float32 (H, W) coverage in [0, 1] of the trough's faces (the flat parts: front face,
-        outer surface) and of its bore (MSAA and supersampling resolve the edges).
-    """
-    pr = renderer._pyrender
-    renderer.set_ball(None)
-    trough = None
-    for node in renderer.scene.mesh_nodes:
-        if node.name == "trough":
-            trough = node
-        else:
-            node.mesh.is_visible = False
-    prims = trough.mesh.primitives  # [bore (smooth), flat parts] (synth.scene)
-    colours = ([1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0])
-    for prim, c in zip(prims, colours, strict=True):
-        prim.material = pr.MetallicRoughnessMaterial(baseColorFactor=c)
-    renderer.flags = pr.RenderFlags.FLAT
-    renderer._lean = None
-    renderer._shadow_prev = {}
-    cam = renderer.camera
-    r = renderer._ensure_renderer(cam.width, cam.height)
-    renderer._cam.P = cam.tile_projection(0, 0, cam.width, cam.height)
-    color, _ = r.render(renderer.scene, renderer.flags)
-    s = renderer.ss
-    c = color.astype(np.float32).reshape(cam.height, s, cam.width, s, 3).sum(axis=(1, 3))
-    c /= 255.0 * s * s
-    return np.clip(c[..., 1], 0, 1), np.clip(c[..., 0], 0, 1)
-
-
 @dataclasses.dataclass(frozen=True)
 class Layers:
     """The depths (world z, m) of the scene's layers."""
@@ -213,7 +174,7 @@ class Defocus:
         The scene; its camera (the ideal one, without the lens's distortion) has
         ``f_number``.
     face, bore : numpy.ndarray
-        :func:`layer_coverage` of the frame.
+        :meth:`synth.backends.raster.SceneRenderer.layer_coverage` of the frame.
     ball_radius : float
         The ball's radius (m).
     """
@@ -316,8 +277,6 @@ class Defocus:
         m = self.margin
         boxes = [(max(x - m, 0), max(y - m, 0), min(x + w + m, W), min(y + h + m, H))
                  for x, y, w, h in tiles]
-        from synth.scene import merge_boxes
-
         boxes = merge_boxes(boxes, lambda a, b, u: a[0] < b[2] and b[0] < a[2]
                             and a[1] < b[3] and b[1] < a[3])
         return [(x0, y0, x1 - x0, y1 - y0) for x0, y0, x1, y1 in boxes]
@@ -336,14 +295,14 @@ class Defocus:
 
         Parameters
         ----------
-        renderer : synth.scene.SceneRenderer
+        renderer : synth.backends.raster.SceneRenderer
             The scene's renderer (renders the widened tiles with the ball).
         poses : list
             The ball's poses, one per sub-frame.
         centres : numpy.ndarray
             (K, 3) the ball's centres at the sub-frames (m).
         tiles : list
-            The sharp frame's changed tiles (:meth:`synth.scene.SceneRenderer.tiles_for`).
+            The sharp frame's changed tiles (:meth:`synth.backends.raster.SceneRenderer.tiles_for`).
         sharp_bg : numpy.ndarray
             The ball-free frame, not blurred (levels, one sub-frame).
         index : int, optional

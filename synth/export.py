@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from rollfric.output.folder import OutputError, check_folder, staged_folder
+from rollfric.setup.model import save_setup, setup_from_dict
 from synth.config import SynthError
 from synth.store import open_recording
 
@@ -46,8 +47,6 @@ def export_recording(recording, out_dir, *, progress: bool = False,
     import cv2
     import tifffile
     from tqdm import tqdm
-
-    from rollfric.setup.model import save_setup, setup_from_dict
 
     out_dir = check_export(out_dir, overwrite=overwrite)
     rec = recording if hasattr(recording, "frames") else open_recording(recording)

@@ -3,7 +3,7 @@
 synth renders with pyrender (the NumPy-2 fork ``pyrender-maintained``), but its fast tile pass
 reaches past pyrender's public API: it draws pyrender's forward pass itself, scissored to
 tiles, renders the lamps' shadow maps over a cached copy, swaps in patched shader programs and
-reads back only the tiles (see :mod:`synth.scene`). Those are private attributes of
+reads back only the tiles (see :mod:`synth.backends.raster`). Those are private attributes of
 pyrender's ``Renderer``, ``OffscreenRenderer``, ``Texture`` and shader programs, which a new
 pyrender release may rename. Every such access is a function here, so that a pyrender upgrade
 is checked in one module.
@@ -296,27 +296,27 @@ def remove_from_context(texture) -> None:
 
 
 def program_id(program) -> int:
-    """The GL id of a compiled pyrender ShaderProgram (synth.leandraw)."""
+    """The GL id of a compiled pyrender ShaderProgram (synth.backends.lean)."""
     return program._program_id
 
 
 def vertex_array(primitive) -> int:
-    """The GL id of a pyrender Primitive's vertex array (synth.leandraw)."""
+    """The GL id of a pyrender Primitive's vertex array (synth.backends.lean)."""
     return primitive._vaid
 
 
 def kept_bounds(scene):
     """A pyrender Scene's bounds as last computed, or None when a mesh node was added,
-    removed or moved since (pyrender computes them again when asked: synth.scene)."""
+    removed or moved since (pyrender computes them again when asked: synth.backends.raster)."""
     return scene._bounds
 
 
 def keep_bounds(scene, bounds) -> None:
     """Give a pyrender Scene the bounds its ``bounds`` property would compute now
-    (synth.scene: the ball moved, the other nodes' corners kept)."""
+    (synth.backends.raster: the ball moved, the other nodes' corners kept)."""
     scene._bounds = bounds
 
 
 def shadow_framebuffer(inner_renderer) -> int:
-    """The GL id of the framebuffer pyrender renders the shadow maps with (synth.leandraw)."""
+    """The GL id of the framebuffer pyrender renders the shadow maps with (synth.backends.lean)."""
     return inner_renderer._shadow_fb

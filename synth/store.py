@@ -13,15 +13,15 @@ Layout (a directory ``REC.zarr``)::
                                                 frame
     truth/<column>    (T,)       float64        exact ground truth, see TRUTH_COLUMNS
     timestamps        (T,)       float64        optional: each frame's time (s), the camera's
-                                                clock (render(timing=...), synth.timing)
+                                                clock (render(timing=...), synth.camera_clock)
     background_ideal_clean (H', W')             with a lens only: the ideal render the lens
-                                                bends into the frames (synth.lens: 4 x 4
+                                                bends into the frames (synth.distortion: 4 x 4
                                                 of its pixels a frame pixel)
 
 Root attributes: ``format``, ``setup`` (the lab setup, TOML form), ``scene``, ``sensor``,
 ``sensor_noise`` (the noise generator, ``synth.sensor.NOISES``; absent: "tiles/1", the stores
 rendered before it), ``seed``, ``scenario``, ``versions``, ``fps``, ``n_frames``, scales, and
-with a camera timing (:mod:`synth.timing`) ``timing`` (its jitter, drop rate and the camera
+with a camera timing (:mod:`synth.camera_clock`) ``timing`` (its jitter, drop rate and the camera
 frames lost, ``dropped_frames``).
 
 Frames are made when read: clean frame -> the seeded sensor model (``synth.sensor``), the same

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from synth.config import SynthError
+from synth.store import open_recording
 
 CODECS = {"mjpeg": ".avi", "h264": ".mp4"}
 QUALITY_RANGE = {"mjpeg": (1, 100), "h264": (0, 51)}
@@ -209,8 +210,6 @@ def export_video(recording, out_dir, spec: VideoSpec, *, progress: bool = False)
     dict
         ``{"frames": Path, "background": Path}``.
     """
-    from synth.store import open_recording
-
     rec = recording if hasattr(recording, "frames") else open_recording(recording)
     out_dir = Path(out_dir)
     bits = int(rec.frames.sensor_config.bit_depth)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import math
 
+from synth.backends.raster import SceneRenderer
 from synth.config import SceneConfig
-from synth.scene import SceneRenderer
 
 
 def flat_ring_render(cam, r_ball: float, r_cyl: float):

@@ -10,7 +10,7 @@ import pytest
 from rollfric.cli.main import main
 from rollfric.setup.calibrate import calibrate_chessboard
 from rollfric.setup.lens import Calibration
-from synth.lens import Lens
+from synth.distortion import Lens
 
 K = [[800.0, 0.0, 319.5], [0.0, 800.0, 239.5], [0.0, 0.0, 1.0]]
 D = [-0.2, 0.05, 0.0, 0.0, 0.0]

@@ -99,9 +99,9 @@ def test_round_contour_implies_no_bias():
 def test_rendered_out_of_round_bore_is_found_as_its_ellipse():
     """synth draws the bore as the scenario's ellipse; rollfric's contour finds it back."""
     from rollfric.geometry.trough import find_cylinder_center
+    from synth.backends.raster import SceneRenderer
     from synth.camera import CameraModel
     from synth.config import SceneConfig
-    from synth.scene import SceneRenderer
 
     R, r, ov, ang = 0.0853, 0.005, 0.6e-3, 30.0
     cam = CameraModel()  # the thesis camera, orthographic, 0.1343 mm/px

@@ -12,7 +12,7 @@ import pytest
 from rollfric.geometry.trough import find_cylinder_center
 from rollfric.setup.lens import Calibration
 from rollfric.setup.model import SetupError, dumps_setup, setup_from_dict, thesis_setup
-from synth.lens import Lens, distort_image, ideal_window
+from synth.distortion import Lens, distort_image, ideal_window
 
 K = [[2400.0, 0.0, 639.5], [0.0, 2390.0, 511.5], [0.0, 0.0, 1.0]]
 D = [-0.18, 0.05, 0.001, -0.0005, 0.01]
@@ -280,7 +280,7 @@ class _BentBySynth(_DrawnThroughLens):
     """The same ball drawn the way synth renders through a lens: the ideal (undistorted)
     image at ``factor`` x ``factor`` render pixels per frame pixel, each render pixel its area's
     coverage by the ball (4 x 4 samples, as the rasteriser's multisampling averages its
-    pixel), bent by :func:`synth.lens.distort_tile` with ``samples`` x ``samples`` samples of
+    pixel), bent by :func:`synth.distortion.distort_tile` with ``samples`` x ``samples`` samples of
     each recorded pixel's footprint."""
 
     M = 4
@@ -291,7 +291,7 @@ class _BentBySynth(_DrawnThroughLens):
         self.samples = samples
 
     def __getitem__(self, i):
-        from synth.lens import distort_tile
+        from synth.distortion import distort_tile
 
         c, win = self.centres[i], self.win
         q0 = win.to_render(c)
@@ -348,7 +348,7 @@ def test_ideal_camera_renders_the_ideal_image_finer():
     pixels a frame pixel: it projects every point where the window's map puts the ideal
     frame's projection (orthographic; perspective with its pinhole off the axis)."""
     from synth.camera import CameraModel
-    from synth.lens import FACTOR, cached_window
+    from synth.distortion import FACTOR, cached_window
 
     lens = dict(lens_distortion=(-0.18, 0.0, 0.0, 0.0, 0.0),
                 lens_matrix=((2400.0, 0.0, 639.5), (0.0, 2400.0, 511.5), (0.0, 0.0, 1.0)))

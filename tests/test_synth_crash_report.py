@@ -1,4 +1,4 @@
-"""synth.pipeline.crash_report: a render process that crashes leaves its Python stacks on
+"""synth.pool.crash_report: a render process that crashes leaves its Python stacks on
 stderr (a real segfault in a child process, faulthandler's own trigger)."""
 
 import subprocess
@@ -9,7 +9,7 @@ import textwrap
 def _crash(enable: bool) -> subprocess.CompletedProcess:
     code = textwrap.dedent(f"""
         import faulthandler
-        from synth.pipeline import crash_report
+        from synth.pool import crash_report
         def render_a_batch():
             faulthandler._sigsegv()
         assert crash_report() if {enable} else True

@@ -1,4 +1,4 @@
-"""The Mitsuba backend (synth.mitsuba_scene): its camera against the exact projection, seeded
+"""The Mitsuba backend (synth.backends.pathtrace): its camera against the exact projection, seeded
 bytes, the window-over-background frame against a full path-traced frame, and a case end to end.
 
 Skipped where Mitsuba 3 (or an LLVM >= 16 for Dr.Jit) is absent: the measurement-only install.
@@ -13,8 +13,8 @@ import pytest
 from synth.camera import CameraModel
 from synth.config import SceneConfig
 
-ms = pytest.importorskip("synth.mitsuba_scene")
-_WHY = ms.available()
+ms = pytest.importorskip("synth.backends.pathtrace")
+_WHY = pytest.importorskip("synth.backends.mitsuba_runtime").available()
 pytestmark = pytest.mark.skipif(_WHY is not None, reason=str(_WHY))
 
 R_CYL = 0.0853

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from tqdm import tqdm
 
-from synth.pipeline import MAX_POOL_RESTARTS, _render_parallel
+from synth.pool import MAX_POOL_RESTARTS, render_parallel
 
 
 def _init(out_dir, marker, die):
@@ -40,7 +40,7 @@ def _run(tmp_path, die):
     out.mkdir()
     marker = tmp_path / "died"
     with tqdm(total=n, disable=True) as bar:
-        _render_parallel(batches, centres, 2, (str(out), str(marker), die), bar,
+        render_parallel(batches, centres, 2, (str(out), str(marker), die), bar,
                          initializer=_init, batch_fn=_batch)
     return out, marker, n
 
@@ -68,11 +68,11 @@ def _exit():
 
 
 def test_a_pool_that_broke_before_its_batches_is_replaced(tmp_path):
-    """An early-started pool (synth.pipeline._early_pool) whose process died in a task before
+    """An early-started pool (synth.pool.early_pool) whose process died in a task before
     the batches (the background's render): every batch is rendered in a fresh pool."""
     import concurrent.futures as cf
 
-    from synth.pipeline import pool_context
+    from synth.pool import pool_context
 
     n = 64
     batches = [np.arange(s, min(s + 16, n)) for s in range(0, n, 16)]
@@ -85,7 +85,7 @@ def test_a_pool_that_broke_before_its_batches_is_replaced(tmp_path):
     with pytest.raises(cf.process.BrokenProcessPool):
         pool.submit(_exit).result()
     with tqdm(total=n, disable=True) as bar:
-        _render_parallel(batches, centres, 2, init, bar, initializer=_init, batch_fn=_batch,
+        render_parallel(batches, centres, 2, init, bar, initializer=_init, batch_fn=_batch,
                          pool=pool)
     assert sorted(int(p.name) for p in out.iterdir()) == list(range(n))
 
@@ -98,10 +98,10 @@ sys.path.insert(0, sys.argv[1])
 from tests.test_synth_pool import _init, _pids
 
 if __name__ == "__main__":
-    from synth.pipeline import _render_parallel
+    from synth.pool import render_parallel
     out = sys.argv[2]
     with tqdm(total=64, disable=True) as bar:  # killed while its processes render
-        _render_parallel([np.arange(s, s + 16) for s in range(0, 64, 16)],
+        render_parallel([np.arange(s, s + 16) for s in range(0, 64, 16)],
                          np.zeros((64, 1, 3)), 2, (out, out + "/none", "never"), bar,
                          initializer=_init, batch_fn=_pids)
 """

@@ -1,5 +1,5 @@
 """What the render processes' fork server imports (synth.preload) and when it starts
-(synth.pipeline.start_fork_server): the renderer's modules, not the sensor model's numba
+(synth.pool.start_fork_server): the renderer's modules, not the sensor model's numba
 kernels nor zarr; started once, early, where render processes start from a fork server."""
 
 import os
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from synth import pipeline
+from synth import pipeline, pool
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -27,7 +27,7 @@ def _imports(code: str) -> set:
 
 def test_the_fork_server_loads_the_renderer_but_not_the_sensor_model():
     mods = _imports("import synth.preload")
-    assert {"pyrender", "synth.scene", "synth.leandraw", "synth.store"} <= mods
+    assert {"pyrender", "synth.backends.raster", "synth.backends.lean", "synth.store"} <= mods
     assert "numba" not in mods and "synth.sensor" not in mods
     assert "zarr" not in mods
     # nor pyrender's interactive viewer (pyglet, tkinter, imageio: ~0.1 s of the server's CPU)
@@ -153,16 +153,16 @@ def test_render_processes_start_before_zarr_is_imported(tmp_path):
     code = f"""
 import contextlib, sys
 import sim, synth
-from synth import pipeline
+from synth import pool
 from synth.camera import CameraModel
 seen = []
-early = pipeline._early_pool
+early = pool.early_pool
 @contextlib.contextmanager
 def watched(*a, **k):
     seen.append("zarr" in sys.modules)
     with early(*a, **k) as got:
         yield got
-pipeline._early_pool = watched
+pool.early_pool = watched
 tr = sim.simulate(sim.Scenario(theta0=0.03, duration=0.079))
 assert "zarr" not in sys.modules
 synth.render(tr, {str(tmp_path / "r.zarr")!r}, workers=2, seed=1, scene=synth.SceneConfig(
@@ -187,7 +187,7 @@ def test_the_truth_is_written_while_a_render_process_draws_the_background(tmp_pa
     table = pipeline.truth_table
     monkeypatch.setattr(pipeline, "truth_table",
                         lambda *a, **k: order.append("truth") or table(*a, **k))
-    early = pipeline._early_pool
+    early = pool.early_pool
 
     @contextlib.contextmanager
     def watched(*a, **k):
@@ -197,7 +197,7 @@ def test_the_truth_is_written_while_a_render_process_draws_the_background(tmp_pa
                 return submitted()
             yield pool, waited
 
-    monkeypatch.setattr(pipeline, "_early_pool", watched)
+    monkeypatch.setattr(pool, "early_pool", watched)
     from synth.camera import CameraModel
 
     tr = sim.simulate(sim.Scenario(theta0=0.03, duration=0.079))

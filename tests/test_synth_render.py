@@ -10,9 +10,10 @@ import math
 import numpy as np
 import pytest
 
+from synth.backends.raster import SceneRenderer
+from synth.backends.scene_model import view_sphere
 from synth.camera import CameraModel
 from synth.config import SceneConfig
-from synth.scene import SceneRenderer, view_sphere
 
 R_CYL = 0.0853
 R_BALL = 0.005
@@ -207,7 +208,7 @@ def test_view_sphere_is_a_closed_sphere_with_a_fine_silhouette():
 
 @pytest.mark.parametrize("projection", ["orthographic", "perspective"])
 def test_lean_draw_path_equals_pyrenders(projection):
-    """synth.leandraw's tiles are pyrender's path's tiles bit for bit: over consecutive frames
+    """synth.backends.lean's tiles are pyrender's path's tiles bit for bit: over consecutive frames
     (incremental shadow maps), with sub-frames, alternating with pyrender's path frame by frame
     and after pyrender drew a full frame with the same programs (the lean path sets its
     uniforms again)."""
@@ -265,7 +266,7 @@ def test_lean_static_layer_follows_a_changed_scene():
 
 
 def test_lean_draw_falls_back_to_pyrender_for_what_it_does_not_draw():
-    from synth.leandraw import unsupported
+    from synth.backends.lean import unsupported
 
     cam = CameraModel(width=96, height=80, center_px=(48.0, -560.0))
     sr = _silhouette_renderer(cam, ss=1)
@@ -381,7 +382,7 @@ def test_lean_shadowed_surfaces_leave_out_what_the_ball_cannot_shadow():
 
 def test_disjoint_boxes_cover_the_union_once():
     """disjoint_boxes: the same pixels as the boxes' union, none in two boxes."""
-    from synth.leandraw import disjoint_boxes
+    from synth.backends.footprint import disjoint_boxes
 
     rng = np.random.default_rng(3)
     cases = [[(0, 0, 10, 10), (5, 5, 15, 15)], [(0, 0, 10, 10), (2, 2, 4, 4)],
@@ -489,7 +490,7 @@ def test_lean_triangle_runs_equal_the_reference(projection):
     """LeanDraw._runs gives the runs of the reference (column tests, NumPy's cuts) for the
     shadows' boxes and random boxes, with and without the ball's reach; a draw of a few
     triangles (the backdrop's two) is drawn whole."""
-    from synth.leandraw import RUN_GAP
+    from synth.backends.triangles import RUN_GAP
 
     cam = CameraModel(width=256, height=192, projection=projection, working_distance=0.6,
                       center_px=(128.0, -470.0))
@@ -556,7 +557,7 @@ def test_scene_bounds_kept_while_the_ball_moves_equal_pyrenders():
 
 
 def test_shadow_box_equals_its_reference():
-    from synth.scene import SHADOW_TEX_SZ
+    from synth.backends.footprint import SHADOW_TEX_SZ
 
     cam = CameraModel(width=256, height=192, center_px=(128.0, -470.0))
     sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)

@@ -7,11 +7,11 @@ import os
 import numpy as np
 import pytest
 
+from synth.backends.raster import SceneRenderer
+from synth.backends.shaders import fixed_light_loops, gather_mesh_shader, sphere_shader
 from synth.camera import CameraModel
 from synth.config import SceneConfig, lighting_preset
 from synth.pyrender_adapter import compiled_programs
-from synth.scene import SceneRenderer
-from synth.shaders import fixed_light_loops, gather_mesh_shader, sphere_shader
 
 R_CYL = 0.0853
 R_BALL = 0.005
@@ -113,7 +113,7 @@ def test_a_lamp_added_after_the_first_render_is_drawn():
     for the new count (a loop bounded by the old count would leave it dark)."""
     import pyrender
 
-    from synth.scene import _look_at
+    from synth.backends.scene_model import look_at
 
     cam = CameraModel(width=256, height=192, center_px=(128.0, -470.0))
     sr = SceneRenderer(SceneConfig(camera=cam), R_BALL, R_CYL)
@@ -121,7 +121,7 @@ def test_a_lamp_added_after_the_first_render_is_drawn():
         before = sr.render_full()
         lamp = pyrender.SpotLight(color=[1.0, 1.0, 1.0], intensity=0.05,
                                   innerConeAngle=0.2, outerConeAngle=0.4)
-        sr.scene.add(lamp, pose=_look_at([0.0, -0.05, 0.3], [0.0, -0.08, 0.0]), name="extra")
+        sr.scene.add(lamp, pose=look_at([0.0, -0.05, 0.3], [0.0, -0.08, 0.0]), name="extra")
         ours = sr.render_full()
         stock = sr.render_full(stock_shaders=True)
     finally:
@@ -136,7 +136,7 @@ def test_specialised_shader_holds_the_exact_values():
     constants whose float32 bit patterns are the values given; the samplers stay uniforms."""
     import re
 
-    from synth.shaders import (
+    from synth.backends.shaders import (
         SPOT_FIELDS,
         shader_dir,
         specialised_mesh_shader,
@@ -166,7 +166,7 @@ def test_specialised_shader_holds_the_exact_values():
 
 @pytest.mark.parametrize("case", ["thesis", "perspective", "harsh"])
 def test_specialised_ball_shader_draws_the_same_tiles(case):
-    """The lean path's ball drawn by the specialised shader (synth.leandraw: the lamps' and
+    """The lean path's ball drawn by the specialised shader (synth.backends.lean: the lamps' and
     camera's uniforms as constants) gives the tiles of the uniform shader bit for bit over
     consecutive frames, and the full frame within 1 DN of stock pyrender."""
     if case == "harsh":

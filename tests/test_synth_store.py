@@ -285,7 +285,7 @@ def test_two_processes_render_the_same_bytes(traj, rec_path, tmp_path):
 
 def test_render_processes_draw_the_same_bytes(tmp_path):
     """A recording of 5 batches on 2 render processes (forked from the fork server where there
-    is one: synth.pipeline.pool_context) holds the bytes of the recording one process draws
+    is one: synth.pool.pool_context) holds the bytes of the recording one process draws
     (the recording above is too short for a second process)."""
     import zarr
 

@@ -1,4 +1,4 @@
-"""The camera's timing: synth's jitter and dropped frames (synth.timing), rollfric's dropped
+"""The camera's timing: synth's jitter and dropped frames (synth.camera_clock), rollfric's dropped
 frames found from the motion (rollfric.track.dropped_frames) and repaired, and timestamps carried
 by a Zarr
 recording.
@@ -46,7 +46,7 @@ def angles_of(x, y):
 # -- synth: the camera's frame times -------------------------------------------------------
 
 def test_frame_times_drop_the_listed_frames_and_keep_the_rest_on_time():
-    from synth.timing import FrameTiming, frame_times
+    from synth.camera_clock import FrameTiming, frame_times
 
     times, numbers = frame_times(1000, FPS, FrameTiming(dropped=(5, 400, 401)), seed=3)
     assert numbers.size == 997
@@ -55,7 +55,7 @@ def test_frame_times_drop_the_listed_frames_and_keep_the_rest_on_time():
 
 
 def test_frame_times_jitter_has_the_stated_spread_and_the_seed_fixes_it():
-    from synth.timing import FrameTiming, frame_times
+    from synth.camera_clock import FrameTiming, frame_times
 
     timing = FrameTiming(jitter=5e-6, drop_rate=0.01)
     t1, n1 = frame_times(20000, FPS, timing, seed=7)
@@ -74,7 +74,7 @@ def test_frame_times_jitter_has_the_stated_spread_and_the_seed_fixes_it():
 def test_frame_times_stay_within_the_motions_span():
     """A jittered last exposure after the simulated span is not recorded (a 2 s case with
     50 us jitter failed to render: times 0..2.0001 s outside the trajectory's 0..2 s)."""
-    from synth.timing import FrameTiming, frame_times
+    from synth.camera_clock import FrameTiming, frame_times
 
     late = 0
     for seed in range(40):
@@ -88,16 +88,16 @@ def test_frame_times_stay_within_the_motions_span():
 @pytest.mark.parametrize("bad", [dict(jitter=-1e-6), dict(drop_rate=0.6),
                                  dict(dropped=(0,))])
 def test_frame_timing_refuses_bad_values(bad):
+    from synth.camera_clock import FrameTiming
     from synth.config import SynthError
-    from synth.timing import FrameTiming
 
     with pytest.raises(SynthError):
         FrameTiming(**bad)
 
 
 def test_frame_times_refuse_a_jitter_of_a_tenth_period():
+    from synth.camera_clock import FrameTiming, frame_times
     from synth.config import SynthError
-    from synth.timing import FrameTiming, frame_times
 
     with pytest.raises(SynthError, match="jitter"):
         frame_times(100, FPS, FrameTiming(jitter=100e-6))
@@ -105,7 +105,7 @@ def test_frame_times_refuse_a_jitter_of_a_tenth_period():
 
 def test_resample_puts_the_ball_where_the_equation_of_motion_has_it():
     import sim
-    from synth.timing import resample
+    from synth.camera_clock import resample
 
     sc = sim.scenario_from_dict({"motion": {"mu": MU, "theta0_deg": 20.0, "seconds": 0.5},
                                  "engine": {"name": "reference"}})

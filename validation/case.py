@@ -34,12 +34,12 @@ case of ``rollfric validate``)::
     pitch_deg = 0.0            #   axis point (the trough's faces shift by 15 mm x sin)
     principal_px = [639.5, 511.5]   # perspective: the optical axis in the image (default
                                #   center_px: the pinhole on the trough's axis)
-    lens_distortion = [-0.18, 0.0, 0.0, 0.0, 0.0]   # OpenCV k1 k2 p1 p2 k3 (synth.lens)
+    lens_distortion = [-0.18, 0.0, 0.0, 0.0, 0.0]   # OpenCV k1 k2 p1 p2 k3 (synth.distortion)
     lens_matrix = [[2400.0, 0.0, 639.5], [0.0, 2400.0, 511.5], [0.0, 0.0, 1.0]]
     f_number = 8.0             # a thin lens (synth.defocus): blur varying with depth
     focus_distance_mm = 485.0  #   in focus from the lens (default: working distance = ball)
     focal_length_mm = 50.0     #   (default 50 mm; aperture diameter f / N)
-    [render.timing]            # the camera's timing (synth.timing), drawn with render.seed
+    [render.timing]            # the camera's timing (synth.camera_clock), drawn with render.seed
     jitter_us = 5.0            # each exposure's start about frame / fps: std. dev. (us)
     drop_rate = 0.001          # each frame lost with this probability
     dropped = [120, 640]       # camera frames lost (numbered as taken; on top of drop_rate)
@@ -113,7 +113,7 @@ CASE_SCHEMA = Schema(
             Key("sensor", "table"), Key("camera", "table"), Key("scene", "table"),
             Key("lamps", "list"), Key("renderer", "str"), Key("timing", "table"),
             Key("video", "table")),
-        # synth.timing.FrameTiming in lab units
+        # synth.camera_clock.FrameTiming in lab units
         "render.timing": (Key("jitter_us", "float"), Key("drop_rate", "float"),
                           Key("dropped", "list"), Key("timestamps", "bool")),
         "render.video": (Key("codec", "str"), Key("quality", "int")),  # synth.video
@@ -374,7 +374,7 @@ class Case:
     data: dict  # the case dict it came from (merged over the defaults)
     oracle: bool = False  # rollfric gets the exact setup and center_px (else blind mode)
     lab: object = None  # validation.lab.Lab: the lab's nominal setup and the as-built truth
-    timing: object = None  # synth.timing.FrameTiming: the camera's jitter and dropped frames
+    timing: object = None  # synth.camera_clock.FrameTiming: the camera's jitter and dropped frames
     video: object = None  # synth.video.VideoSpec: measured through a compressed video
 
     @property
@@ -551,10 +551,10 @@ def _camera(r: dict, cam, drawn: dict, source: str):
 
 
 def _timing(table, source: str):
-    """render.timing (lab units) -> synth.timing.FrameTiming, or None."""
+    """render.timing (lab units) -> synth.camera_clock.FrameTiming, or None."""
     if table is None:
         return None
-    from synth.timing import FrameTiming
+    from synth.camera_clock import FrameTiming
 
     t = check_section(CASE_SCHEMA, "render.timing", table, source)
     dropped = t.get("dropped", [])

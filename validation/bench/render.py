@@ -5,8 +5,8 @@ Compares, side by side in one run on the same scene: the plain pyrender full-fra
 "stock" way: one OffscreenRenderer.render of the whole 1280 x 1024 frame with the ball, with
 pyrender's own shaders) and synth's tile frames (static background once, then only the ball's
 and shadows' tiles, shadow maps once per frame, the shadow filter read with gathers) drawn by
-synth's lean path (:mod:`synth.leandraw`) and by pyrender's renderer functions (the path before
-it); the largest difference from stock pyrender in 8-bit DN; where a lean tile frame's time
+synth's lean path (:mod:`synth.backends.lean`) and by pyrender's renderer functions (the path
+before it); the largest difference from stock pyrender in 8-bit DN; where a lean tile frame's time
 goes; the throughput of a whole recording with both cores; the size of the store and the cost
 of reading it.
 
@@ -23,6 +23,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+import sim
+import synth
+from synth.backends.raster import SceneRenderer
+from synth.pipeline import BATCH, versions
 
 
 def _dir_size(path: Path) -> int:
@@ -54,8 +59,6 @@ def stock_frame_seconds(scene=None, repeats: int = 3) -> float:
     float
         Seconds per frame.
     """
-    import synth
-
     scene = scene or synth.SceneConfig()
     key = repr(scene)
     if key not in _STOCK:
@@ -80,10 +83,6 @@ def stock_frame_times(scene=None, repeats: int = 3) -> list[float]:
     list of float
         Seconds of each frame.
     """
-    import sim
-    import synth
-    from synth.scene import SceneRenderer
-
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     scene = scene or synth.SceneConfig()
     traj = sim.simulate(sim.Scenario(duration=0.01))
@@ -199,8 +198,6 @@ def schedule_split(schedule: dict, n_frames: int, total: float) -> dict:
         ``startup_s``: ``total`` less ``n_frames`` steady frames (all that is not frames).
         NaN where the recording ran in one process (no batches recorded).
     """
-    from synth.pipeline import BATCH
-
     nan = float("nan")
     rows = sorted(schedule.get("batches") or [], key=lambda b: b[2])
     if not rows:
@@ -254,15 +251,25 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
     quick: 3 full frames, 30 tile frames a path and a 300-frame sequence (size extrapolated to
     4000 frames); otherwise 6, 100 and 4000."""
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    import sim
-    import synth
-    from synth.pipeline import BATCH, _versions
-    from synth.scene import SceneRenderer
-
     scene = scene or synth.SceneConfig()
     n_full, n_tile, n_seq = (3, 30, 300) if quick else (6, 100, 4000)
     seconds = seconds if seconds is not None else n_seq / 1000.0
     traj = sim.simulate(sim.Scenario(duration=max(seconds, (n_tile - 1) / 1000.0)))
+    frames, full_ms = _frame_costs(scene, traj, n_full, n_tile)
+    tmp = Path(tempfile.mkdtemp(prefix="synth-bench-"))
+    try:
+        out, seq = _sequence_costs(scene, traj, tmp, workers, n_seq, full_ms)
+        reads = _read_costs(out, seq["sequence_frames"])
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {**frames, **seq, **reads, "versions": versions(), "cpus": os.cpu_count()}
+
+
+def _frame_costs(scene, traj, n_full: int, n_tile: int) -> dict:
+    """One process's frames of ``scene``: the background, stock pyrender's full frames, the
+    tile frames by the lean path, by pyrender's path and with the exact sphere (alternating
+    blocks of 10 frames: a shared machine's load falls on all alike), the stages of a lean
+    frame: (the bench's rows, the stock full frame's median ms)."""
     setup = traj.setup()
     sr = SceneRenderer(scene, setup.ball_radius, setup.cylinder_radius)
     try:
@@ -286,8 +293,6 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
             fulls[i] = sr.render_full(stock_shaders=True)
             full_times.append(time.perf_counter() - t0)
         _STOCK.setdefault(repr(scene), float(np.median(full_times)))
-        # both tile paths over the same frames, in alternating blocks of 10 frames (a shared
-        # machine's load falls on both alike)
         res = {"lean": ([], [], 0.0), "pyrender": ([], [], 0.0), "sphere": ([], [], 0.0)}
         for start in range(0, len(idx_all), 10):
             block = idx_all[start:start + 10]
@@ -307,64 +312,14 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
     finally:
         sr.close()
     full_ms = 1e3 * float(np.median(full_times))
+    return _frame_rows(scene, t_bg, full_ms, res, stages, stages_sphere, n_stage), full_ms
+
+
+def _frame_rows(scene, t_bg, full_ms, res, stages, stages_sphere, n_stage) -> dict:
+    """The rows of :func:`_frame_costs`."""
     tile_ms = 1e3 * float(np.median(res["lean"][0]))
     tile_py_ms = 1e3 * float(np.median(res["pyrender"][0]))
     tile_sphere_ms = 1e3 * float(np.median(res["sphere"][0]))
-    tile_px = res["lean"][1]
-    # a whole recording, both cores
-    tmp = Path(tempfile.mkdtemp(prefix="synth-bench-"))
-    try:
-        create_ms = file_create_ms(tmp)
-        t0 = time.perf_counter()
-        sched: dict = {}
-        out = synth.render(traj, tmp / "bench.zarr", scene=scene,
-                           sensor=synth.noise_preset("realistic"), seed=0, workers=workers,
-                           frames=min(n_seq, len(traj)), schedule=sched)
-        t_seq = time.perf_counter() - t0
-        n_done = min(n_seq, len(traj))
-        split = schedule_split(sched, n_done, t_seq)
-        # a shorter recording after it in the same process: it reuses the render processes'
-        # fork server the first one started (its imports)
-        later: dict = {}
-        n_short = min(2 * BATCH * workers, n_done)
-        t0 = time.perf_counter()
-        synth.render(traj, tmp / "later.zarr", scene=scene,
-                     sensor=synth.noise_preset("realistic"), seed=0, workers=workers,
-                     frames=n_short, schedule=later)
-        split_later = schedule_split(later, n_short, time.perf_counter() - t0)
-        size = _dir_size(out)
-        disk = _disk_usage(out)
-        rec = synth.open_recording(out)
-        rec.frames[0]
-        t0 = time.perf_counter()
-        k = min(50, n_done)
-        for i in range(k):
-            rec.frames[i]
-        read_ms = 1e3 * (time.perf_counter() - t0) / k
-        # a tracker's region of interest: the ball's box plus 20 px a side
-        _, h, w = rec.frames.shape
-        tr = rec.truth
-        rois = []
-        for i in range(k):
-            half = int(tr.r_px[i]) + 20
-            x, y = int(tr.x_px[i]), int(tr.y_px[i])
-            rois.append((max(0, y - half), min(h, y + half + 1), max(0, x - half),
-                         min(w, x + half + 1)))
-        # the region path's first read loads (or, after the kernels changed, compiles) the
-        # sensor kernel for its array type: once a process, not a frame's cost
-        rec.frames.read(0, rois[0])
-        t0 = time.perf_counter()
-        for i in range(k):
-            rec.frames.read(i, rois[i])
-        roi_ms = 1e3 * (time.perf_counter() - t0) / k
-        t0 = time.perf_counter()
-        for i in range(k):
-            rec.frames.clean_counts(i, rois[i])
-        roi_clean_ms = 1e3 * (time.perf_counter() - t0) / k
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    stage_ms = {name: round(1e3 * v / n_stage, 2) for name, v in stages.items()}
-    stage_sphere_ms = {name: round(1e3 * v / n_stage, 2) for name, v in stages_sphere.items()}
     return {
         "frame": f"{scene.camera.width}x{scene.camera.height}",
         "projection": scene.camera.projection,
@@ -379,14 +334,41 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "speedup_single_process": round(full_ms / tile_ms, 1),
         "speedup_single_process_pyrender_path": round(full_ms / tile_py_ms, 1),
         "lean_over_pyrender_path": round(tile_py_ms / tile_ms, 2),
-        "tile_pixels_median": int(np.median(tile_px)),
+        "tile_pixels_median": int(np.median(res["lean"][1])),
         "max_diff_dn": res["lean"][2],
         "max_diff_dn_pyrender_path": res["pyrender"][2],
-        "lean_frame_stages_ms": stage_ms,
+        "lean_frame_stages_ms": {name: round(1e3 * v / n_stage, 2)
+                                 for name, v in stages.items()},
         "synth_tile_sphere_ms": round(tile_sphere_ms, 2),
         "speedup_single_process_sphere": round(full_ms / tile_sphere_ms, 1),
         "max_diff_dn_sphere": res["sphere"][2],
-        "sphere_frame_stages_ms": stage_sphere_ms,
+        "sphere_frame_stages_ms": {name: round(1e3 * v / n_stage, 2)
+                                   for name, v in stages_sphere.items()},
+    }
+
+
+def _sequence_costs(scene, traj, tmp: Path, workers: int, n_seq: int, full_ms: float):
+    """A whole recording of ``scene`` in ``tmp`` with ``workers`` processes (both cores), then
+    a shorter one after it in the same process (it reuses the render processes' fork server
+    the first one started: its imports): (the recording, the bench's rows; speed-ups over a
+    stock full frame of ``full_ms``)."""
+    create_ms = file_create_ms(tmp)
+    t0 = time.perf_counter()
+    sched: dict = {}
+    out = synth.render(traj, tmp / "bench.zarr", scene=scene,
+                       sensor=synth.noise_preset("realistic"), seed=0, workers=workers,
+                       frames=min(n_seq, len(traj)), schedule=sched)
+    t_seq = time.perf_counter() - t0
+    n_done = min(n_seq, len(traj))
+    split = schedule_split(sched, n_done, t_seq)
+    later: dict = {}
+    n_short = min(2 * BATCH * workers, n_done)
+    t0 = time.perf_counter()
+    synth.render(traj, tmp / "later.zarr", scene=scene,
+                 sensor=synth.noise_preset("realistic"), seed=0, workers=workers,
+                 frames=n_short, schedule=later)
+    split_later = schedule_split(later, n_short, time.perf_counter() - t0)
+    return out, {
         "sequence_frames": n_done,
         "sequence_workers": workers,
         "sequence_s": round(t_seq, 1),
@@ -404,6 +386,42 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "sequence_steady_quarters_ms": [round(1e3 * q, 2) for q in split["quarters_s"]],
         "sequence_file_create_ms": round(create_ms, 3),
         "speedup_sequence_steady": round(full_ms / (1e3 * split["steady_s"]), 1),
+    }
+
+
+def _read_costs(out: Path, n_done: int) -> dict:
+    """The recording's size on disk and what reading it costs: whole frames, a tracker's
+    region of interest (the ball's box plus 20 px a side) with and without the sensor model;
+    the bench's rows."""
+    size = _dir_size(out)
+    disk = _disk_usage(out)
+    rec = synth.open_recording(out)
+    rec.frames[0]
+    t0 = time.perf_counter()
+    k = min(50, n_done)
+    for i in range(k):
+        rec.frames[i]
+    read_ms = 1e3 * (time.perf_counter() - t0) / k
+    _, h, w = rec.frames.shape
+    tr = rec.truth
+    rois = []
+    for i in range(k):
+        half = int(tr.r_px[i]) + 20
+        x, y = int(tr.x_px[i]), int(tr.y_px[i])
+        rois.append((max(0, y - half), min(h, y + half + 1), max(0, x - half),
+                     min(w, x + half + 1)))
+    # the region path's first read loads (or, after the kernels changed, compiles) the
+    # sensor kernel for its array type: once a process, not a frame's cost
+    rec.frames.read(0, rois[0])
+    t0 = time.perf_counter()
+    for i in range(k):
+        rec.frames.read(i, rois[i])
+    roi_ms = 1e3 * (time.perf_counter() - t0) / k
+    t0 = time.perf_counter()
+    for i in range(k):
+        rec.frames.clean_counts(i, rois[i])
+    roi_clean_ms = 1e3 * (time.perf_counter() - t0) / k
+    return {
         "store_mb": round(size / 1e6, 2),
         "est_store_4000_mb": round(size / 1e6 * 4000 / n_done, 1),
         "store_disk_mb": round(disk / 1e6, 2),
@@ -412,8 +430,6 @@ def render_benchmark(quick: bool = True, *, workers: int = 2, seconds: float | N
         "read_roi_clean_ms_per_frame": round(roi_clean_ms, 3),
         "sensor_noise": rec.frames.noise,
         "roi_px": int(np.median([(r[1] - r[0]) * (r[3] - r[2]) for r in rois])),
-        "versions": _versions(),
-        "cpus": os.cpu_count(),
     }
 
 

@@ -32,8 +32,9 @@ from rollfric.fit.estimate import fit_mu, initial_guess
 from rollfric.fit.thesis import PAPER2_GRID, fit_paper2_grid
 from rollfric.output.folder import check_folder, staged_folder
 from rollfric.setup.model import thesis_setup
-from synth.mitsuba_scene import available
-from synth.pipeline import make_renderer, subframe_positions
+from synth.backends import make_backend
+from synth.backends.mitsuba_runtime import available
+from synth.pipeline import subframe_positions
 from validation.bench import e2e, locate, sweep
 from validation.bench.render import render_benchmark
 from validation.bench.table import Row
@@ -247,8 +248,8 @@ def mitsuba_frames(frames: int = 4) -> dict:
     traj = sim.simulate(case.scenario)
     st = traj.setup()
     centres = subframe_positions(traj, case.scene.motion_blur, case.sensor.exposure)
-    sr = make_renderer(case.scene, st.ball_radius, st.cylinder_radius, 0)
-    import drjit as dr  # after the renderer chose Dr.Jit's LLVM (synth.mitsuba_scene.load)
+    sr = make_backend(case.scene, st.ball_radius, st.cylinder_radius, 0)
+    import drjit as dr  # after the renderer chose Dr.Jit's LLVM (mitsuba_runtime.load)
 
     sr.set_background(np.zeros((sr.camera.height, sr.camera.width), dtype=np.int64))
     cfg = sr.config

@@ -1,6 +1,6 @@
 """Mitsuba's path tracer for synth's scene: no caustics of the ball on trough or backdrop.
 
-Imported by :mod:`synth.mitsuba_scene` after it has chosen Mitsuba's variant (``@dr.syntax``
+Imported by :mod:`synth.backends.pathtrace` after it has chosen Mitsuba's variant (``@dr.syntax``
 rewrites :meth:`RimPath.sample` with this module's globals, so ``mi`` and ``dr`` live here).
 """
 

@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+import sim
 from synth.config import SynthError
 
 # the jitter's standard deviation must stay well below a period (frames keep their order)
@@ -163,8 +164,6 @@ def resample(traj, times):
     """
     from scipy.interpolate import CubicHermiteSpline, CubicSpline
     from scipy.spatial.transform import Rotation, Slerp
-
-    import sim
 
     t = np.asarray(traj.t, float)
     ts = np.asarray(times, float)

@@ -7,7 +7,8 @@ Python a tile frame against ~9 ms of drawing (llvmpipe, one thread; cProfile wit
 Everything but the ball's pose is the same in every frame of a recording, so here:
 
 - pyrender itself draws the first tile frame (it compiles the programs, uploads the meshes,
-  renders and caches the trough's shadow maps: :meth:`synth.scene.SceneRenderer.render_tiles`);
+  renders and caches the trough's shadow maps:
+  :meth:`synth.backends.raster.SceneRenderer.render_tiles`);
 - the camera's and lamps' uniforms are then set once per program by pyrender's own functions
   (the same values: a GL program keeps its uniforms), again whenever pyrender drew in between
   (a full-frame render sets other projections) or the lamps' shadow cameras change;
@@ -19,14 +20,14 @@ Everything but the ball's pose is the same in every frame of a recording, so her
 - each frame then makes only the calls that draw: per lamp, the ball's depth into the
   scissored box of its shadow map over the cached trough; per tile, the static layer's samples
   copied in (a multisample blit), the static surfaces drawn again only in the boxes of the
-  ball's shadows (:meth:`synth.scene.SceneRenderer.shadow_boxes`: outside them the ball
+  ball's shadows (:meth:`synth.backends.raster.SceneRenderer.shadow_boxes`: outside them the ball
   changes no shadow lookup; once in their union, :func:`disjoint_boxes`) and the ball in its
   own box, with the model matrix and material
   uniforms at locations looked up once, in the GL state pyrender's draw sets; the tile
   resolved and read.
 
 The same programs (but for the ball's, whose fragment shader holds the lamps' and camera's
-uniform values as constants: :func:`synth.shaders.specialised_mesh_shader`, 0 DN), buffers,
+uniform values as constants: :func:`synth.backends.shaders.specialised_mesh_shader`, 0 DN), buffers,
 uniform values and GL state as pyrender's path; the static
 surfaces are drawn before the ball instead of in pyrender's order by distance, which changes
 nothing with the depth test and opaque surfaces (no two of them at the same depth), so the
@@ -37,15 +38,23 @@ flat silhouette mode) is drawn by pyrender's path: :func:`unsupported` says why.
 
 from __future__ import annotations
 
-import ctypes
 import os
 
 import numpy as np
 
 from synth import pyrender_adapter as pa
+from synth.backends import footprint, gl_calls, triangles
+from synth.backends.shaders import (
+    SPHERE_FRAG,
+    SPHERE_VERT,
+    light_counts,
+    program_cache,
+    shader_dir,
+    specialised_mesh_shader,
+    specialised_values_names,
+)
 
 STATIC_BLOCK = 32  # px: the static layer is drawn where tiles first need it, in such blocks
-RUN_GAP = 64  # triangles: runs of a draw's triangles closer than this are drawn as one
 
 
 def unsupported(sr) -> str | None:
@@ -53,7 +62,7 @@ def unsupported(sr) -> str | None:
 
     Parameters
     ----------
-    sr : synth.scene.SceneRenderer
+    sr : synth.backends.raster.SceneRenderer
         The renderer.
 
     Returns
@@ -78,151 +87,12 @@ def unsupported(sr) -> str | None:
     return None
 
 
-def _material_uniforms(program_id: int, m) -> list:
-    """The (function, args) pairs setting a pyrender material's four factors in a program
-    (those the program has), as pyrender's primitive draw sets them."""
-    material = [_uniform(program_id, "material.emissive_factor", m.emissiveFactor),
-                _uniform(program_id, "material.base_color_factor", m.baseColorFactor),
-                _uniform(program_id, "material.metallic_factor", m.metallicFactor),
-                _uniform(program_id, "material.roughness_factor", m.roughnessFactor)]
-    return [u for u in material if u is not None]
-
-
-def _uniform(program_id: int, name: str, value):
-    """(function, args) setting uniform ``name`` to ``value`` as pyrender's
-    ShaderProgram.set_uniform does (the same GL function and converted value), or None when the
-    program has no such uniform (pyrender then sets nothing)."""
-    from OpenGL import GL
-
-    loc = GL.glGetUniformLocation(program_id, name)
-    if loc == -1:
-        return None
-    if isinstance(value, np.ndarray):
-        if value.ndim == 1:
-            if np.issubdtype(value.dtype, np.unsignedinteger):
-                v, kind = value.astype(np.uint32), "ui"
-            elif np.issubdtype(value.dtype, np.integer):
-                v, kind = value.astype(np.int32), "i"
-            else:
-                v, kind = value.astype(np.float32), "f"
-            return getattr(GL, f"glUniform{v.shape[0]}{kind}v"), (loc, 1, v)
-        fn = GL.glUniformMatrix4fv if value.shape == (4, 4) else \
-            getattr(GL, f"glUniformMatrix{value.shape[0]}x{value.shape[1]}fv")
-        return fn, (loc, 1, GL.GL_TRUE, np.asarray(value))
-    if isinstance(value, float):
-        return GL.glUniform1f, (loc, value)
-    if isinstance(value, (bool, int)):
-        return GL.glUniform1i, (loc, int(value))
-    raise ValueError(f"uniform {name}: unsupported value {value!r}")
-
-
-def _raw(call):
-    """A (function, args) pair of :func:`_uniform` as PyOpenGL's raw function with a pointer
-    to the converted values (the same GL function and values): PyOpenGL's wrapped array
-    functions convert their arguments on every call (~15 us against ~2.5 us; a frame makes
-    ~25 such calls). Scalar calls are returned as they are. The values are kept with the
-    pointer."""
-    from OpenGL.raw.GL.VERSION import GL_2_0, GL_2_1, GL_3_0
-
-    fn, args = call
-    name = fn.__name__
-    if not name.endswith("v"):
-        return fn, args, None
-    raw = getattr(GL_2_0, name, None) or getattr(GL_2_1, name, None) or getattr(GL_3_0, name)
-    value = args[-1]
-    if name.startswith("glUniformMatrix"):
-        kept = np.ascontiguousarray(value, dtype=np.float32)
-        return raw, (*args[:-1], kept.ctypes.data_as(ctypes.POINTER(ctypes.c_float))), kept
-    kind = {np.dtype(np.float32): ctypes.c_float, np.dtype(np.int32): ctypes.c_int,
-            np.dtype(np.uint32): ctypes.c_uint}[value.dtype]
-    kept = np.ascontiguousarray(value)
-    return raw, (*args[:-1], kept.ctypes.data_as(ctypes.POINTER(kind))), kept
-
-
-def _values_key(call) -> bytes:
-    """The GL function and arguments of a :func:`_uniform` call as bytes: equal keys set
-    equal values at the same location."""
-    fn, args = call
-    return repr((fn.__name__, [np.asarray(a).tolist() for a in args])).encode()
-
-
-def _matrix(M) -> tuple:
-    """(pointer, kept array) of a 4 x 4 matrix as the float32 values glUniformMatrix4fv gets
-    from PyOpenGL's conversion of ``M`` (row-major: set with transpose GL_TRUE)."""
-    kept = np.ascontiguousarray(M, dtype=np.float32)
-    return kept.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), kept
-
-
-def _drawing(prim) -> dict:
-    """What drawing a pyrender Primitive takes: its vertex array, mode and count."""
-    indexed = prim.indices is not None
-    return {"vao": pa.vertex_array(prim), "mode": prim.mode, "indexed": indexed,
-            "count": prim.indices.size if indexed else len(prim.positions)}
-
-
-def _draw(d, runs=None) -> None:
-    """Draw a primitive as pyrender's _bind_and_draw_primitive does (one instance), or only
-    its triangles in ``runs`` [(first, count), ...]."""
-    from OpenGL import GL
-    from OpenGL.raw.GL.VERSION import GL_3_1
-
-    GL.glBindVertexArray(d["vao"])
-    if runs is None:
-        runs = [(0, d["count"] // 3)] if d["mode"] == 4 else None
-    if runs is None:
-        first_counts = [(0, d["count"])]
-    else:
-        first_counts = [(3 * a, 3 * n) for a, n in runs]
-    for first, count in first_counts:
-        if d["indexed"]:
-            GL_3_1.glDrawElementsInstanced(d["mode"], count, GL.GL_UNSIGNED_INT,
-                                           ctypes.c_void_p(4 * first), 1)
-        else:
-            GL_3_1.glDrawArraysInstanced(d["mode"], first, count, 1)
-
-
-def read_region(inner, x: int, y: int, w: int, h: int) -> np.ndarray:
-    """Resolve a box of the multisampled main framebuffer and read it.
-
-    Parameters
-    ----------
-    inner : pyrender.Renderer
-        The renderer whose main framebuffers hold the drawing (its context current).
-    x, y, w, h : int
-        The box in GL window coordinates (origin bottom left).
-
-    Returns
-    -------
-    numpy.ndarray
-        (h, w, 3) uint8 RGB, top row first.
-    """
-    from OpenGL.GL import (
-        GL_COLOR_BUFFER_BIT,
-        GL_DRAW_FRAMEBUFFER,
-        GL_NEAREST,
-        GL_READ_FRAMEBUFFER,
-        GL_RGBA,
-        GL_UNSIGNED_BYTE,
-        glBindFramebuffer,
-        glBlitFramebuffer,
-        glReadPixels,
-    )
-
-    fb_ms, fb = pa.main_framebuffers(inner)
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, fb_ms)
-    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb)
-    glBlitFramebuffer(x, y, x + w, y + h, x, y, x + w, y + h, GL_COLOR_BUFFER_BIT, GL_NEAREST)
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, fb)
-    buf = glReadPixels(x, y, w, h, GL_RGBA, GL_UNSIGNED_BYTE)
-    return np.frombuffer(buf, dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]
-
-
 class LeanDraw:
     """The lean tile draw of one SceneRenderer (built after pyrender drew a tile frame).
 
     Parameters
     ----------
-    sr : synth.scene.SceneRenderer
+    sr : synth.backends.raster.SceneRenderer
         The renderer; its scene must be drawable (:func:`unsupported` is None) and pyrender
         must have drawn one tile frame with it (programs, buffers and shadow cache exist).
     """
@@ -248,8 +118,8 @@ class LeanDraw:
         # "mesh" or "sphere" (SceneConfig.ball_model); set it and ``ready = False`` to switch
         self.ball_model = sr.config.ball_model
         # the ball's mesh drawn by a fragment shader with the lamps' and camera's uniforms held
-        # as constants (synth.shaders.specialised_mesh_shader); set it and ``ready = False``
-        # to switch
+        # as constants (synth.backends.shaders.specialised_mesh_shader); set it and
+        # ``ready = False`` to switch
         self.specialise = True
         # the static surfaces drawn again once in the union of the shadows' boxes (cut into
         # boxes that do not overlap: disjoint_boxes) rather than once per box, twice where two
@@ -290,14 +160,14 @@ class LeanDraw:
                 self.draws.append({
                     "node": node, "program": prog, "pid": pid,
                     "M": GL.glGetUniformLocation(pid, "M"),
-                    "material": _material_uniforms(pid, prim.material),
+                    "material": gl_calls.material_uniforms(pid, prim.material),
                     "cull": not prim.material.doubleSided,
                     "boxes": None if node is self.ball else self._triangle_boxes(node, prim),
                     "far": None if node is self.ball else self._triangle_far(node, prim),
                     "prim": prim,
-                    **_drawing(prim)})
+                    **gl_calls.drawing(prim)})
         for d in self.draws:
-            d["raw_material"] = [_raw(u) for u in d["material"]]
+            d["raw_material"] = [gl_calls.raw(u) for u in d["material"]]
         self.static_draws = [d for d in self.draws if d["node"] is not self.ball]
         self.ball_draws = [d for d in self.draws if d["node"] is self.ball]
         if self.ball_model == "sphere":
@@ -313,17 +183,15 @@ class LeanDraw:
                                    "M": GL.glGetUniformLocation(pid, "M"),
                                    "V": GL.glGetUniformLocation(pid, "V"),
                                    "P": GL.glGetUniformLocation(pid, "P"),
-                                   **_drawing(prim)})
+                                   **gl_calls.drawing(prim)})
         self.ready = False
 
     def _sphere_draw(self, mesh_draw) -> dict:
         """The ball drawn as an exact sphere (``SceneConfig.ball_model = "sphere"``): one
         triangle over the viewport, scissored to the ball's box, whose fragment shader
-        (:func:`synth.shaders.sphere_shader`) intersects each pixel's ray with the sphere and
-        shades the hit with the mesh shader's own code; the ball mesh's material."""
+        (:func:`synth.backends.shaders.sphere_shader`) intersects each pixel's ray with the
+        sphere and shades the hit with the mesh shader's own code; the ball mesh's material."""
         from OpenGL import GL
-
-        from synth.shaders import SPHERE_FRAG, SPHERE_VERT, light_counts, program_cache
 
         sr = self.sr
         pr = sr._pyrender
@@ -337,9 +205,9 @@ class LeanDraw:
         pid = pa.program_id(prog)
         if self._sphere_vao is None:
             self._sphere_vao = int(np.asarray(GL.glGenVertexArrays(1)).ravel()[0])
-        material = _material_uniforms(pid, prim.material)
+        material = gl_calls.material_uniforms(pid, prim.material)
         return {**mesh_draw, "program": prog, "pid": pid, "M": -1,
-                "material": material, "raw_material": [_raw(u) for u in material],
+                "material": material, "raw_material": [gl_calls.raw(u) for u in material],
                 "cull": False,
                 "boxes": None, "sphere": True, "vao": self._sphere_vao, "mode": 4,
                 "indexed": False, "count": 3,
@@ -362,98 +230,34 @@ class LeanDraw:
                             ("sphere_radius", float(self.sr.ball_radius)),
                             ("sphere_band", np.array([f(a) for a in self.sr.ball_rings
                                                       for f in (np.sin, np.cos)]))):
-            u = _uniform(pid, name, value)
+            u = gl_calls.uniform(pid, name, value)
             if u is not None:
                 u[0](*u[1])
         loc = GL.glGetUniformLocation(pid, "sphere_samples")
         GL.glUniform2fv(loc, 4, samples.astype(np.float32).ravel())
 
     def _triangle_boxes(self, node, prim):
-        """(n, 4) pixel boxes [x0, y0, x1, y1] of a static primitive's triangles in the frame
-        (exact projections, 2 px wider), or None when it is not a triangle list or a vertex is
-        not in front of the camera (then it is always drawn whole)."""
-        if prim.mode != 4:  # GL_TRIANGLES
-            return None
-        cam = self.sr.camera
-        pose = self.sr.scene.get_pose(node)
-        v = np.asarray(prim.positions, float) @ pose[:3, :3].T + pose[:3, 3]
-        if cam.projection == "perspective" and np.any(v[:, 2] > cam.camera_z - cam.znear):
-            return None
-        if prim.indices is not None:
-            tri = np.asarray(prim.indices, dtype=np.int64).reshape(-1, 3)
-        else:
-            tri = np.arange(len(v)).reshape(-1, 3)
-        q = cam.project(v)[tri]  # (n, 3, 2)
-        return np.concatenate([q.min(axis=1) - 2.0, q.max(axis=1) + 2.0], axis=1)
+        """:func:`synth.backends.triangles.triangle_boxes` of a static primitive."""
+        return triangles.triangle_boxes(self.sr.camera, self.sr.scene.get_pose(node), prim)
 
     def _lamp_positions(self) -> np.ndarray:
         return np.array([self.sr.scene.get_pose(ln)[:3, 3] for ln in self.lamps]).reshape(-1, 3)
 
     def _triangle_far(self, node, prim):
-        """(n, lamps) the largest distance of each triangle's vertices from each lamp (a
-        triangle's farthest point from a lamp is a vertex), or None when it is not a triangle
-        list: what :meth:`_reach` is compared with."""
+        """:func:`synth.backends.triangles.triangle_far` of a static primitive from the lamps
+        where they are now (kept: what :meth:`_reach` measures from)."""
         if prim.mode != 4 or not self.lamps:
             return None
-        pose = self.sr.scene.get_pose(node)
-        v = np.asarray(prim.positions, float) @ pose[:3, :3].T + pose[:3, 3]
-        if prim.indices is not None:
-            tri = np.asarray(prim.indices, dtype=np.int64).reshape(-1, 3)
-        else:
-            tri = np.arange(len(v)).reshape(-1, 3)
-        lamps = self._lamp_positions()
-        self._far_lamps = lamps
-        dist = np.linalg.norm(v[:, None, :] - lamps[None, :, :], axis=2)  # (vertices, lamps)
-        return dist[tri].max(axis=1)
+        self._far_lamps = self._lamp_positions()
+        return triangles.triangle_far(self.sr.scene.get_pose(node), prim, self._far_lamps)
 
     def _reach(self, centres) -> np.ndarray:
-        """Per lamp, the distance of the ball's nearest point at ``centres`` (K, 3) (a
-        little less): a point nearer a lamp than that has the ball behind it, not between it
-        and the lamp, so the ball cannot shadow a triangle whose vertices are all nearer."""
-        lamps = self._far_lamps
-        near = np.linalg.norm(centres[:, None, :] - lamps[None, :, :], axis=2).min(axis=0)
-        return near - self.sr.ball_radius * (1 + 1e-6) - 1e-9
+        """:func:`synth.backends.triangles.reach` of the ball at ``centres`` (K, 3)."""
+        return triangles.reach(centres, self._far_lamps, self.sr.ball_radius)
 
     def _runs(self, d, tile, reach=None) -> list:
-        """(first triangle, count) runs of draw ``d``'s triangles that can touch ``tile``
-        (x0, y0, w, h): the others have no pixel in the scissor box, so leaving them out
-        changes no pixel (the drawn ones keep their order); with ``reach`` (:meth:`_reach`)
-        only those the ball can shadow. Runs closer than RUN_GAP triangles are drawn as one."""
-        boxes = d["boxes"]
-        n = d["count"] // 3
-        if boxes is None:
-            return [(0, n)]
-        if n <= RUN_GAP:  # a few triangles (the backdrop's two): drawn whole, no pixel
-            return [(0, n)]  # changes (see above), and NumPy's per-call cost is saved
-        x0, y0, w, h = tile
-        if "box_columns" not in d:  # x0, y0, x1, y1 each contiguous
-            d["box_columns"] = [np.ascontiguousarray(boxes[:, k]) for k in range(4)]
-        bx0, by0, bx1, by1 = d["box_columns"]
-        m = bx0 <= x0 + w
-        m &= bx1 >= x0
-        m &= by0 <= y0 + h
-        m &= by1 >= y0
-        hit = np.flatnonzero(m)
-        if reach is not None and d.get("far") is not None and hit.size:
-            hit = hit[(d["far"][hit] >= reach[None, :]).any(axis=1)]
-        if hit.size == 0:
-            return []
-        if hit.size > 16:
-            cut = np.flatnonzero(np.diff(hit) > RUN_GAP)
-            starts = np.concatenate([[hit[0]], hit[cut + 1]])
-            ends = np.concatenate([hit[cut], [hit[-1]]]) + 1
-            return list(zip(starts.tolist(), (ends - starts).tolist(), strict=True))
-        runs = []  # a few triangles: the same runs without NumPy's per-call cost
-        start = prev = None
-        for i in hit.tolist():
-            if start is None:
-                start = i
-            elif i - prev > RUN_GAP:
-                runs.append((start, prev + 1 - start))
-                start = i
-            prev = i
-        runs.append((start, prev + 1 - start))
-        return runs
+        """:func:`synth.backends.triangles.runs` of draw ``d`` in ``tile``."""
+        return triangles.runs(d, tile, reach)
 
     # -- uniforms that stay ----------------------------------------------------------------
 
@@ -488,15 +292,16 @@ class LeanDraw:
             self.ball_draws = [self._specialised(d) for d in self.draws
                                if d["node"] is self.ball]
         for d in self.static_draws:  # the static meshes' model matrices, as uploaded
-            d["M_ptr"] = _matrix(scene.get_pose(d["node"]))
+            d["M_ptr"] = gl_calls.matrix(scene.get_pose(d["node"]))
             d["M_key"] = d["M_ptr"][1].tobytes()
         for d in self.draws + self.ball_draws:
-            d["material_keys"] = [_values_key(u) for u in d["material"]]
+            d["material_keys"] = [gl_calls.values_key(u) for u in d["material"]]
         # the model matrix and material values each program holds, set by this path since
         # the uniforms were set (pyrender's draws set them their own way: then ready is
         # False and this runs again)
         self._held = {}
-        self._light_ptrs = [(_matrix(V_l), _matrix(P_l)) for V_l, P_l in self._light_mats or ()]
+        self._light_ptrs = [(gl_calls.matrix(V_l), gl_calls.matrix(P_l))
+                            for V_l, P_l in self._light_mats or ()]
         key = self._static_fingerprint(V, P, cam_pos)
         if key != self._static_key:  # the static scene changed: draw its layer again
             self._static_key = key
@@ -513,14 +318,6 @@ class LeanDraw:
         import hashlib
 
         from OpenGL import GL
-
-        from synth.shaders import (
-            light_counts,
-            program_cache,
-            shader_dir,
-            specialised_mesh_shader,
-            specialised_values_names,
-        )
 
         sr, inner = self.sr, self.inner
         counts = light_counts(sr.scene)
@@ -553,9 +350,9 @@ class LeanDraw:
         prog.set_uniform("P", P)
         pa.bind_lighting(inner, sr.scene, prog, d["node"], self.flags)  # the samplers' units
         pa.reset_active_textures(inner)
-        material = _material_uniforms(pid, d["prim"].material)
+        material = gl_calls.material_uniforms(pid, d["prim"].material)
         return {**d, "program": prog, "pid": pid, "M": GL.glGetUniformLocation(pid, "M"),
-                "material": material, "raw_material": [_raw(u) for u in material]}
+                "material": material, "raw_material": [gl_calls.raw(u) for u in material]}
 
     def _static_fingerprint(self, V, P, cam_pos) -> bytes:
         """Everything the static layer's pixels depend on besides the programs: camera, frame
@@ -590,7 +387,7 @@ class LeanDraw:
 
     def render(self, poses, tiles, timings: dict | None = None) -> list[np.ndarray]:
         """Tiles [(x0, y0, w, h), ...] of the frame with the ball at each of ``poses``, summed
-        over the poses (as :meth:`synth.scene.SceneRenderer.render_tiles`).
+        over the poses (as :meth:`synth.backends.raster.SceneRenderer.render_tiles`).
 
         ``timings`` (the benchmark's): a dict to which the wall seconds of each stage are
         added ("set-up", "shadow maps", "static layer", "draw: shadowed surfaces",
@@ -616,7 +413,7 @@ class LeanDraw:
         out = [None] * len(tiles)
         ball_box, shadow_boxes = self._footprint(poses)
         # a sample drawn again gets the colour it got the first time: once is enough
-        pieces = disjoint_boxes(shadow_boxes) if self.disjoint else shadow_boxes
+        pieces = footprint.disjoint_boxes(shadow_boxes) if self.disjoint else shadow_boxes
         pa.make_current(sr._offscreen)
         try:
             inner.viewport_width, inner.viewport_height = W * s, H * s
@@ -656,17 +453,17 @@ class LeanDraw:
                     self._restore(tile)
                     t0 = lap("static layer", t0)
                     for box in pieces:
-                        part = _meet(tile, box)
+                        part = footprint.meet(tile, box)
                         if part is not None:  # the static surfaces the shadows fall on
                             self._forward(M, self._gl_box(part), part, self.static_draws,
                                           self.units, clear=False, redraw=True, reach=reach)
                     t0 = lap("draw: shadowed surfaces", t0)
-                    part = _meet(tile, ball_box)
+                    part = footprint.meet(tile, ball_box)
                     if part is not None:
                         self._forward(M, self._gl_box(part), part, self.ball_draws,
                                       self.units, clear=False)
                     t0 = lap("draw: ball", t0)
-                    c = sr._reduce(read_region(inner, *gl_box[k]))
+                    c = sr._reduce(gl_calls.read_region(inner, *gl_box[k]))
                     t0 = lap("read back", t0)
                     out[k] = c if out[k] is None else out[k] + c
             GL.glUseProgram(0)
@@ -682,7 +479,7 @@ class LeanDraw:
 
     def _footprint(self, poses) -> tuple:
         """The ball's box and the shadows' boxes (x0, y0, x1, y1) over all ``poses``: those
-        :meth:`synth.scene.SceneRenderer.tiles_for` found for the same centres, or found
+        :meth:`synth.backends.raster.SceneRenderer.tiles_for` found for the same centres, or found
         again."""
         sr = self.sr
         centres = np.array([np.asarray(p, float)[:3, 3] for p in poses])
@@ -761,7 +558,7 @@ class LeanDraw:
         if sr._shadow_cache is None:
             raise RuntimeError("the trough's shadow maps are not cached yet")
         fb = pa.shadow_framebuffer(inner)
-        M_ptr = _matrix(M)
+        M_ptr = gl_calls.matrix(M)
         GL.glEnable(GL.GL_SCISSOR_TEST)
         try:
             for ln, (V, P), (V_ptr, P_ptr) in zip(self.lamps, mats, self._light_ptrs,
@@ -809,7 +606,7 @@ class LeanDraw:
                     GL_2_0.glUniformMatrix4fv(d["V"], 1, GL.GL_TRUE, V_ptr[0])
                     GL_2_0.glUniformMatrix4fv(d["P"], 1, GL.GL_TRUE, P_ptr[0])
                     GL_2_0.glUniformMatrix4fv(d["M"], 1, GL.GL_TRUE, M_ptr[0])
-                    _draw(d)
+                    gl_calls.draw(d)
                 GL.glBindVertexArray(0)
                 sr._shadow_prev[ln.name] = now
         finally:
@@ -858,7 +655,7 @@ class LeanDraw:
             GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
             GL.glDisable(GL.GL_PROGRAM_POINT_SIZE)
             current = None
-            ball_ptr = None if M is None else _matrix(M)
+            ball_ptr = None if M is None else gl_calls.matrix(M)
             for d in draws:
                 if d["pid"] != current:
                     GL.glUseProgram(d["pid"])
@@ -883,54 +680,12 @@ class LeanDraw:
                 else:
                     GL.glDisable(GL.GL_CULL_FACE)
                 if d.get("sphere") or d["mode"] != 4:
-                    _draw(d, None)
+                    gl_calls.draw(d, None)
                 else:
                     runs = self._runs(d, tile, reach)
                     if runs:
-                        _draw(d, runs)
+                        gl_calls.draw(d, runs)
             GL.glBindVertexArray(0)
             GL.glFlush()
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)
-
-
-def _meet(tile, box):
-    """The part (x0, y0, w, h) of ``tile`` (x0, y0, w, h) inside ``box`` (x0, y0, x1, y1),
-    or None."""
-    x0, y0 = max(tile[0], box[0]), max(tile[1], box[1])
-    x1, y1 = min(tile[0] + tile[2], box[2]), min(tile[1] + tile[3], box[3])
-    return (x0, y0, x1 - x0, y1 - y0) if x1 > x0 and y1 > y0 else None
-
-
-def disjoint_boxes(boxes) -> list:
-    """Boxes covering the union of ``boxes`` with no two overlapping: each box less the
-    ones before it, cut into at most four boxes each time.
-
-    Parameters
-    ----------
-    boxes : list of tuple
-        Boxes (x0, y0, x1, y1), px (x1, y1 exclusive).
-
-    Returns
-    -------
-    list of tuple
-        Boxes (x0, y0, x1, y1) whose union is that of ``boxes``, pairwise without a common
-        pixel; ``boxes`` themselves when none overlap.
-    """
-    out: list = []
-    for box in boxes:
-        parts = [tuple(box)]
-        for other in out:
-            parts = [q for p in parts for q in _less(p, other)]
-        out += parts
-    return out
-
-
-def _less(a, b) -> list:
-    """Box ``a`` less box ``b`` (both (x0, y0, x1, y1)) as at most four boxes."""
-    x0, y0, x1, y1 = max(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), min(a[3], b[3])
-    if x0 >= x1 or y0 >= y1:
-        return [a]
-    parts = [(a[0], a[1], a[2], y0), (a[0], y1, a[2], a[3]),  # below and above b
-             (a[0], y0, x0, y1), (x1, y0, a[2], y1)]  # left and right of b, beside it
-    return [p for p in parts if p[2] > p[0] and p[3] > p[1]]

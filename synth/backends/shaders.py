@@ -35,6 +35,8 @@ from multiprocessing.util import Finalize
 
 import numpy as np
 
+from synth.pyrender_adapter import load
+
 # pyrender's function, replaced from this line up to the next function
 _PCF_HEAD = "float PCF(sampler2D depths, vec2 size, vec2 uv, float compare){"
 _NEXT = "float shadow_calc("
@@ -77,7 +79,8 @@ def fixed_light_loops(text: str, n_directional: int, n_spot: int, n_point: int) 
     for kind, head in _LOOPS.items():
         if text.count(head) != 1:
             raise RuntimeError(f"pyrender's mesh.frag has no single {kind}-light loop as "
-                               "expected: this pyrender version is not supported by synth.shaders")
+                               "expected: this pyrender version is not supported by "
+                               "synth.backends.shaders")
         n = int(counts[kind])
         if n < 0:
             raise ValueError(f"n_{kind} must be >= 0, got {n}")
@@ -95,13 +98,13 @@ def gather_mesh_shader(text: str) -> str:
     end = text.find(_NEXT, start)
     if start < 0 or end < 0 or not text.startswith(_VERSION):
         raise RuntimeError("pyrender's mesh.frag has no PCF function as expected: this pyrender "
-                           "version is not supported by synth.shaders")
+                           "version is not supported by synth.backends.shaders")
     body = text[start:end]
     # the function being replaced: 3 x 3 calls of the 2 x 2 bilinear compare
     for piece in ("x=-1; x<=1", "y=-1; y<=1", "texture2DShadowLerp", "result/9.0"):
         if piece not in body:
-            raise RuntimeError(f"pyrender's PCF differs from the one synth.shaders replaces "
-                               f"(no {piece!r})")
+            raise RuntimeError("pyrender's PCF differs from the one synth.backends.shaders "
+                               f"replaces (no {piece!r})")
     text = text[:start] + _GATHER_PCF + text[end:]
     # textureGather is core in GLSL 4.00; 3.30 needs the extension (llvmpipe has both)
     return text.replace(_VERSION, _VERSION + "\n#extension GL_ARB_texture_gather : require", 1)
@@ -112,14 +115,12 @@ def shader_dir(n_directional: int, n_spot: int, n_point: int) -> str:
     """A directory holding pyrender's shaders with ``mesh.frag`` patched for a scene with these
     numbers of lights (one per process and light counts, removed at exit, also by a forked
     render process)."""
-    from synth.pyrender_adapter import load
-
     src = os.path.join(os.path.dirname(load().__file__), "shaders")
     with open(os.path.join(src, "mesh.frag")) as f:
         text = fixed_light_loops(gather_mesh_shader(f.read()), n_directional, n_spot, n_point)
     out = tempfile.mkdtemp(prefix="synth-shaders-")
     atexit.register(shutil.rmtree, out, ignore_errors=True)
-    # a forked render process (synth.pipeline.pool_context) leaves by os._exit, which runs no
+    # a forked render process (synth.pool.pool_context) leaves by os._exit, which runs no
     # atexit functions but multiprocessing's finalizers (in the process that made the folder)
     Finalize(None, shutil.rmtree, (out,), {"ignore_errors": True}, exitpriority=0)
     for name in os.listdir(src):
@@ -237,8 +238,6 @@ def light_counts(scene) -> tuple[int, int, int]:
 def program_cache(counts: tuple[int, int, int]):
     """A pyrender ShaderProgramCache compiling the patched shaders for a scene with ``counts``
     (directional, spot, point) lights."""
-    from synth.pyrender_adapter import load
-
     return load().shader_program.ShaderProgramCache(shader_dir=shader_dir(*counts))
 
 
@@ -266,8 +265,8 @@ def specialised_mesh_shader(text: str, values: dict, n_spot: int) -> str:
     stay uniforms.
 
     The same arithmetic on the same float32 values; llvmpipe's compiler folds what depends
-    only on them (measured 2026-11-24: the ball's draw -24 %, its pixels 0 DN from the
-    uniform shader's). Raises RuntimeError when the text lacks what is replaced, KeyError
+    only on them (the ball's draw about a quarter faster, its pixels 0 DN from the uniform
+    shader's). Raises RuntimeError when the text lacks what is replaced, KeyError
     when ``values`` lacks a value."""
     if n_spot < 1:
         raise ValueError(f"a specialised shader needs spot lamps, got n_spot={n_spot}")
@@ -276,7 +275,7 @@ def specialised_mesh_shader(text: str, values: dict, n_spot: int) -> str:
         nonlocal text
         if count is not None and text.count(old) != count or old not in text:
             raise RuntimeError(f"mesh.frag has no {old!r} as expected: this pyrender version is "
-                               "not supported by synth.shaders.specialised_mesh_shader")
+                               "not supported by synth.backends.shaders.specialised_mesh_shader")
         text = text.replace(old, new)
 
     consts = []

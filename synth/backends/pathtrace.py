@@ -1,6 +1,6 @@
 """The physically based backend: synth's scene path traced by Mitsuba 3 on the CPU.
 
-The same scene description as the pyrender backend (:mod:`synth.scene`), translated once:
+The same scene description as the pyrender backend (:mod:`synth.backends.raster`), translated once:
 
 - the trough: the same annular-sector mesh (smooth bore, flat end faces), a diffuse surface of
   reflectance ``trough_color``; its front end face faces the camera;
@@ -20,7 +20,7 @@ The same scene description as the pyrender backend (:mod:`synth.scene`), transla
   trough, so lamps between the camera and the scene are not seen directly (pyrender's lights
   are invisible too), though the ball reflects them.
 
-Light transport: a path tracer (:class:`synth.mitsuba_integrator.RimPath`, next-event estimation
+Light transport: a path tracer (:class:`synth.backends.rim_path.RimPath`, next-event estimation
 with multiple importance sampling, ``mitsuba_max_depth`` vertices) that leaves out light
 reaching a diffuse surface by way of the ball (the ball is black seen from the trough or the
 backdrop): those caustics of a small lamp in a polished ball are found only by chance and show
@@ -40,13 +40,13 @@ pixel. Each render is seeded from (seed, frame, sub-frame): same seed, same byte
 
 from __future__ import annotations
 
-import logging
 import math
-import os
-import sys
 
 import numpy as np
 
+from synth.backends.footprint import Footprint
+from synth.backends.mitsuba_runtime import VARIANT, load, variant
+from synth.backends.scene_model import SceneModel
 from synth.camera import CameraModel
 from synth.config import SceneConfig, SynthError
 
@@ -55,141 +55,10 @@ IRON_K = (3.09, 2.93, 2.77)  # and its extinction coefficient
 UNIT = 4080  # integer levels of display value 1.0 per channel (16 x 255)
 WINDOW_STEP = 16  # px: window sizes are rounded up to multiples of this
 PASS_SAMPLES = 1 << 24  # samples per Mitsuba call (memory bound of one wavefront)
-VARIANT = "llvm_ad_rgb"
-FALLBACK = "scalar_rgb"  # when Dr.Jit's LLVM backend cannot start (no LLVM >= 16)
-VARIANT_ENV = "ROLLFRIC_MITSUBA_VARIANT"  # forces one of the two (e.g. to test the fallback)
 CORE = 0.4  # the ball's middle (0.6 of its radius) is traced at mitsuba_base_spp
 HIGHLIGHT_PX = 6.0  # px about a lamp's highlight on the ball traced at 4 mitsuba_spp
 SPP_MAX = 4096
 AMBIENT_WEIGHT = 0.05  # next-event estimation's weight of the ambient light (lamps: 1)
-
-_STATE: dict = {}
-log = logging.getLogger(__name__)
-
-
-def available() -> str | None:
-    """Why the Mitsuba backend cannot run here, or None when it can.
-
-    Returns
-    -------
-    str or None
-        A sentence naming what is missing (Mitsuba 3, or an LLVM >= 16 for Dr.Jit's CPU JIT:
-        ``DRJIT_LIBLLVM_PATH`` pointing at e.g. Debian's libllvm19), None when it works.
-    """
-    try:
-        load()
-    except SynthError as exc:
-        return str(exc)
-    return None
-
-
-def find_llvm() -> str | None:
-    """The newest libLLVM >= 16 in the usual places (Debian's libllvmNN, llvm.org's packages),
-    for Dr.Jit when ``DRJIT_LIBLLVM_PATH`` is not set.
-
-    Returns
-    -------
-    str or None
-    """
-    import glob
-    import re
-
-    best = None
-    for pattern in ("/usr/lib/x86_64-linux-gnu/libLLVM-*.so", "/usr/lib/aarch64-linux-gnu/"
-                    "libLLVM-*.so", "/usr/lib/llvm-*/lib/libLLVM*.so", "/usr/lib/libLLVM-*.so"):
-        for path in glob.glob(pattern):
-            m = re.search(r"(?:libLLVM-|llvm-)(\d+)", path)
-            if m and int(m.group(1)) >= 16 and (best is None or int(m.group(1)) > best[0]):
-                best = (int(m.group(1)), path)
-    return best[1] if best else None
-
-
-def variant() -> str:
-    """The Mitsuba variant this process renders with (:func:`load` chooses it).
-
-    Returns
-    -------
-    str
-        ``llvm_ad_rgb`` (Dr.Jit's CPU JIT, synth's own path tracer), or ``scalar_rgb`` (the
-        fallback: Mitsuba's ``path`` integrator in C++ threads, caustics of the ball on the
-        trough and backdrop included).
-    """
-    load()
-    return _STATE["variant"]
-
-
-def load():
-    """Import Mitsuba, select its variant and register :class:`RimPath` (once a process).
-
-    ``llvm_ad_rgb`` when Dr.Jit's LLVM backend starts (LLVM >= 16), else ``scalar_rgb`` with a
-    warning naming what is missing; the environment variable ``ROLLFRIC_MITSUBA_VARIANT``
-    (``llvm_ad_rgb`` or ``scalar_rgb``) forces one.
-
-    Returns
-    -------
-    module
-        The ``mitsuba`` module.
-
-    Raises
-    ------
-    SynthError
-        Mitsuba is not installed, ``ROLLFRIC_MITSUBA_VARIANT`` names another variant, or it
-        forces ``llvm_ad_rgb`` where Dr.Jit has no usable LLVM (Debian 12's default LLVM 15
-        fails to compile its kernels).
-    """
-    if "mi" in _STATE:
-        return _STATE["mi"]
-    forced = os.environ.get(VARIANT_ENV, "").strip()
-    if forced not in ("", VARIANT, FALLBACK):
-        raise SynthError(f"{VARIANT_ENV}={forced!r}: must be {VARIANT} or {FALLBACK}")
-    if "DRJIT_LIBLLVM_PATH" not in os.environ and "drjit" not in sys.modules:
-        found = find_llvm()
-        if found:
-            os.environ["DRJIT_LIBLLVM_PATH"] = found
-    try:
-        import drjit as dr
-        import mitsuba as mi
-    except ImportError:
-        raise SynthError("render.renderer = \"mitsuba\" needs Mitsuba 3: pip install "
-                         "\"rollfric[mitsuba]\"") from None
-    chosen = forced or VARIANT
-    if chosen == VARIANT:
-        problem = _llvm_problem(dr)
-        if problem and forced:
-            raise SynthError(f"{VARIANT_ENV}={VARIANT}: {problem}")
-        if problem:
-            log.warning("Mitsuba's %s variant cannot start: %s. Rendering with %s instead: "
-                        "Mitsuba's own path tracer in C++ threads, several times slower, with "
-                        "the ball's caustics on the trough and backdrop (rare bright pixels)",
-                        VARIANT, problem, FALLBACK)
-            chosen = FALLBACK
-    mi.set_variant(chosen)
-    if chosen == VARIANT:
-        mi.register_integrator("synth_rim_path", lambda props: _rim_path_class()(props))
-    _STATE["variant"] = chosen
-    _STATE["mi"] = mi
-    return mi
-
-
-def _llvm_problem(dr) -> str | None:
-    """Why Dr.Jit's LLVM backend cannot run here (None when it can)."""
-    hint = ("Dr.Jit's CPU backend needs LLVM >= 16 (Debian: apt-get install libllvm19; "
-            "then DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so)")
-    if not dr.has_backend(dr.JitBackend.LLVM):
-        return f"no LLVM library found ({hint})"
-    version = tuple(dr.detail.llvm_version())
-    if version < (16,):
-        return (f"LLVM {'.'.join(map(str, version))} found "
-                f"(DRJIT_LIBLLVM_PATH={os.environ.get('DRJIT_LIBLLVM_PATH', '')!r}; {hint})")
-    return None
-
-
-def _rim_path_class():
-    """The :class:`synth.mitsuba_integrator.RimPath` class (importable once a variant is set)."""
-    from synth.mitsuba_integrator import RimPath
-
-    return RimPath
-
 
 def render_seed(seed: int, *key: int) -> int:
     """A 32-bit Mitsuba seed for render ``key`` (e.g. frame, sub-frame) of recording ``seed``.
@@ -293,23 +162,23 @@ def to_levels(rgb: np.ndarray) -> np.ndarray:
 
 
 class MitsubaRenderer:
-    """synth's scene in Mitsuba, with the interface of :class:`synth.scene.SceneRenderer`
+    """synth's scene in Mitsuba, with the interface of :class:`synth.backends.raster.SceneRenderer`
     that the pipeline uses (scale, render_full, ball_pose, tiles_for, render_tiles, close)."""
 
     def __init__(self, config: SceneConfig, ball_radius: float, cylinder_radius: float,
                  ovality: float = 0.0, ovality_angle: float = 0.0, seed: int = 0):
         mi = load()
-        from sim.section import Section
-        from synth.scene import _trough_meshes
-
         if config.camera.lens is not None:
             raise SynthError("MitsubaRenderer renders the ideal camera (pass camera.ideal())")
+        # the shared scene (an out-of-round bore as its ellipse, sim.section)
+        model = SceneModel.of(config, ball_radius, cylinder_radius, ovality, ovality_angle)
+        self.model = model
         self.config = config
         self.camera = config.camera
-        self.ball_radius = float(ball_radius)
-        self.cylinder_radius = float(cylinder_radius)
-        # an out-of-round bore (sim.section), as the pyrender scene builds it
-        self.section = Section(self.cylinder_radius, float(ovality), float(ovality_angle))
+        self.ball_radius = model.ball_radius
+        self.cylinder_radius = model.cylinder_radius
+        self.section = model.section
+        self.footprints = PathTracedFootprint(model)
         self.seed = int(seed)
         self.scale = 3 * UNIT
         self.lamps = config.lighting.lamps
@@ -329,9 +198,7 @@ class MitsubaRenderer:
                  # seldom (its light reaches the surfaces by BSDF sampling as well)
                  "ambient": {"type": "constant", "sampling_weight": AMBIENT_WEIGHT,
                              "radiance": {"type": "rgb", "value": [light.ambient] * 3}}}
-        parts = _trough_meshes(cylinder_radius, config.trough_wall, config.trough_length,
-                               config.trough_opening, section=self.section)
-        for k, (mesh, smooth) in enumerate(parts):
+        for k, (mesh, smooth) in enumerate(model.trough()):
             m = mi.Mesh(f"trough{k}", len(mesh.vertices), len(mesh.faces),
                         has_vertex_normals=smooth)
             p = mi.traverse(m)
@@ -346,11 +213,11 @@ class MitsubaRenderer:
             m.set_bsdf(mi.load_dict({"type": "diffuse",
                                      "reflectance": {"type": "rgb", "value": [tc] * 3}}))
             scene[f"trough{k}"] = m
-        size = 4.0 * cylinder_radius + 0.4
+        size = model.backdrop_half_size
         br = light.backdrop_reflectance
         scene["backdrop"] = {
             "type": "rectangle",
-            "to_world": mi.ScalarTransform4f().translate([0.0, 0.0, -config.backdrop_distance])
+            "to_world": mi.ScalarTransform4f().translate([0.0, 0.0, model.backdrop_z])
             .scale([size, size, 1.0]),
             "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [br] * 3}}}
         a = config.lamp_radius
@@ -509,7 +376,7 @@ class MitsubaRenderer:
             win = self._window(x0, y0, w, h)
             rgb = self.render_window_rgb(centre, win, self.config.mitsuba_spp, seed)
             return rgb[y0 - win[1]:y0 - win[1] + h, x0 - win[0]:x0 - win[0] + w], None
-        from synth.mitsuba_integrator import render_pixels
+        from synth.backends.rim_path import render_pixels  # imports mitsuba
 
         mi = load()
         self.set_ball(centre)
@@ -654,29 +521,45 @@ class MitsubaRenderer:
     # -- footprint ---------------------------------------------------------------------------
 
     def tiles_for(self, centres: np.ndarray) -> list:
-        """Tiles (x0, y0, w, h) holding every pixel the ball changes: its silhouette and its
-        shadows (pyrender's footprint, :meth:`synth.scene.SceneRenderer.tiles_for`, widened by
-        the lamps' penumbra) and its ambient occlusion on the surfaces just around it."""
-        from synth.scene import SceneRenderer
+        """Tiles (x0, y0, w, h) holding every pixel the ball changes
+        (:class:`PathTracedFootprint`)."""
+        return self.footprints.tiles_for(centres)
 
-        return SceneRenderer.tiles_for(self, centres)
+    def tiles_for_many(self, frames) -> list:
+        """:meth:`tiles_for` of each frame's centres (K, 3), in order."""
+        return [self.footprints.tiles_for(c) for c in frames]
+
+    def ball_box(self, centres: np.ndarray, margin_px: float | None = None):
+        """The ball's box (:meth:`PathTracedFootprint.ball_box`)."""
+        return self.footprints.ball_box(centres, margin_px)
+
+    def shadow_boxes(self, centres: np.ndarray, margin_px: float = 1.5) -> list:
+        """The shadows' boxes (:meth:`PathTracedFootprint.shadow_boxes`)."""
+        return self.footprints.shadow_boxes(centres, margin_px)
+
+    def close(self) -> None:
+        """Drop the Mitsuba scenes."""
+        self._static = self._with_ball = self._params = None
+
+
+
+class PathTracedFootprint(Footprint):
+    """The pixels the ball changes in a path-traced frame: the rasterised scene's footprint
+    (:class:`synth.backends.footprint.Footprint`) widened by the lamps' penumbra and by the
+    ball's occlusion of ambient light on the surfaces just around it."""
 
     def ball_box(self, centres: np.ndarray, margin_px: float | None = None):
         """Pixel box (x0, y0, x1, y1) of the ball's silhouettes at ``centres`` (K, 3) with a
         margin of ``mitsuba_margin`` ball radii (the ball's occlusion of ambient light and
         the penumbra of its shadows on nearby surfaces)."""
-        from synth.scene import SceneRenderer
-
         uv, rad = self.camera.sphere_silhouette(centres, self.ball_radius)
         m = self.config.mitsuba_margin * float(rad.max()) + 1.5
-        return SceneRenderer.ball_box(self, centres, m if margin_px is None else margin_px)
+        return super().ball_box(centres, m if margin_px is None else margin_px)
 
     def shadow_boxes(self, centres: np.ndarray, margin_px: float = 1.5) -> list:
-        """Pyrender's shadow boxes widened by the lamps' penumbra: a s / (D - r) over the
+        """The rasterised shadow boxes widened by the lamps' penumbra: a s / (D - r) over the
         cosine of the incidence on the backdrop (lamp radius a, lamp to ball D, ball to the
         surface behind it s, at most to the backdrop along the lamp's ray), in px."""
-        from synth.scene import SceneRenderer
-
         cam = self.camera
         a, r = self.config.lamp_radius, self.ball_radius
         C = np.atleast_2d(np.asarray(centres, float))
@@ -688,27 +571,4 @@ class MitsubaRenderer:
             cos_inc = np.clip(np.abs(d[:, 2]) / D, 0.3, 1.0)  # the backdrop's normal is z
             s = (C[:, 2] - zb) / cos_inc + r  # the bore's hits are nearer than the backdrop
             pen = max(pen, float((a * s / (D - r) / cos_inc).max()) / cam.pixel_size)
-        return SceneRenderer.shadow_boxes(self, centres, margin_px + pen)
-
-    def _behind_trough(self, points: np.ndarray) -> np.ndarray:
-        from synth.scene import SceneRenderer
-
-        return SceneRenderer._behind_trough(self, points)
-
-    def close(self) -> None:
-        """Drop the Mitsuba scenes."""
-        self._static = self._with_ball = self._params = None
-
-
-def set_threads(n: int) -> None:
-    """Use ``n`` CPU threads for Dr.Jit's kernels in this process.
-
-    Parameters
-    ----------
-    n : int
-        Thread count (>= 1).
-    """
-    load()
-    import drjit as dr
-
-    dr.set_thread_count(int(n))
+        return super().shadow_boxes(centres, margin_px + pen)

@@ -1,8 +1,9 @@
-"""synth's heap probe: a library loaded with ``LD_PRELOAD`` that reports writes into heap memory
-after it was freed (issue 16: render processes dying in glibc's malloc).
+"""A heap probe: a library loaded with ``LD_PRELOAD`` that reports writes into heap memory
+after it was freed (issue 16: synth's render processes dying in glibc's malloc). A diagnostic
+tool of the repository, not part of the installed packages.
 
-The probe (``synth/heapprobe.c``, built here with the machine's C compiler) holds every freed
-block of up to ``SYNTH_HEAPPROBE_MAX_BYTES`` (1 MiB) back from malloc for the next
+The probe (``heapprobe.c`` beside this file, built here with the machine's C compiler) holds
+every freed block of up to ``SYNTH_HEAPPROBE_MAX_BYTES`` (1 MiB) back from malloc for the next
 ``SYNTH_HEAPPROBE_BLOCKS`` (4096) frees (fewer while it holds more than
 ``SYNTH_HEAPPROBE_MAX_HELD``, 256 MiB), its first 256 bytes filled with 0xA5, and checks them
 when it lets the block go (and at exit): a changed byte was written after the free, and a line
@@ -13,7 +14,7 @@ it on every free within its window. The program's results are unchanged (same by
 
 Usage (Linux, a C compiler)::
 
-    LD_PRELOAD=$(python -m synth.heapprobe) rollfric render ...
+    LD_PRELOAD=$(python tools/heapprobe/heapprobe.py) rollfric render ...
 
 (the render processes inherit it), then look for ``synth heap probe:`` on stderr.
 """
@@ -27,10 +28,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-from synth.config import SynthError
-
 SOURCE = Path(__file__).with_name("heapprobe.c")
 PREFIX = "synth heap probe:"
+
+
+class ProbeError(RuntimeError):
+    """The probe cannot be built here."""
 
 
 def _cache_folder() -> Path:
@@ -54,11 +57,11 @@ def build(folder=None) -> Path:
 
     Raises
     ------
-    SynthError
+    ProbeError
         Not on Linux, no C compiler (``cc``/``gcc``), or the compile failed.
     """
     if not sys.platform.startswith("linux"):
-        raise SynthError("the heap probe works on Linux (glibc) only")
+        raise ProbeError("the heap probe works on Linux (glibc) only")
     source = SOURCE.read_bytes()
     digest = hashlib.sha256(source).hexdigest()[:16]
     folder = Path(folder) if folder is not None else _cache_folder()
@@ -67,14 +70,14 @@ def build(folder=None) -> Path:
         return lib
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
-        raise SynthError("the heap probe needs a C compiler (cc or gcc) to be built")
+        raise ProbeError("the heap probe needs a C compiler (cc or gcc) to be built")
     folder.mkdir(parents=True, exist_ok=True)
     tmp = lib.with_suffix(f".{os.getpid()}.tmp")
     run = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(tmp), str(SOURCE), "-ldl"],
                          capture_output=True, text=True)
     if run.returncode != 0:
         tmp.unlink(missing_ok=True)
-        raise SynthError(f"the heap probe did not compile: {run.stderr.strip()}")
+        raise ProbeError(f"the heap probe did not compile: {run.stderr.strip()}")
     os.replace(tmp, lib)
     return lib
 
@@ -97,12 +100,12 @@ def reports(stderr: str) -> list[str]:
 
 
 def main(argv=None) -> int:
-    """``python -m synth.heapprobe``: build the probe and print its path (exit 2 if it
+    """``python tools/heapprobe/heapprobe.py``: build the probe and print its path (exit 2 if it
     cannot be built)."""
     try:
         print(build())
-    except (SynthError, OSError) as exc:
-        print(f"synth.heapprobe: {exc}", file=sys.stderr)
+    except (ProbeError, OSError) as exc:
+        print(f"heapprobe: {exc}", file=sys.stderr)
         return 2
     return 0
 
