@@ -80,9 +80,16 @@ import json
 import math
 from pathlib import Path
 
+import sim
 from rollfric.errors import InputError
+from rollfric.setup.model import setup_from_dict
 from rollfric.setup.schema import Key, Messages, Schema, check_section
 from rollfric.setup.tomlfile import read_toml
+from synth import config as sc
+from synth.camera import CameraModel
+from synth.camera_clock import FrameTiming
+from synth.video import VideoSpec
+from validation.lab import apply_asbuilt, parse_lab
 
 
 class CaseError(InputError):
@@ -431,8 +438,6 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
     CaseError
         An unknown or bad key, named in the message.
     """
-    from synth import config as sc
-    from synth.camera import CameraModel
 
     d = merge_case(default_case_dict(), d, source)
     r = check_section(CASE_SCHEMA, "render", d.get("render", {}), source)
@@ -476,7 +481,6 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
                 locator=m.get("locator", "subpixel"), fit=m.get("fit", "lsq"),
                 offset=m.get("offset", "auto"), data=d, oracle=m.get("oracle", False), lab=lab,
                 timing=timing, video=video)
-    from rollfric.setup.model import setup_from_dict
 
     try:
         setup_from_dict(case.lab_setup_dict(), source=f"{source} [lab]")
@@ -488,8 +492,6 @@ def case_from_dict(d: dict, source: str = "case") -> Case:
 def _scenario_and_lab(d: dict, r: dict, source: str) -> tuple:
     """The as-built scenario, the lab's side and the draws it made ("section.key" -> value):
     the [scenario] read, the [lab] read against it, the scenario rebuilt with the draws."""
-    import sim
-    from validation.lab import apply_asbuilt, parse_lab
 
     scenario = sim.scenario_from_dict(d.get("scenario", {}), source=f"{source} [scenario]")
     as_toml = scenario.to_toml_dict()
@@ -507,7 +509,6 @@ def _scenario_and_lab(d: dict, r: dict, source: str) -> tuple:
 
 def _lighting(r: dict, source: str):
     """render's lighting preset with its lamps (or render.lamps) scaled, spread and moved."""
-    from synth import config as sc
 
     lighting = sc.lighting_preset(r.get("lighting", "thesis"))
     lamps = r.get("lamps")
@@ -554,7 +555,6 @@ def _timing(table, source: str):
     """render.timing (lab units) -> synth.camera_clock.FrameTiming, or None."""
     if table is None:
         return None
-    from synth.camera_clock import FrameTiming
 
     t = check_section(CASE_SCHEMA, "render.timing", table, source)
     dropped = t.get("dropped", [])
@@ -573,7 +573,6 @@ def _video(table, source: str):
     """render.video -> synth.video.VideoSpec, or None."""
     if table is None:
         return None
-    from synth.video import VideoSpec
 
     v = check_section(CASE_SCHEMA, "render.video", table, source)
     try:
