@@ -28,12 +28,13 @@ from rollfric.setup.model import Setup
 from synth import pool, worker
 from synth.backends import make_backend
 from synth.camera import CameraModel
+from synth.chunks import CHUNK, writer_layout
 from synth.config import SceneConfig, SensorConfig, SynthError
 from synth.defocus import Defocus
 from synth.distortion import cached_window, distort_image
 from synth.motion import camera_frames, load_trajectory, subframe_positions, truth_table
 from synth.pool import BATCH, MAX_POOL_RESTARTS, start_fork_server
-from synth.store import CHUNK, FORMAT, TRUTH_COLUMNS, writer_layout
+from synth.store import FORMAT, TRUTH_COLUMNS
 
 # the background the render processes subtract, in the store's folder while they render
 BACKGROUND_FILE = ".render-background.npy"
@@ -294,7 +295,7 @@ def _create_arrays(g, plan: _Plan, bg, bg_ideal, scale) -> str:
     diff_dtype = "int16" if scale * plan.scene.motion_blur <= 32767 else "int32"
     # chunks of CHUNK x CHUNK px of one frame, flat names (i.cy.cx: no directories per
     # frame on disk), written by the workers only where the ball and its shadows change
-    # the frame (synth.store.chunk_writer); a region read decodes the 1-4 chunks it
+    # the frame (synth.chunks.chunk_writer); a region read decodes the 1-4 chunks it
     # touches. zstd level 1: writing took 2.6 ms a frame instead of 3.8 ms at zarr's
     # default level (one 2.6 MB chunk a frame, then), for 2 % more bytes
     g.create_array("clean_diff", shape=(n, H, W), dtype=diff_dtype,

@@ -9,7 +9,7 @@ would load pyglet, tkinter and imageio), numcodecs' Zstd and synth's renderer mo
 CPU a process when each process imports them itself. Not numba: a render process applies no
 sensor model (synth.sensor's kernels), and importing ``synth`` does not load it (~0.25 s less
 for the server); nor zarr: a render process writes its chunk files and reads the background
-without it (:func:`synth.store.chunk_writer_at`, the main process's ``.npy`` of the
+without it (:func:`synth.chunks.chunk_writer_at`, the main process's ``.npy`` of the
 background). The server only imports: it makes no EGL display or context and starts no
 llvmpipe thread (those do not survive a fork), so each forked process starts its own, as a
 spawned one does.

@@ -1,6 +1,6 @@
 """What a render process does: its backend (:mod:`synth.backends`), made once at its start,
 and the tasks the pipeline hands it: the ball-free frame, a warm-up frame, batches of frames
-written straight into the recording's chunk files (:func:`synth.store.chunk_writer_at`), bent
+written straight into the recording's chunk files (:func:`synth.chunks.chunk_writer_at`), bent
 by the lens (:mod:`synth.distortion`) or blurred by a thin lens (:mod:`synth.defocus`) where
 the scene has one. A process's state is the module's ``_W``; :mod:`synth.pool` starts the
 processes and runs the tasks.
@@ -14,11 +14,11 @@ import time
 import numpy as np
 
 from synth.backends import make_backend
+from synth.chunks import chunk_writer_at, writer_layout
 from synth.config import SceneConfig
 from synth.defocus import Defocus
 from synth.distortion import cached_window, distort_tile
 from synth.pool import crash_report
-from synth.store import chunk_writer_at, writer_layout
 
 _W: dict = {}  # this render process's backend, store and background
 
@@ -63,7 +63,7 @@ def warm(centres) -> None:
 
 def open_store(store_path, defocus=None, spec=None):
     """The recording's store in a render process: its chunk writer and background, read
-    through zarr, or from ``spec`` = (:func:`synth.store.writer_layout`, the background's
+    through zarr, or from ``spec`` = (:func:`synth.chunks.writer_layout`, the background's
     ``.npy`` file) without it (the processes of :func:`synth.pool.early_pool`, whose fork
     server imports no zarr)."""
     cfg = _W["cfg"]

@@ -80,7 +80,7 @@ def test_the_writer_layout_names_the_chunks_as_zarr_does(tmp_path):
     import zarr
     from zarr.codecs import ZstdCodec
 
-    from synth.store import writer_layout
+    from synth.chunks import writer_layout
 
     g = zarr.open_group(str(tmp_path / "s.zarr"), mode="w")
     arr = g.create_array("clean_diff", shape=(3, 256, 384), dtype="int16", chunks=(1, 128, 128),

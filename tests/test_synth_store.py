@@ -376,7 +376,7 @@ def test_chunk_writer_writes_the_files_zarr_writes(tmp_path):
     import zarr
     from zarr.codecs import ZstdCodec
 
-    from synth.store import _chunk_files, chunk_writer
+    from synth.chunks import chunk_files, chunk_writer
 
     g = zarr.open_group(str(tmp_path / "w.zarr"), mode="w")
     kw = dict(shape=(3, 300, 260), dtype="int16", chunks=(1, 128, 128), fill_value=0,
@@ -397,7 +397,7 @@ def test_chunk_writer_writes_the_files_zarr_writes(tmp_path):
         write(i, patches)
         theirs[i] = full
         np.testing.assert_array_equal(ours[i], full)
-        read = _chunk_files(g, ours)
+        read = chunk_files(g, ours)
         np.testing.assert_array_equal(read(i, (100, 290, 90, 259)), full[100:290, 90:259])
     names = sorted(p.name for p in (tmp_path / "w.zarr" / "ours").iterdir()
                    if p.name != "zarr.json")
