@@ -69,13 +69,15 @@ def kernels(*modules: str) -> list:
     Parameters
     ----------
     *modules : str
-        Module names, e.g. ``"rollfric.locate.kernels"``.
+        Module or package names, e.g. ``"rollfric.locate.kernels"`` (a package: the kernels
+        of its modules).
 
     Returns
     -------
     list of numba dispatchers
     """
-    return [k for k in _kernels if not modules or k.py_func.__module__ in modules]
+    return [k for k in _kernels if not modules or any(
+        k.py_func.__module__ == m or k.py_func.__module__.startswith(m + ".") for m in modules)]
 
 
 def cold(dispatchers=None) -> list:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rollfric import jit
-from rollfric.locate import kernels
+from rollfric.locate.kernels import circle as kernels
 
 
 def _weighted_sum(x, w):
@@ -24,8 +24,8 @@ def test_kernels_are_cached_where_a_cache_directory_is_writable():
     assert type(f._cache).__name__ == "FunctionCache"
     assert f(np.arange(4.0), np.ones(4)) == 6.0
     # the locator's kernels are built this way
-    assert type(kernels._fit_circle._cache).__name__ == "FunctionCache"
-    assert kernels._fit_circle.targetoptions.get("nogil") is True
+    assert type(kernels.fit_circle._cache).__name__ == "FunctionCache"
+    assert kernels.fit_circle.targetoptions.get("nogil") is True
 
 
 def test_without_a_writable_cache_directory_the_kernel_is_compiled_in_the_process(
@@ -98,9 +98,9 @@ def test_the_locators_kernels_are_cold_in_a_fresh_cache_folder(tmp_path):
     import subprocess
     import sys
 
-    code = ("from rollfric import jit; from rollfric.locate import kernels; "
+    code = ("from rollfric import jit; from rollfric.locate.kernels import circle as kernels; "
             "k = jit.kernels('rollfric.locate.kernels'); "
-            "print(len(k), len(jit.cold(k)), kernels._fit_circle in k)")
+            "print(len(k), len(jit.cold(k)), kernels.fit_circle in k)")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
            "PYTHONPATH": os.pathsep.join(sys.path)}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,

@@ -17,18 +17,16 @@ import numpy as np
 import pytest
 
 from rollfric.locate import subpixel
-from rollfric.locate.kernels import (
-    _edge_cdf,
-    _edges,
-    _fit_circle,
-    _fit_stats,
-    _mirror_rim,
-    _mirror_signature,
-    _pixel_fit,
-    _profiles,
-    _select,
-    _solve3,
-)
+from rollfric.locate.kernels.circle import fit_circle as _fit_circle
+from rollfric.locate.kernels.circle import fit_stats as _fit_stats
+from rollfric.locate.kernels.circle import solve3 as _solve3
+from rollfric.locate.kernels.edges import ray_edges as _edges
+from rollfric.locate.kernels.mirror import fresnel_shift as _mirror_rim
+from rollfric.locate.kernels.mirror import mirror_signature as _mirror_signature
+from rollfric.locate.kernels.pixelfit import _edge_cdf
+from rollfric.locate.kernels.pixelfit import pixel_fit as _pixel_fit
+from rollfric.locate.kernels.rays import profiles as _profiles
+from rollfric.locate.kernels.selection import select_rays as _select
 from rollfric.locate.location import Location
 from rollfric.locate.regions import _crop, _full_scale
 from rollfric.locate.subpixel import (

@@ -33,7 +33,8 @@ from rollfric.geometry.trough import find_cylinder_center
 from rollfric.io import ballfree, bitdepth
 from rollfric.io import readers as io
 from rollfric.io.background import repaired_median, sample
-from rollfric.locate.kernels import _ring_sums, _same_values
+from rollfric.locate.kernels.crops import ring_sums as _ring_sums
+from rollfric.locate.kernels.crops import same_values as _same_values
 from rollfric.registry import LOCATORS
 from rollfric.setup.model import Setup, SetupError, setup_from_dict
 from rollfric.track import dropped_frames as timing
