@@ -28,6 +28,8 @@ from rollfric.locate.kernels.pixelfit import pixel_fit as _pixel_fit
 from rollfric.locate.kernels.rays import profiles as _profiles
 from rollfric.locate.kernels.selection import select_rays as _select
 from rollfric.locate.location import Location
+from rollfric.locate.pinhole import silhouette_stretch
+from rollfric.locate.pinhole import squeeze as _squeeze
 from rollfric.locate.regions import _crop, _full_scale
 from rollfric.locate.subpixel import (
     AUTO_MIRROR,
@@ -38,9 +40,7 @@ from rollfric.locate.subpixel import (
     _fresnel_kappa,
     _n_rays,
     _shift_circle,
-    _squeeze,
     locate_subpixel,
-    silhouette_stretch,
     subpixel_locator,
 )
 from synth.drawn.frames import Scene, disk_coverage, make_frames
