@@ -19,8 +19,10 @@ that its rate and ETA are those of the work, not of the compiler.
 from __future__ import annotations
 
 import logging
+import sys
 import threading
 import time
+from pathlib import Path
 
 import numba
 from numba.core import event
@@ -78,6 +80,28 @@ def kernels(*modules: str) -> list:
     """
     return [k for k in _kernels if not modules or any(
         k.py_func.__module__ == m or k.py_func.__module__.startswith(m + ".") for m in modules)]
+
+
+def share_source_stamp(package: str) -> None:
+    """Renew the disk cache of every kernel of ``package`` when any of its modules changes.
+
+    numba renews a kernel's cache when its own module's file changes (its time or size) and
+    not when a kernel it calls from another module does, although that one is compiled into
+    it. Every kernel :func:`njit` made in the package's modules gets the stamp of all of them
+    (the newest time, the summed size), which an edit to any one changes. Call it once the
+    package's modules are imported, before a kernel runs.
+
+    Parameters
+    ----------
+    package : str
+        An imported package's name, e.g. ``"rollfric.locate.kernels"``.
+    """
+    stats = [p.stat() for p in sorted(Path(sys.modules[package].__file__).parent.glob("*.py"))]
+    stamp = (max(st.st_mtime for st in stats), sum(st.st_size for st in stats))
+    for k in kernels(package):
+        cache_file = getattr(getattr(k, "_cache", None), "_cache_file", None)  # NullCache: none
+        if cache_file is not None:
+            cache_file._source_stamp = stamp
 
 
 def cold(dispatchers=None) -> list:

@@ -136,3 +136,54 @@ def test_the_progress_bars_clock_restarts_after_a_compilation():
     with clock:
         assert numba.njit(lambda a: a + 1.0)(1.0) == 2.0
     assert clock.restart(off)  # a bar without display: nothing to restart, no error
+
+
+_PKG_SCRIPT = """
+import sys
+sys.path.insert(0, sys.argv[1])
+import stamped
+print(stamped.caller.twice(1.0))
+"""
+
+
+def test_a_kernels_cache_is_renewed_when_a_kernel_it_calls_from_another_module_changes(
+        tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    # a package of two modules: caller's kernel calls callee's, and numba compiles callee's
+    # code into caller's cache, which only caller.py's own stamp would renew
+    pkg = tmp_path / "stamped"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("from rollfric import jit\nfrom stamped import callee, "
+                                     "caller\n\njit.share_source_stamp(__name__)\n")
+    (pkg / "callee.py").write_text("from rollfric.jit import njit\n\n\n@njit\ndef one():\n"
+                                   "    return 1.0\n")
+    (pkg / "caller.py").write_text("from rollfric.jit import njit\nfrom stamped.callee import "
+                                   "one\n\n\n@njit\ndef twice(x):\n    return 2.0 * x * one()\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
+           "PYTHONPATH": os.pathsep.join(sys.path)}
+
+    def run():
+        return subprocess.run([sys.executable, "-c", _PKG_SCRIPT, str(tmp_path)], env=env,
+                              capture_output=True, text=True, check=True).stdout.split()
+
+    assert run() == ["2.0"]
+    assert list((tmp_path / "cache").rglob("*.nbi"))  # cached
+    # the callee changes (its size too: the stamp holds even where file times are coarse)
+    (pkg / "callee.py").write_text("from rollfric.jit import njit\n\n\n@njit\ndef one():\n"
+                                   "    return 5.25\n")
+    assert run() == ["10.5"]
+
+
+def test_the_locators_kernels_share_one_stamp():
+    from pathlib import Path
+
+    from rollfric.locate import kernels as package
+
+    files = list(Path(package.__file__).parent.glob("*.py"))
+    stamp = (max(f.stat().st_mtime for f in files), sum(f.stat().st_size for f in files))
+    ks = jit.kernels("rollfric.locate.kernels")
+    assert len(ks) >= 20
+    assert all(k._cache._cache_file._source_stamp == stamp for k in ks)

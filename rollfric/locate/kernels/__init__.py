@@ -10,13 +10,14 @@
 - :mod:`~rollfric.locate.kernels.passes`: one pass of the locator, the above in one call;
 - :mod:`~rollfric.locate.kernels.crops`: the tracker's ring sums and pixel comparison.
 
-numba's disk cache of a kernel is renewed when its own module changes, not when a kernel it
-calls in another module does: after editing a kernel, delete the ``*.nbi`` / ``*.nbc`` files in
-``rollfric/locate/kernels/__pycache__`` (or set ``NUMBA_CACHE_DIR`` to a fresh folder).
+numba renews a kernel's disk cache when its own module changes, not when a kernel it calls
+from another module does: the package's kernels share one stamp of all its modules
+(:func:`rollfric.jit.share_source_stamp`), so that an edit to any one renews them all.
 """
 
 # every module imported with the package: rollfric.jit then knows all the kernels, and the
 # tracker's notice that they are to be compiled counts them all
+from rollfric import jit
 from rollfric.locate.kernels import (  # noqa: F401
     circle,
     crops,
@@ -28,3 +29,5 @@ from rollfric.locate.kernels import (  # noqa: F401
     rim,
     selection,
 )
+
+jit.share_source_stamp(__name__)
