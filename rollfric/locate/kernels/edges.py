@@ -263,7 +263,8 @@ def smoothed_levels(a_in, b_out, fin, spoiled, ksm):
     return a_sm, b_sm
 
 
-@njit(nogil=True)
+# inlined where it is called (every ray), as edge_spread is
+@njit(nogil=True, inline="always")
 def edge_integral(prof, i, kb, s0, ds, ne, b, c, clip):
     """Ray ``i``'s edge position: the integral (trapezoid) of its profile normalised by the
     levels (outside ``b``, contrast ``c``) across the 2 ``ne`` + 2 samples about its step
@@ -278,7 +279,7 @@ def edge_integral(prof, i, kb, s0, ds, ne, b, c, clip):
     return s0 + (kb - ne) * ds + ds * acc
 
 
-@njit(nogil=True)
+@njit(nogil=True, inline="always")
 def edge_spread(prof, i, kb, s0, ds, ne, nl, b, c, clip, se):
     """Ray ``i``'s edge spread: the rms distance from its edge ``se`` of the profile's drop,
     over the edge window and the level windows beside it (a clean step: the blur's width; a

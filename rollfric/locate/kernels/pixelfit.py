@@ -193,7 +193,8 @@ def _rim_pixels(rel, bgr, cx, cy, r, ray_ok, a_lv, b_lv, inset):
     return c_k, c_g, c_res, n_c
 
 
-@njit(nogil=True)
+# inlined where it is called (every edge pixel): a call for each slows the kernel
+@njit(nogil=True, inline="always")
 def _pixel_model(rel, bgr, ix, iy, cx, cy, r, dx, dy, d, u, a_ray, b, inset):
     """The edge pixel (ix, iy), at (dx, dy) from the centre, d from it and u outside the rim:
     its residual from b + (a - b) * (the area of the pixel inside the disk), a its ray's inside
