@@ -41,7 +41,9 @@ def njit(fn=None, **options):
     fn : callable, optional
         The function (``@njit``); omitted, a decorator is returned (``@njit(nogil=True)``).
     **options
-        numba.njit's options (``nogil``, ``fastmath``, ...); ``cache`` is this function's.
+        numba.njit's options (``nogil``, ``fastmath``, ...); ``cache`` is this function's. A
+        function inlined into its callers (``inline="always"``) is not one of
+        :func:`kernels`: numba compiles it only as part of them.
 
     Returns
     -------
@@ -61,7 +63,8 @@ def njit(fn=None, **options):
             logger.debug(f"{fn.__module__}: no writable numba cache directory, its kernels are "
                          "compiled in every process (set NUMBA_CACHE_DIR to a writable folder)")
         disp = numba.njit(cache=False, **options)(fn)
-    _kernels.append(disp)
+    if options.get("inline") != "always":  # else compiled into its callers only, never alone
+        _kernels.append(disp)
     return disp
 
 
