@@ -19,8 +19,10 @@ that its rate and ETA are those of the work, not of the compiler.
 from __future__ import annotations
 
 import logging
+import sys
 import threading
 import time
+from pathlib import Path
 
 import numba
 from numba.core import event
@@ -39,7 +41,9 @@ def njit(fn=None, **options):
     fn : callable, optional
         The function (``@njit``); omitted, a decorator is returned (``@njit(nogil=True)``).
     **options
-        numba.njit's options (``nogil``, ``fastmath``, ...); ``cache`` is this function's.
+        numba.njit's options (``nogil``, ``fastmath``, ...); ``cache`` is this function's. A
+        function inlined into its callers (``inline="always"``) is not one of
+        :func:`kernels`: numba compiles it only as part of them.
 
     Returns
     -------
@@ -59,7 +63,8 @@ def njit(fn=None, **options):
             logger.debug(f"{fn.__module__}: no writable numba cache directory, its kernels are "
                          "compiled in every process (set NUMBA_CACHE_DIR to a writable folder)")
         disp = numba.njit(cache=False, **options)(fn)
-    _kernels.append(disp)
+    if options.get("inline") != "always":  # else compiled into its callers only, never alone
+        _kernels.append(disp)
     return disp
 
 
@@ -69,13 +74,37 @@ def kernels(*modules: str) -> list:
     Parameters
     ----------
     *modules : str
-        Module names, e.g. ``"rollfric.locate.kernels"``.
+        Module or package names, e.g. ``"rollfric.locate.kernels"`` (a package: the kernels
+        of its modules).
 
     Returns
     -------
     list of numba dispatchers
     """
-    return [k for k in _kernels if not modules or k.py_func.__module__ in modules]
+    return [k for k in _kernels if not modules or any(
+        k.py_func.__module__ == m or k.py_func.__module__.startswith(m + ".") for m in modules)]
+
+
+def share_source_stamp(package: str) -> None:
+    """Renew the disk cache of every kernel of ``package`` when any of its modules changes.
+
+    numba renews a kernel's cache when its own module's file changes (its time or size) and
+    not when a kernel it calls from another module does, although that one is compiled into
+    it. Every kernel :func:`njit` made in the package's modules gets the stamp of all of them
+    (the newest time, the summed size), which an edit to any one changes. Call it once the
+    package's modules are imported, before a kernel runs.
+
+    Parameters
+    ----------
+    package : str
+        An imported package's name, e.g. ``"rollfric.locate.kernels"``.
+    """
+    stats = [p.stat() for p in sorted(Path(sys.modules[package].__file__).parent.glob("*.py"))]
+    stamp = (max(st.st_mtime for st in stats), sum(st.st_size for st in stats))
+    for k in kernels(package):
+        cache_file = getattr(getattr(k, "_cache", None), "_cache_file", None)  # NullCache: none
+        if cache_file is not None:
+            cache_file._source_stamp = stamp
 
 
 def cold(dispatchers=None) -> list:

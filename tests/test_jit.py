@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rollfric import jit
-from rollfric.locate import kernels
+from rollfric.locate.kernels import circle as kernels
 
 
 def _weighted_sum(x, w):
@@ -24,8 +24,8 @@ def test_kernels_are_cached_where_a_cache_directory_is_writable():
     assert type(f._cache).__name__ == "FunctionCache"
     assert f(np.arange(4.0), np.ones(4)) == 6.0
     # the locator's kernels are built this way
-    assert type(kernels._fit_circle._cache).__name__ == "FunctionCache"
-    assert kernels._fit_circle.targetoptions.get("nogil") is True
+    assert type(kernels.fit_circle._cache).__name__ == "FunctionCache"
+    assert kernels.fit_circle.targetoptions.get("nogil") is True
 
 
 def test_without_a_writable_cache_directory_the_kernel_is_compiled_in_the_process(
@@ -98,9 +98,9 @@ def test_the_locators_kernels_are_cold_in_a_fresh_cache_folder(tmp_path):
     import subprocess
     import sys
 
-    code = ("from rollfric import jit; from rollfric.locate import kernels; "
+    code = ("from rollfric import jit; from rollfric.locate.kernels import circle as kernels; "
             "k = jit.kernels('rollfric.locate.kernels'); "
-            "print(len(k), len(jit.cold(k)), kernels._fit_circle in k)")
+            "print(len(k), len(jit.cold(k)), kernels.fit_circle in k)")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
            "PYTHONPATH": os.pathsep.join(sys.path)}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
@@ -136,3 +136,54 @@ def test_the_progress_bars_clock_restarts_after_a_compilation():
     with clock:
         assert numba.njit(lambda a: a + 1.0)(1.0) == 2.0
     assert clock.restart(off)  # a bar without display: nothing to restart, no error
+
+
+_PKG_SCRIPT = """
+import sys
+sys.path.insert(0, sys.argv[1])
+import stamped
+print(stamped.caller.twice(1.0))
+"""
+
+
+def test_a_kernels_cache_is_renewed_when_a_kernel_it_calls_from_another_module_changes(
+        tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    # a package of two modules: caller's kernel calls callee's, and numba compiles callee's
+    # code into caller's cache, which only caller.py's own stamp would renew
+    pkg = tmp_path / "stamped"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("from rollfric import jit\nfrom stamped import callee, "
+                                     "caller\n\njit.share_source_stamp(__name__)\n")
+    (pkg / "callee.py").write_text("from rollfric.jit import njit\n\n\n@njit\ndef one():\n"
+                                   "    return 1.0\n")
+    (pkg / "caller.py").write_text("from rollfric.jit import njit\nfrom stamped.callee import "
+                                   "one\n\n\n@njit\ndef twice(x):\n    return 2.0 * x * one()\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
+           "PYTHONPATH": os.pathsep.join(sys.path)}
+
+    def run():
+        return subprocess.run([sys.executable, "-c", _PKG_SCRIPT, str(tmp_path)], env=env,
+                              capture_output=True, text=True, check=True).stdout.split()
+
+    assert run() == ["2.0"]
+    assert list((tmp_path / "cache").rglob("*.nbi"))  # cached
+    # the callee changes (its size too: the stamp holds even where file times are coarse)
+    (pkg / "callee.py").write_text("from rollfric.jit import njit\n\n\n@njit\ndef one():\n"
+                                   "    return 5.25\n")
+    assert run() == ["10.5"]
+
+
+def test_the_locators_kernels_share_one_stamp():
+    from pathlib import Path
+
+    from rollfric.locate import kernels as package
+
+    files = list(Path(package.__file__).parent.glob("*.py"))
+    stamp = (max(f.stat().st_mtime for f in files), sum(f.stat().st_size for f in files))
+    ks = jit.kernels("rollfric.locate.kernels")
+    assert len(ks) >= 20
+    assert all(k._cache._cache_file._source_stamp == stamp for k in ks)

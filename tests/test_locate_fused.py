@@ -17,19 +17,19 @@ import numpy as np
 import pytest
 
 from rollfric.locate import subpixel
-from rollfric.locate.kernels import (
-    _edge_cdf,
-    _edges,
-    _fit_circle,
-    _fit_stats,
-    _mirror_rim,
-    _mirror_signature,
-    _pixel_fit,
-    _profiles,
-    _select,
-    _solve3,
-)
+from rollfric.locate.kernels.circle import fit_circle as _fit_circle
+from rollfric.locate.kernels.circle import fit_stats as _fit_stats
+from rollfric.locate.kernels.circle import solve3 as _solve3
+from rollfric.locate.kernels.edges import ray_edges as _edges
+from rollfric.locate.kernels.mirror import fresnel_shift as _mirror_rim
+from rollfric.locate.kernels.mirror import mirror_signature as _mirror_signature
+from rollfric.locate.kernels.pixelfit import _edge_cdf
+from rollfric.locate.kernels.pixelfit import pixel_fit as _pixel_fit
+from rollfric.locate.kernels.rays import profiles as _profiles
+from rollfric.locate.kernels.selection import select_rays as _select
 from rollfric.locate.location import Location
+from rollfric.locate.pinhole import silhouette_stretch
+from rollfric.locate.pinhole import squeeze as _squeeze
 from rollfric.locate.regions import _crop, _full_scale
 from rollfric.locate.subpixel import (
     AUTO_MIRROR,
@@ -40,9 +40,7 @@ from rollfric.locate.subpixel import (
     _fresnel_kappa,
     _n_rays,
     _shift_circle,
-    _squeeze,
     locate_subpixel,
-    silhouette_stretch,
     subpixel_locator,
 )
 from synth.drawn.frames import Scene, disk_coverage, make_frames

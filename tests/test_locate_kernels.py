@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from rollfric.locate.kernels import _rim_median, _rim_median_plain
+from rollfric.locate.kernels.rim import _rim_median_plain
+from rollfric.locate.kernels.rim import rim_median as _rim_median
 
 
 def _rim_median_numpy(values, ok, min_count):
@@ -58,7 +59,7 @@ def test_ray_index_is_arctan2s_ray():
     # arctan2 (near it): arctan2's index everywhere - random points, the pixel grid about a
     # centre off the grid, points on and next to the rays' boundaries, the axes and -0.0
     from rollfric.jit import njit
-    from rollfric.locate.kernels import _ray_index
+    from rollfric.locate.kernels.pixelfit import _ray_index
 
     @njit
     def both(xs, ys, n):
@@ -92,7 +93,7 @@ def test_ring_sums_are_the_whole_crops_scan():
     import math
 
     from rollfric.jit import njit
-    from rollfric.locate.kernels import _ring_sums
+    from rollfric.locate.kernels.crops import ring_sums as _ring_sums
 
     @njit
     def scan(fr, bg, x0, y0, cx, cy, r_in, r_out):
@@ -127,7 +128,7 @@ def test_ring_sums_are_the_whole_crops_scan():
 
 
 def test_same_values_is_array_equal():
-    from rollfric.locate.kernels import _same_values
+    from rollfric.locate.kernels.crops import same_values as _same_values
 
     rng = np.random.default_rng(4)
     a = rng.integers(0, 4096, (30, 41)).astype(np.uint16)

@@ -200,7 +200,7 @@ def test_select_leaves_out_the_full_contrast_rays_next_to_the_low_sector():
     # the rule itself, on the kernel: 96 rays round a circle of radius 20, a quarter of the rim
     # at half contrast (the mirrored backdrop); flank 8 rays leaves out the 8 full-contrast
     # rays each side of it, and only those (the low sector itself is kept)
-    from rollfric.locate.kernels import _select
+    from rollfric.locate.kernels.selection import select_rays as _select
     n, r = 96, 20.0
     con = np.full(n, 100.0)
     con[:24] = 50.0

@@ -1,17 +1,12 @@
 """The cylinder (trough) centre from its contour in the background image (thesis, ch. 4).
 
 The thesis takes the centre as the intersection of the horizontal line of maximum width of the
-contour circle with the vertical line through its lowest point. Here the contour is found as
-the edge points (Canny) that a RANSAC circle search (radius near R / pixel size when known)
-picks out; then the thesis's rule is applied to those points, with sub-pixel averaging:
-
-- the horizontal chords of the contour (in each row crossed steeply enough, the left and right
-  contour x to sub-pixel precision, where the smoothed intensity crosses the mean of the
-  levels either side): for a circle, (half-width)^2 + y^2 is linear in y and the widest chord
-  lies at its vertex: yc is fitted from every chord, the exact generalisation of "the widest
-  chord" that still works when only the lower half of the trough is visible;
-- the vertical line through the lowest point: xc is the chords' common midpoint (median), the
-  circle's axis of symmetry; the lowest point itself must be in the frame.
+contour circle with the vertical line through its lowest point: the centre of the contour's
+circle. Here that circle is found from the whole visible contour: the background's edge pixels
+(Canny), the contour's circle among them by a RANSAC search (radius near R / pixel size when
+known), then sub-pixel edge points along that circle's normals (the area-centre of each
+profile's step) fitted by a robust circle, with the centre's uncertainty (the fit's scatter and
+the edge's definition), the saturated share of the contour and its ellipse.
 """
 
 from __future__ import annotations
@@ -21,6 +16,7 @@ import math
 
 import cv2
 import numpy as np
+from scipy.optimize import least_squares
 
 from rollfric.errors import InputError
 from rollfric.fit.hac import hac_covariance
@@ -221,6 +217,50 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     ContourError
         When no circular contour with a visible lowest point and enough arc is found.
     """
+    xs, ys = _edge_pixels(background)
+    ux, uy, ur, px, py = _contour_circle(xs, ys, background.shape, radius_px, seed, min_arc_deg)
+    bx, by, nx, ny, off, area, level_off, ok = _subpixel_edges(background, ux, uy, ur, px, py)
+
+    def points(o):
+        pts = np.stack([bx + o * nx, by + o * ny], axis=1)
+        return np.asarray(undistort(pts), dtype=float) if undistort is not None else pts
+
+    pts = points(off + area)
+    fit = _robust_circle(pts, ok)
+    if fit is None:
+        raise ContourError("the sub-pixel edge points of the cylinder contour do not lie on a "
+                           "circle; give [cylinder] center_px in the setup")
+    (xc, yc), radius, keep, res = fit
+    arc_used = float(np.degrees(np.ptp(np.arctan2(nx[keep], ny[keep]))))  # 0 at the bottom
+    u_fit = _fit_uncertainty(pts[keep], res[keep], xc, yc)
+    # Type B: the centre with the edge defined by other crossings of the step
+    diffs = []
+    for lev in EDGE_LEVELS:
+        o = level_off[lev]
+        use = keep & np.isfinite(o)
+        if use.sum() < 30:
+            continue
+        (xl, yl), _ = fit_circle(points(off + np.where(np.isfinite(o), o, 0.0))[use])
+        diffs.append((xl - xc, yl - yc))
+    dmax = np.max(np.abs(diffs), axis=0) if diffs else np.zeros(2)
+    u_edge = tuple(float(v / math.sqrt(3.0)) for v in dmax)
+    u = tuple(float(math.hypot(a, b)) for a, b in zip(u_fit, u_edge, strict=True))
+    saturated = _saturated_fraction(background, full_scale, (bx + off * nx)[keep],
+                                    (by + off * ny)[keep], nx[keep], ny[keep])
+    # the kept edge points, in their order along the contour, fitted as an ellipse
+    order = np.argsort(np.arctan2(nx[keep], ny[keep]))
+    ellipse = fit_ellipse(pts[keep][order])
+    return CylinderContour(center=(float(xc), float(yc)), radius=float(radius),
+                           n_points=int(keep.sum()), arc_deg=arc_used, center_u=u,
+                           center_u_fit=u_fit, center_u_edge=u_edge,
+                           rms_px=float(np.sqrt(np.mean(res[keep] ** 2))),
+                           saturated_fraction=saturated, ellipse=ellipse)
+
+
+def _edge_pixels(background):
+    """The background's edge pixels (x, y): Canny on the image blurred by 1.5 px and
+    stretched to 8 bits between its 0.5th and 99.5th percentiles, the thresholds a quarter
+    and half of the gradient's 99.9th percentile."""
     img = background.astype(np.float32)
     img = cv2.GaussianBlur(img, (0, 0), 1.5)
     lo, hi = (float(v) for v in np.percentile(img, [0.5, 99.5]))  # one partition, the same
@@ -240,6 +280,14 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     if len(xs) < 50:
         raise ContourError("too few edge points in the background image to find the cylinder "
                            "contour; give [cylinder] center_px in the setup")
+    return xs, ys
+
+
+def _contour_circle(xs, ys, shape, radius_px, seed, min_arc_deg):
+    """The contour's circle among the edge pixels (xs, ys): a RANSAC search (at most 20000 of
+    them drawn with ``seed``), then the edge pixels within 2 px of it. Returns its centre,
+    radius and those pixels; :class:`ContourError` where it spans less than ``min_arc_deg``
+    or its lowest point is outside the frame (of ``shape``) or hidden."""
     rng = np.random.default_rng(seed)
     if len(xs) > 20000:
         pick = rng.choice(len(xs), 20000, replace=False)
@@ -257,9 +305,7 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     d = np.hypot(xs - ux, ys - uy)
     inl = np.abs(d - ur) < 2.0
     px, py = xs[inl].astype(float), ys[inl].astype(float)
-    # keep one contour (the inner side of a 2-px band may hold both sides of a thick line):
-    # per row the outermost points left and right of the centre
-    h, w = background.shape
+    h, w = shape
     ang = np.degrees(np.arctan2(px - ux, py - uy))  # 0 at the bottom
     arc = float(np.ptp(ang)) if len(ang) else 0.0
     if len(px) < 30 or arc < min_arc_deg:
@@ -269,7 +315,14 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     if not (uy + ur <= h - 0.5 + 2.0 and np.any(np.abs(ang) < 5.0)):
         raise ContourError("the lowest point of the cylinder contour is outside the frame or "
                            "hidden; give [cylinder] center_px in the setup")
-    # sub-pixel edge points along the contour's normal, one per px of arc where the edges lie
+    return ux, uy, ur, px, py
+
+
+def _subpixel_edges(background, ux, uy, ur, px, py):
+    """Sub-pixel edge points along the normals of the circle (ux, uy, ur), one per px of arc
+    where the edge pixels (px, py) lie: the base points and normals (bx, by, nx, ny), each
+    profile's window offset, the edge's offset in it, the offsets of the other crossings
+    (:data:`EDGE_LEVELS`) and which points have a step of the contour's polarity."""
     smooth = cv2.GaussianBlur(background.astype(np.float32), (0, 0), 1.0)
     step = 1.0 / ur
     k = np.unique(np.round(np.arctan2(py - uy, px - ux) / step).astype(int))
@@ -291,55 +344,34 @@ def find_cylinder_center(background: np.ndarray, *, radius_px: float | None = No
     if ok.sum() < 30:
         raise ContourError("too few sub-pixel edge points of the cylinder contour; give "
                            "[cylinder] center_px in the setup")
+    return bx, by, nx, ny, off, area, level_off, ok
 
-    def points(o):
-        pts = np.stack([bx + o * nx, by + o * ny], axis=1)
-        return np.asarray(undistort(pts), dtype=float) if undistort is not None else pts
 
-    pts = points(off + area)
-    fit = _robust_circle(pts, ok)
-    if fit is None:
-        raise ContourError("the sub-pixel edge points of the cylinder contour do not lie on a "
-                           "circle; give [cylinder] center_px in the setup")
-    (xc, yc), radius, keep, res = fit
-    arc_used = float(np.degrees(np.ptp(np.arctan2(nx[keep], ny[keep]))))  # 0 at the bottom
-    # Type A: the fit's covariance from the points' scatter, correlated along the contour
-    d = np.hypot(pts[keep, 0] - xc, pts[keep, 1] - yc)
-    jac = np.stack([-(pts[keep, 0] - xc) / d, -(pts[keep, 1] - yc) / d,
+def _fit_uncertainty(pts, res, xc, yc):
+    """Type A: the standard errors of the centre (xc, yc) of the circle fitted to ``pts`` (in
+    their order along the contour, residuals ``res``), from the points' scatter: the larger of
+    the ordinary and the HAC covariance (neighbouring points share pixels)."""
+    d = np.hypot(pts[:, 0] - xc, pts[:, 1] - yc)
+    jac = np.stack([-(pts[:, 0] - xc) / d, -(pts[:, 1] - yc) / d,
                     -np.ones_like(d)], axis=1)
-    ordinary, hac, _, _ = hac_covariance(jac, res[keep])
+    ordinary, hac, _, _ = hac_covariance(jac, res)
     var = np.maximum(np.diag(hac)[:2], np.diag(ordinary)[:2])
-    u_fit = tuple(float(math.sqrt(v)) if math.isfinite(v) else math.inf for v in var)
-    # Type B: the centre with the edge defined by other crossings of the step
-    diffs = []
-    for lev in EDGE_LEVELS:
-        o = level_off[lev]
-        use = keep & np.isfinite(o)
-        if use.sum() < 30:
-            continue
-        (xl, yl), _ = fit_circle(points(off + np.where(np.isfinite(o), o, 0.0))[use])
-        diffs.append((xl - xc, yl - yc))
-    dmax = np.max(np.abs(diffs), axis=0) if diffs else np.zeros(2)
-    u_edge = tuple(float(v / math.sqrt(3.0)) for v in dmax)
-    u = tuple(float(math.hypot(a, b)) for a, b in zip(u_fit, u_edge, strict=True))
-    saturated = 0.0
+    return tuple(float(math.sqrt(v)) if math.isfinite(v) else math.inf for v in var)
+
+
+def _saturated_fraction(background, full_scale, bx, by, nx, ny):
+    """The fraction of the edge points (bx, by; normals nx, ny) with a pixel at the camera's
+    ``full_scale`` (default the image type's largest value) within their profile."""
     if full_scale is None and np.issubdtype(background.dtype, np.integer):
         full_scale = float(np.iinfo(background.dtype).max)
-    if full_scale is not None:
-        top = (background >= full_scale).astype(np.float32)
-        if top.any():
-            a = EDGE_HALF_PX + PLATEAU_PX
-            prof = _profiles(top, (bx + off * nx)[keep], (by + off * ny)[keep], nx[keep],
-                             ny[keep], np.arange(-a, a + 0.5, 1.0))
-            saturated = float(np.mean(np.nan_to_num(prof).max(axis=1) > 0))
-    # the kept edge points, in their order along the contour, fitted as an ellipse
-    order = np.argsort(np.arctan2(nx[keep], ny[keep]))
-    ellipse = fit_ellipse(pts[keep][order])
-    return CylinderContour(center=(float(xc), float(yc)), radius=float(radius),
-                           n_points=int(keep.sum()), arc_deg=arc_used, center_u=u,
-                           center_u_fit=u_fit, center_u_edge=u_edge,
-                           rms_px=float(np.sqrt(np.mean(res[keep] ** 2))),
-                           saturated_fraction=saturated, ellipse=ellipse)
+    if full_scale is None:
+        return 0.0
+    top = (background >= full_scale).astype(np.float32)
+    if not top.any():
+        return 0.0
+    a = EDGE_HALF_PX + PLATEAU_PX
+    prof = _profiles(top, bx, by, nx, ny, np.arange(-a, a + 0.5, 1.0))
+    return float(np.mean(np.nan_to_num(prof).max(axis=1) > 0))
 
 
 def _robust_circle(pts, ok):
@@ -378,8 +410,6 @@ def fit_circle(points: np.ndarray) -> tuple[tuple[float, float], float]:
     tuple
         ((xc, yc), radius) in px.
     """
-    from scipy.optimize import least_squares
-
     x, y = points[:, 0], points[:, 1]
     a = np.column_stack([2 * x, 2 * y, np.ones_like(x)])
     (xc, yc, c), *_ = np.linalg.lstsq(a, x * x + y * y, rcond=None)

@@ -14,10 +14,13 @@ One module per job:
 - :mod:`rollfric.locate.thesis`: the thesis's locators (:func:`locate_small_thesis`,
   :func:`locate_large_thesis`);
 - :mod:`rollfric.locate.subpixel`: the sub-pixel locator (:func:`locate_subpixel`);
+- :mod:`rollfric.locate.pinhole`: a ball's silhouette seen by a pinhole camera
+  (:func:`silhouette_stretch`);
 - :mod:`rollfric.locate.kernels`: its numba kernels.
 """
 
 from rollfric.locate.location import Location, Locator
+from rollfric.locate.pinhole import silhouette_stretch
 from rollfric.locate.regions import LazyFrame, _crop, as_array, relative_image
 from rollfric.locate.search import coarse_candidates, coarse_find
 from rollfric.locate.subpixel import (
@@ -26,7 +29,6 @@ from rollfric.locate.subpixel import (
     NO_MIRROR,
     SubpixelOptions,
     locate_subpixel,
-    silhouette_stretch,
 )
 from rollfric.locate.thesis import locate_large_thesis, locate_small_thesis
 from rollfric.registry import LOCATORS

@@ -18,8 +18,9 @@ import math
 import cv2
 import numpy as np
 
-from rollfric.locate.kernels import _pass, _pass_raw
+from rollfric.locate.kernels.passes import locate_pass, locate_pass_raw
 from rollfric.locate.location import Location
+from rollfric.locate.pinhole import silhouette_stretch, squeeze, unsqueeze
 from rollfric.locate.regions import _crop, _full_scale
 from rollfric.locate.search import coarse_candidates
 
@@ -105,8 +106,8 @@ signature and off elsewhere (a matt ball, pyrender's ball, a rim whose mirrored 
 too short an arc): docs/how/locator.md, "A steel ball's rim"."""
 
 NO_MIRROR = SubpixelOptions(mirror_rim=False, local_contrast=False, graded_spread=math.inf)
-"""The sub-pixel locator's options without the mirror-rim handling (the default before
-2026-11-23: one contrast band about the rays' median, no Fresnel correction) and without the
+"""The sub-pixel locator's options without the mirror-rim handling (the default before it:
+one contrast band about the rays' median, no Fresnel correction) and without the
 graded-edge handling (``graded_spread``: a mirror rim that is not corrected is graded)."""
 
 MIRROR = SubpixelOptions(mirror_rim=True, local_contrast=True, mirror_relative=False)
@@ -129,58 +130,6 @@ def _fresnel_kappa(r_px: float, depth: float, eta: float, k: float) -> float:
                + np.abs((n2 * cos_i - root) / (n2 * cos_i + root)) ** 2)
     excess = np.clip(f / f[-1] - 1.0, 0.0, None)
     return float(np.sum(excess) * (d[1] - d[0]))
-
-
-def silhouette_stretch(center_px, r_px: float, pinhole) -> tuple[float, float, float]:
-    """How a pinhole camera stretches a sphere's silhouette: the ellipse's direction of
-    elongation and its axis ratio.
-
-    A sphere seen by a pinhole is bounded by the cone of sight lines tangent to it (half-angle
-    beta about the line to its centre, which makes the angle alpha with the optical axis); the
-    image plane cuts it in an ellipse whose major axis points away from the principal point,
-    a / b = cos(beta) / sqrt(cos(alpha)^2 - sin(beta)^2), about 1 / cos(alpha) (1.3 % for a
-    ball 600 px from the principal point at a focal length of 3700 px). For a ball in the
-    plane parallel to the image at the working distance, sin(beta) = r_px cos(alpha) / f with
-    r_px its radius over the pixel size at that plane, and b = r_px (1 + O(sin(beta)^2)).
-
-    Parameters
-    ----------
-    center_px : sequence of 2 floats
-        Where the ball is seen (px; the silhouette's centre will do: alpha changes by
-        1e-4 rad a pixel).
-    r_px : float
-        The ball's radius (px) at its plane.
-    pinhole : sequence of 3 floats
-        Principal point x, y and focal length (px).
-
-    Returns
-    -------
-    tuple of float
-        The unit vector (ux, uy) from the principal point to the ball and a / b (>= 1); (1,
-        0, 1) at the principal point.
-    """
-    px, py, f = (float(v) for v in pinhole)
-    vx, vy = float(center_px[0]) - px, float(center_px[1]) - py
-    rho = math.hypot(vx, vy)
-    if rho < 1e-9:
-        return 1.0, 0.0, 1.0
-    cos2a = 1.0 / (1.0 + (rho / f) ** 2)
-    sin2b = float(r_px) ** 2 * cos2a / f ** 2
-    k = math.sqrt((1.0 - sin2b) / (cos2a - sin2b))
-    return vx / rho, vy / rho, k
-
-
-def _squeeze(img, o, u, k):
-    """img resampled so that the stretch k along u about o (px, in img) is undone: the value
-    at p' is img's at o + A^-1 (p' - o), A = I + (1 / k - 1) u u^T (bilinear; NaN outside)."""
-    ux, uy = u
-    g = k - 1.0  # A^-1 = I + (k - 1) u u^T
-    m = np.array([[1.0 + g * ux * ux, g * ux * uy, 0.0],
-                  [g * ux * uy, 1.0 + g * uy * uy, 0.0]])
-    m[:, 2] = np.asarray(o) - m[:, :2] @ np.asarray(o)
-    return cv2.warpAffine(img, m, (img.shape[1], img.shape[0]),
-                          flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                          borderMode=cv2.BORDER_CONSTANT, borderValue=float("nan"))
 
 
 def _shift_circle(cx, cy, r, rays, n, shift, free):
@@ -363,11 +312,12 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
     of the known-radius fits, its relative uncertainty).
 
     Each pass (coarse ones until the centre settles, then a fine one) is one call of the
-    GIL-free kernel :func:`rollfric.locate.kernels._pass_raw` on the crops of the frame and
-    the background (profiles, edges, mirror checks, clean rays, robust circle fit, pixel fit);
-    a pinhole's stretched silhouette or a frame that is not uint8 / uint16 goes through
-    OpenCV first (the subtraction, the squeeze) and then :func:`rollfric.locate.kernels._pass`.
-    Here only what steers the passes and judges the result."""
+    GIL-free kernel :func:`~rollfric.locate.kernels.passes.locate_pass_raw` on the crops of
+    the frame and the background (profiles, edges, mirror checks, clean rays, robust circle
+    fit, pixel fit); a pinhole's stretched silhouette or a frame that is not uint8 / uint16
+    goes through OpenCV first (the subtraction, the squeeze) and then
+    :func:`~rollfric.locate.kernels.passes.locate_pass`. Here only what steers the passes and
+    judges the result."""
     r_kn, r_kn_sig = rk
     w = search if search is not None else 0.3 * r_px + 2.0
     w = max(w, 1.5)
@@ -388,9 +338,6 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
         raise ValueError(f"radius must be auto, free or known, got {opts.radius!r}")
     big = r_px >= 12
     free = opts.radius == "free" or (opts.radius == "auto" and big)
-    mirror_rim = -1 if opts.mirror_rim is None else int(bool(opts.mirror_rim))
-    local = -1 if opts.local_contrast is None else int(bool(opts.local_contrast))
-    nz = -1.0 if noise is None else float(noise)
     floor = 0.004 * (_full_scale(frame.dtype) if opts.full_scale is None else opts.full_scale)
     bg_dtype = background.dtype
     raw = bg_dtype == frame.dtype and bg_dtype in (np.uint8, np.uint16)
@@ -399,46 +346,15 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
     # (one more pass than the coarse and fine ones: a graded edge's fine pass is redone)
     for p in range(opts.passes + 2):
         n = n_fine if fine else n_coarse
-        ds = opts.ds if w <= 3.0 else 2 * opts.ds  # coarse sampling while the search is wide
-        ne = max(2, int(round(edge_half / ds)))
-        nl = max(2, int(round(level_len / ds)))
-        m = (ne + 2 * nl + 3) * ds  # the inside levels at two depths
-        s0 = max(0.5, r - w - m)
-        ns = int(math.ceil((r + w + m - s0) / ds)) + 1
-        stretch = None
-        if opts.pinhole is not None:
-            ux, uy, kst = silhouette_stretch((cx, cy), r_px, opts.pinhole)
-            stretch = ((ux, uy), kst) if kst > 1.0 + 1e-6 else None
-        grow = stretch[1] if stretch is not None else 1.0
-        half = int(math.ceil(grow * (s0 + ns * ds))) + 2
-        x0, y0 = int(math.floor(cx)) - half, int(math.floor(cy)) - half
-        fr, x0c, y0c = _crop(frame, x0, y0, x0 + 2 * half + 2, y0 + 2 * half + 2)
-        if fr is None:
+        sampling = _ray_sampling(r, w, opts.ds, edge_half, level_len)
+        ds, ns, _, _, s0 = sampling
+        params = _kernel_params(opts, r_px, r, w, n, sampling, big, free, noise, floor, r_kn,
+                                fine and opts.pixel_fit and not graded)
+        run = _run_pass(frame, background, cx, cy, r_px, s0 + ns * ds, opts.pinhole, raw,
+                        params)
+        if run is None:
             return Location.missing("ball outside the frame")
-        bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
-        lcx, lcy = cx - x0c, cy - y0c
-        inset = (ne + 0.5 * nl + 1) * ds
-        # the Fresnel rise's width (cached), where the rim's correction may be on
-        kappa = _fresnel_kappa(round(r_px, 1), inset, opts.steel_eta, opts.steel_k) \
-            if mirror_rim == 1 or (mirror_rim < 0 and big) else 0.0
-        args = (lcx, lcy, s0, ds, ns, n, r, w, ne, nl, opts.level_smooth, opts.min_contrast_rel,
-                opts.rim_levels,
-                opts.sharp_excess if opts.sharp_rays and big and w <= 3.0 else 0.0,
-                mirror_rim, local, big, nz, opts.mirror_sector, inset, kappa,
-                opts.mirror_relative, opts.contrast_bands, opts.min_rays, floor,
-                int(round(opts.mirror_flank / 360.0 * n)), free, opts.free_min_frac, r_kn,
-                opts.tukey_c, opts.sigma_floor, fine and opts.pixel_fit and not graded)
-        if stretch is None and raw:
-            out = _pass_raw(fr, bg, *args)
-        else:
-            rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
-            bgr = bg.astype(np.float32)
-            if stretch is not None:
-                # a pinhole's ellipse made a circle again about the current centre: everything
-                # below works on the squeezed crop, its centre is taken back at the end
-                rel = _squeeze(rel, (lcx, lcy), *stretch)
-                bgr = _squeeze(bgr, (lcx, lcy), *stretch)
-            out = _pass(rel, bgr, *args)
+        out, fr, bg, (x0c, y0c), (lcx, lcy), stretch = run
         status, fcx, fcy, fr_, free_p, n_in, med_res, rms, pcx, pcy, pr, psig, inl, rim, \
             rim_shift, spread = out
         if status:
@@ -462,18 +378,9 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
                                     f"radius, not {r_px:.2f} px")
         sigma = rms * math.sqrt(2.0 / n_in)
         if fine and opts.pixel_fit and not graded:
-            if math.isfinite(pcx) and math.hypot(pcx - fcx, pcy - fcy) < 0.5:
-                if rim:
-                    # the pixels' edge model has the same Fresnel rise: the circle moves by
-                    # the least-squares circle through the rays' shifts
-                    pcx, pcy, pr = _shift_circle(pcx, pcy, pr, inl, n, rim_shift[inl], free_p)
-                fcx, fcy, sigma = pcx, pcy, psig
-                if free_p:
-                    r_seen = pr
+            fcx, fcy, r_seen, sigma = _with_pixel_fit(out, n, r_seen, sigma)
         if stretch is not None:
-            (ux, uy), kst = stretch
-            along = (kst - 1.0) * ((fcx - lcx) * ux + (fcy - lcy) * uy)
-            fcx, fcy = fcx + along * ux, fcy + along * uy
+            fcx, fcy = unsqueeze(fcx, fcy, (lcx, lcy), *stretch)
         shift = math.hypot(fcx - lcx, fcy - lcy)
         cx, cy, r = fcx + x0c, fcy + y0c, float(r_seen)
         last = fine or p >= opts.passes
@@ -485,6 +392,88 @@ def _locate_guess(frame, background, r_px, guess, search, opts, noise, partial,
         if shift < 0.1 or p >= opts.passes - 1:
             fine = True
     return loc
+
+
+def _with_pixel_fit(out, n, r_seen, sigma):
+    """The centre, radius and sigma of a fine pass (the kernel's answer ``out`` on ``n``
+    rays): the pixel fit's where it lies within 0.5 px of the robust fit's (its radius where
+    the radius was free), else the robust fit's and the given ``r_seen`` and ``sigma``."""
+    _, fcx, fcy, _, free_p, _, _, _, pcx, pcy, pr, psig, inl, rim, rim_shift, _ = out
+    if not (math.isfinite(pcx) and math.hypot(pcx - fcx, pcy - fcy) < 0.5):
+        return fcx, fcy, r_seen, sigma
+    if rim:
+        # the pixels' edge model has the same Fresnel rise: the circle moves by the
+        # least-squares circle through the rays' shifts
+        pcx, pcy, pr = _shift_circle(pcx, pcy, pr, inl, n, rim_shift[inl], free_p)
+    return pcx, pcy, pr if free_p else r_seen, psig
+
+
+def _ray_sampling(r, w, ds_opt, edge_half, level_len):
+    """A pass's sampling of its rays for a rim of radius ``r`` searched within ``w`` px: the
+    step ``ds`` (twice ``ds_opt`` while the search is wide), the number of samples, the edge
+    window's and the level windows' half-width and length in samples and the first sample's
+    distance from the centre (the inside levels at two depths within reach)."""
+    ds = ds_opt if w <= 3.0 else 2 * ds_opt  # coarse sampling while the search is wide
+    ne = max(2, int(round(edge_half / ds)))
+    nl = max(2, int(round(level_len / ds)))
+    m = (ne + 2 * nl + 3) * ds  # the inside levels at two depths
+    s0 = max(0.5, r - w - m)
+    ns = int(math.ceil((r + w + m - s0) / ds)) + 1
+    return ds, ns, ne, nl, s0
+
+
+def _kernel_params(opts, r_px, r, w, n, sampling, big, free, noise, floor, r_kn, pixel):
+    """The kernel's arguments after the centre for a pass on ``n`` rays with ``sampling``
+    (:func:`_ray_sampling`) about a rim of radius ``r`` searched within ``w`` px: the options'
+    values, the mirror settings (-1: by the rim's signature), the level's depth inside the
+    rim and the Fresnel rise's width there."""
+    ds, ns, ne, nl, s0 = sampling
+    mirror_rim = -1 if opts.mirror_rim is None else int(bool(opts.mirror_rim))
+    local = -1 if opts.local_contrast is None else int(bool(opts.local_contrast))
+    nz = -1.0 if noise is None else float(noise)
+    inset = (ne + 0.5 * nl + 1) * ds
+    # the Fresnel rise's width (cached), where the rim's correction may be on
+    kappa = _fresnel_kappa(round(r_px, 1), inset, opts.steel_eta, opts.steel_k) \
+        if mirror_rim == 1 or (mirror_rim < 0 and big) else 0.0
+    return (s0, ds, ns, n, r, w, ne, nl, opts.level_smooth, opts.min_contrast_rel,
+            opts.rim_levels, opts.sharp_excess if opts.sharp_rays and big and w <= 3.0 else 0.0,
+            mirror_rim, local, big, nz, opts.mirror_sector, inset, kappa, opts.mirror_relative,
+            opts.contrast_bands, opts.min_rays, floor, int(round(opts.mirror_flank / 360.0 * n)),
+            free, opts.free_min_frac, r_kn, opts.tukey_c, opts.sigma_floor, pixel)
+
+
+def _run_pass(frame, background, cx, cy, r_px, reach, pinhole, raw, params):
+    """One pass's kernel on the crops of the frame and the background about (cx, cy) that hold
+    its rays (``reach`` px long, stretched by a pinhole's silhouette): the GIL-free kernel on
+    the crops themselves where they are ``raw`` (uint8 / uint16 of one type), else frame -
+    background
+    by OpenCV first (and a pinhole's ellipse squeezed back to a circle about the centre).
+    Returns the kernel's answer, the crops, their top-left pixel, the centre in the crop and
+    the stretch (None without one); None where the crop is outside the frame."""
+    stretch = None
+    if pinhole is not None:
+        ux, uy, kst = silhouette_stretch((cx, cy), r_px, pinhole)
+        stretch = ((ux, uy), kst) if kst > 1.0 + 1e-6 else None
+    grow = stretch[1] if stretch is not None else 1.0
+    half = int(math.ceil(grow * reach)) + 2
+    x0, y0 = int(math.floor(cx)) - half, int(math.floor(cy)) - half
+    fr, x0c, y0c = _crop(frame, x0, y0, x0 + 2 * half + 2, y0 + 2 * half + 2)
+    if fr is None:
+        return None
+    bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
+    lcx, lcy = cx - x0c, cy - y0c
+    if stretch is None and raw:
+        out = locate_pass_raw(fr, bg, lcx, lcy, *params)
+    else:
+        rel = cv2.subtract(fr, bg, dtype=cv2.CV_32F)
+        bgr = bg.astype(np.float32)
+        if stretch is not None:
+            # a pinhole's ellipse made a circle again about the current centre: everything
+            # below works on the squeezed crop, its centre is taken back at the end
+            rel = squeeze(rel, (lcx, lcy), *stretch)
+            bgr = squeeze(bgr, (lcx, lcy), *stretch)
+        out = locate_pass(rel, bgr, lcx, lcy, *params)
+    return out, fr, bg, (x0c, y0c), (lcx, lcy), stretch
 
 
 def _judge(cx, cy, r, sigma, n_in, n, free_p, partial, inl, rk, guess, w0, opts) -> Location:

@@ -153,17 +153,51 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
         change is found, or no specular highlight brighter than the background lies on the
         ball (a dark ball on a bright backlight: the method has nothing to locate by).
     """
-    rel_full_abs = None
     if guess is None:
         guess = coarse_find(frame, background, r_px, full_scale=full_scale)
         if guess is None:
             return Location.missing("no ball-like change in the frame")
-    # step 1: the specular spots near the guess -> 101 x 101 (for the 10 mm ball) sub-image
+    try:
+        scx, scy = _highlight(frame, background, r_px, guess, full_scale)
+        half = int(round(r_px + 13))  # 50 for the 10 mm ball: the thesis's 101 x 101
+        # step 2: background subtraction on the sub-image
+        fr, x0, y0 = _crop(frame, scx - half, scy - half, scx + half + 1, scy + half + 1)
+        if fr is None or min(fr.shape) < half:
+            raise _NotFound("ball too close to the frame border")
+        rel = relative_image(fr, background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]])
+        cxl, cyl = scx - x0, scy - y0
+        ex, ey, threshold = _quarter_edge(np.abs(rel), cxl, cyl, half, r_px, side, threshold)
+        # step 5: rough centre from the edge and the known diameter (eq. 12)
+        rcx, rcy = _circle_known_radius(ex.astype(float), ey.astype(float), r_px, float(cxl),
+                                        float(cyl))
+        if not (np.isfinite(rcx) and np.isfinite(rcy)):
+            raise _NotFound("rough centre fit failed")
+        cand_x, cand_y, jumps, n_rho = _jump_counts(rel, rcx, rcy, r_px, neighbourhood, step,
+                                                    threshold)
+    except _NotFound as why:
+        return Location.missing(str(why))
+    best = jumps.max()
+    if best == 0:
+        return Location.missing("no intensity jumps around the rough centre")
+    win = jumps == best
+    # step 7: back to frame coordinates
+    return Location(x=float(cand_x[win].mean() + x0), y=float(cand_y[win].mean() + y0),
+                    r=float(r_px), found=True, inlier_frac=float(best) / n_rho)
+
+
+class _NotFound(Exception):
+    """A step of :func:`locate_large_thesis` found nothing to go on (the message says what)."""
+
+
+def _highlight(frame, background, r_px, guess, full_scale) -> tuple[int, int]:
+    """Step 1: the specular spot near ``guess`` (frame pixels), the brightest 3 x 3 mean of the
+    relative image within 1.3 r of it; :class:`_NotFound` where none is brighter than the
+    background or it lies off the ball."""
     half_s = int(round(1.3 * r_px))
     fr, x0, y0 = _crop(frame, int(round(guess[0])) - half_s, int(round(guess[1])) - half_s,
                        int(round(guess[0])) + half_s + 1, int(round(guess[1])) + half_s + 1)
     if fr is None:
-        return Location.missing("search region outside the frame")
+        raise _NotFound("search region outside the frame")
     rel = relative_image(fr, background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]])
     spots = cv2.blur(rel, (3, 3))
     _, smax, _, (sx, sy) = cv2.minMaxLoc(spots)
@@ -175,29 +209,29 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
     noise = 1.4826 * float(np.median(np.abs(np.diff(rel, axis=1)))) / math.sqrt(2.0) / 3.0
     fs = _full_scale(fr.dtype) if full_scale is None else float(full_scale)
     if smax < max(8.0 * noise, 0.01 * fs):
-        return Location.missing("no specular highlight brighter than the background on the "
-                                "ball (a dark ball on a bright backlight?): thesis-large "
-                                "locates by the highlight; use the subpixel locator")
+        raise _NotFound("no specular highlight brighter than the background on the "
+                        "ball (a dark ball on a bright backlight?): thesis-large "
+                        "locates by the highlight; use the subpixel locator")
     if math.hypot(scx - guess[0], scy - guess[1]) > r_px:
-        return Location.missing("the brightest spot near the ball lies off the ball: no "
-                                "specular highlight to locate by")
-    half = int(round(r_px + 13))  # 50 for the 10 mm ball: the thesis's 101 x 101
-    # step 2: background subtraction on the sub-image
-    fr, x0, y0 = _crop(frame, scx - half, scy - half, scx + half + 1, scy + half + 1)
-    if fr is None or min(fr.shape) < half:
-        return Location.missing("ball too close to the frame border")
-    rel = relative_image(fr, background[y0:y0 + fr.shape[0], x0:x0 + fr.shape[1]])
-    rel_full_abs = np.abs(rel)
+        raise _NotFound("the brightest spot near the ball lies off the ball: no "
+                        "specular highlight to locate by")
+    return scx, scy
+
+
+def _quarter_edge(rel_abs, cxl, cyl, half, r_px, side, threshold):
+    """Steps 3-4: the ball's edge points in its upper-left (``side`` >= 0) or upper-right
+    quarter about the spot (cxl, cyl) of ``rel_abs`` (|frame - background|): the quarter
+    binarised at ``threshold`` (None: Otsu's) with the part near the centre masked, its Canny
+    edges at 0.6-1.5 r from the spot. Returns their x, y and the threshold."""
     # step 3: the upper-left quarter when theta > 0, the upper-right one when theta < 0
-    cxl, cyl = scx - x0, scy - y0
     qy0, qy1 = max(0, cyl - half), cyl + 1
     if side >= 0:
         qx0, qx1 = max(0, cxl - half), cxl + 1
     else:
-        qx0, qx1 = cxl, min(rel.shape[1], cxl + half + 1)
-    quarter = rel_full_abs[qy0:qy1, qx0:qx1]
+        qx0, qx1 = cxl, min(rel_abs.shape[1], cxl + half + 1)
+    quarter = rel_abs[qy0:qy1, qx0:qx1]
     if quarter.size < 16:
-        return Location.missing("ball quarter outside the frame")
+        raise _NotFound("ball quarter outside the frame")
     # step 4: mask the (dark) part near the centre, binarise, Canny
     yy, xx = np.mgrid[qy0:qy1, qx0:qx1]
     inner = np.hypot(xx - cxl, yy - cyl) < 0.7 * r_px
@@ -214,13 +248,15 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
     keep = (d > 0.6 * r_px) & (d < 1.5 * r_px)
     ex, ey = ex[keep] + qx0, ey[keep] + qy0
     if len(ex) < 5:
-        return Location.missing("no ball edge in the chosen quarter")
-    # step 5: rough centre from the edge and the known diameter (eq. 12)
-    rcx, rcy = _circle_known_radius(ex.astype(float), ey.astype(float), r_px, float(cxl),
-                                    float(cyl))
-    if not (np.isfinite(rcx) and np.isfinite(rcy)):
-        return Location.missing("rough centre fit failed")
-    # step 6: count radial intensity jumps on circles centred in the 15 x 15 neighbourhood
+        raise _NotFound("no ball edge in the chosen quarter")
+    return ex, ey, threshold
+
+
+def _jump_counts(rel, rcx, rcy, r_px, neighbourhood, step, threshold):
+    """Step 6: for each candidate centre in the ``neighbourhood`` x ``neighbourhood`` square
+    about (rcx, rcy), the radial intensity jumps above ``threshold`` on its circle of radius
+    ``r_px`` every ``step`` rad. Returns the candidates' x, y, their counts and the number of
+    angles."""
     nh = neighbourhood // 2
     c0x, c0y = int(round(rcx)), int(round(rcy))
     offs = np.arange(-nh, nh + 1)
@@ -241,13 +277,7 @@ def locate_large_thesis(frame: np.ndarray, background: np.ndarray, r_px: float, 
     i1 = rel[np.clip(y1, 0, hh - 1), np.clip(x1, 0, ww - 1)]
     i2 = rel[np.clip(y2, 0, hh - 1), np.clip(x2, 0, ww - 1)]
     jumps = ((np.abs(i1 - i2) > threshold) & inside).sum(axis=1)
-    best = jumps.max()
-    if best == 0:
-        return Location.missing("no intensity jumps around the rough centre")
-    win = jumps == best
-    # step 7: back to frame coordinates
-    return Location(x=float(cand_x[win].mean() + x0), y=float(cand_y[win].mean() + y0),
-                    r=float(r_px), found=True, inlier_frac=float(best) / len(rho))
+    return cand_x, cand_y, jumps, len(rho)
 
 
 # --------------------------------------------------------------------------------------------

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from rollfric.locate.kernels import _ring_sums, _same_values
+from rollfric.locate.kernels.crops import ring_sums, same_values
 from rollfric.locate.regions import _crop
 
 
@@ -26,7 +26,7 @@ def ring_gain(frame, background, x: float, y: float, r: float) -> float:
     if fr is None:
         return math.nan
     bg = background[y0c:y0c + fr.shape[0], x0c:x0c + fr.shape[1]]
-    num, den, count = _ring_sums(np.asarray(fr), np.asarray(bg), x0c, y0c, float(x), float(y),
+    num, den, count = ring_sums(np.asarray(fr), np.asarray(bg), x0c, y0c, float(x), float(y),
                                  r + 2, r + 6)
     if count < 8 or den <= 0:
         return math.nan
@@ -42,4 +42,4 @@ def same_pixels(frame, prev, x: float, y: float, r: float) -> bool:
     a, _, _ = _crop(frame, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
     b, _, _ = _crop(prev, x0, y0, x0 + 2 * m + 2, y0 + 2 * m + 2)
     return (a is not None and b is not None and a.shape == b.shape
-            and _same_values(np.asarray(a), np.asarray(b)))
+            and same_values(np.asarray(a), np.asarray(b)))

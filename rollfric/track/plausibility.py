@@ -373,49 +373,84 @@ def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlie
         ok[mask] = False
 
     if gain is not None:
-        g = np.asarray(gain, dtype=float)
-        ref = _neighbour_median(g, ok, CONTRAST_WINDOW)
-        reject(np.isfinite(g) & np.isfinite(ref) & (np.abs(g / ref - 1) > CONTRAST_TOL),
-               "contrast")
+        reject(_contrast_outliers(gain, ok), "contrast")
     if sigma is not None:
-        s = np.asarray(sigma, dtype=float)
-        med, mad = _robust(s[ok])
-        if math.isfinite(med):
-            reject(np.isfinite(s) & (s > max(RESIDUAL_RATIO * med, med + RESIDUAL_SIGMAS * mad)),
-                   "residual")
+        reject(_residual_outliers(sigma, ok), "residual")
     if radius is not None and r_ref:
-        r = np.asarray(radius, dtype=float)
-        tol = max(RADIUS_TOL, RADIUS_SIGMAS * (r_rel_sigma or 0.0)) * r_ref
-        reject(np.isfinite(r) & (np.abs(r - r_ref) > tol), "radius")
+        reject(_radius_outliers(radius, r_ref, r_rel_sigma), "radius")
     if inlier_frac is not None:
-        f = np.asarray(inlier_frac, dtype=float)
-        # an abrupt loss of rim against the frames just before or just after it (a slow
-        # change, the ball rolling into a shadow or against the trough, is no occlusion)
-        before = _side_median(f, ok, -OCCLUDED_WINDOW)
-        after = _side_median(f, ok, OCCLUDED_WINDOW)
-        ref = np.fmax(before, after)
-        reject(np.isfinite(f) & np.isfinite(ref) & (f < OCCLUDED_RATIO * ref), "occluded")
+        reject(_occluded(inlier_frac, ok), "occluded")
     if center is not None and r_ball:
         reject(off_path(x, y, ok, center, r_ball), "off_path")
     reject(stuck(x, y, ok), "stuck")
-    # a repeated frame: the ball's pixels equal the frame before's (``same_pixels``; without
-    # it the same centre to 1e-4 px: a locator's answers for two exposures differ by its
-    # noise), while the ball moved between the frames around it (the frames of a resting ball
-    # drawn without noise may be alike)
+    reject(_repeated(x, y, found, ok, same_pixels), "duplicate")
+    _flag_jumps(x, y, found, ok, flags, sigma, pos)
+    return flags
+
+
+def _contrast_outliers(gain, ok: np.ndarray) -> np.ndarray:
+    """Frames whose contrast figure ``gain`` is off its neighbours' median by more than
+    CONTRAST_TOL."""
+    g = np.asarray(gain, dtype=float)
+    ref = _neighbour_median(g, ok, CONTRAST_WINDOW)
+    return np.isfinite(g) & np.isfinite(ref) & (np.abs(g / ref - 1) > CONTRAST_TOL)
+
+
+def _residual_outliers(sigma, ok: np.ndarray) -> np.ndarray:
+    """Frames whose centre error ``sigma`` is far above the good frames' typical one."""
+    s = np.asarray(sigma, dtype=float)
+    med, mad = _robust(s[ok])
+    if not math.isfinite(med):
+        return np.zeros(s.shape, dtype=bool)
+    return np.isfinite(s) & (s > max(RESIDUAL_RATIO * med, med + RESIDUAL_SIGMAS * mad))
+
+
+def _radius_outliers(radius, r_ref: float, r_rel_sigma: float | None) -> np.ndarray:
+    """Frames whose fitted radius is off the calibrated one ``r_ref`` by more than its
+    tolerance."""
+    r = np.asarray(radius, dtype=float)
+    tol = max(RADIUS_TOL, RADIUS_SIGMAS * (r_rel_sigma or 0.0)) * r_ref
+    return np.isfinite(r) & (np.abs(r - r_ref) > tol)
+
+
+def _occluded(inlier_frac, ok: np.ndarray) -> np.ndarray:
+    """Frames with an abrupt loss of rim (``inlier_frac``) against the frames just before or
+    just after them (a slow change, the ball rolling into a shadow or against the trough, is
+    no occlusion)."""
+    f = np.asarray(inlier_frac, dtype=float)
+    before = _side_median(f, ok, -OCCLUDED_WINDOW)
+    after = _side_median(f, ok, OCCLUDED_WINDOW)
+    ref = np.fmax(before, after)
+    return np.isfinite(f) & np.isfinite(ref) & (f < OCCLUDED_RATIO * ref)
+
+
+def _repeated(x, y, found, ok: np.ndarray, same_pixels) -> np.ndarray:
+    """Repeated frames: the ball's pixels equal the frame before's (``same_pixels``; without
+    it the same centre to 1e-4 px: a locator's answers for two exposures differ by its
+    noise), while the ball moved between the frames around it (the frames of a resting ball
+    drawn without noise may be alike)."""
+    n = x.size
+    rep = np.zeros(n, dtype=bool)
     for i in np.nonzero(ok)[0]:
         if 0 < i < n - 1 and found[i - 1] and found[i + 1]:
             same = bool(same_pixels[i]) if same_pixels is not None else \
                 math.hypot(x[i] - x[i - 1], y[i] - y[i - 1]) < DUPLICATE_PX
             moved = math.hypot(x[i + 1] - x[i - 1], y[i + 1] - y[i - 1]) > 10 * DUPLICATE_PX
-            if same and moved:
-                flags[i] = "duplicate"
-                ok[i] = False
-    # jumps: the worst first, its neighbours' predictions again without it, until none is left.
-    # A residual's scale is the frame's own centre error (the track's, or the frame's when
-    # larger: partial arcs) and the prediction's: the neighbours' errors through the fit (its
-    # noise gain: at the ends of a run the quadratic extrapolates from one side and its error
-    # is 2.8 centre errors, against 0.6 between neighbours on both sides) and its model error
-    # (twice what the cubic says: the neglected terms' share is of its order)
+            rep[i] = same and moved
+    return rep
+
+
+def _flag_jumps(x, y, found, ok: np.ndarray, flags: np.ndarray, sigma, pos) -> None:
+    """Flag the jumps (in ``flags`` and ``ok``, in place): the worst first, its neighbours'
+    predictions again without it, until none is left.
+
+    A residual's scale is the frame's own centre error (the track's, or the frame's when
+    larger: partial arcs) and the prediction's: the neighbours' errors through the fit (its
+    noise gain: at the ends of a run the quadratic extrapolates from one side and its error
+    is 2.8 centre errors, against 0.6 between neighbours on both sides) and its model error
+    (twice what the cubic says: the neglected terms' share is of its order). A jump to the
+    place of a frame just before is a duplicate."""
+    n = x.size
     s_loc = np.asarray(sigma, dtype=float) if sigma is not None else np.zeros(n)
     s_loc = np.where(np.isfinite(s_loc), s_loc, 0.0)
     pos = None if pos is None else np.asarray(pos, dtype=float)
@@ -425,6 +460,7 @@ def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlie
     en = e / np.sqrt(1.0 + np.square(g))
     scale = max(float(np.nanmedian(en[ok])) / 1.1774 if np.any(ok & np.isfinite(en)) else 0.0,
                 JUMP_FLOOR_PX)
+
     def zscore(js, e_js, model_js, g_js):
         sd = np.sqrt(np.square(np.maximum(scale, s_loc[js])) + np.square(scale * g_js)
                      + np.square(2.0 * model_js))
@@ -446,4 +482,3 @@ def flag_frames(x, y, found, *, same_pixels=None, sigma=None, radius=None, inlie
         js = lo + np.flatnonzero(ok[lo:i + MAX_GAP + 1])
         px, py, model[js], g[js] = _predict(js, x, y, ok, pos)
         e[js] = np.hypot(x[js] - px, y[js] - py)
-    return flags
