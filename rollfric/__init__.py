@@ -43,8 +43,8 @@ _WHERE = {
     # fitting mu and its uncertainty
     "fit_mu": "rollfric.fit.estimate",
     "FitResult": "rollfric.fit.result",
-    "Measurement": "rollfric.uncertainty.budget",
-    "measurement_from_track": "rollfric.uncertainty.budget",
+    "Measurement": "rollfric.uncertainty.measured",
+    "measurement_from_track": "rollfric.uncertainty.measured",
     "budget": "rollfric.uncertainty.budget",
     "Budget": "rollfric.uncertainty.budget",
     # bad input (the command line's exit status 2)

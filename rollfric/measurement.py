@@ -23,6 +23,7 @@ import numpy as np
 from rollfric.errors import InputError
 from rollfric.fit import estimate as fitmod
 from rollfric.fit.offset import resolve_offset
+from rollfric.fit.start import MIN_SAMPLES
 from rollfric.geometry.ellipse_checks import contour_check, path_check, path_replaces_contour
 from rollfric.geometry.theta import ANGLES
 from rollfric.geometry.trough_center import trough_center
@@ -259,9 +260,9 @@ def _opened(recording, setup, *, angle: str, method: str, fit: bool):
         raise InputError(f"unknown angle method {angle!r} (known: {', '.join(ANGLES)})")
     LOCATORS.check(method)
     check_setup_fits(setup, source.shape)
-    if fit and len(source) < fitmod.MIN_SAMPLES:  # refused before any frame is tracked
+    if fit and len(source) < MIN_SAMPLES:  # refused before any frame is tracked
         raise InputError(f"{getattr(source, 'name', recording)}: the recording has only "
-                         f"{len(source)} frames: at least {fitmod.MIN_SAMPLES} are needed to fit "
+                         f"{len(source)} frames: at least {MIN_SAMPLES} are needed to fit "
                          "mu; rollfric track writes the track of a recording of any length")
     return source, setup
 
@@ -344,12 +345,12 @@ def _fitted(df, info, setup: Setup, *, offset, fit_method: str, fit_kwargs, drop
             stages: _Stages):
     """mu fitted to the track: the offset decided, then frames lost where the ball turns
     found (``df``'s t_s moved): (result, info, whether the offset was fitted)."""
-    if len(df) < fitmod.MIN_SAMPLES:
+    if len(df) < MIN_SAMPLES:
         raise InputError(f"the recording has only {len(df)} frames: at least "
-                         f"{fitmod.MIN_SAMPLES} are needed to fit mu")
-    if info.n_found < fitmod.MIN_SAMPLES:
+                         f"{MIN_SAMPLES} are needed to fit mu")
+    if info.n_found < MIN_SAMPLES:
         raise InputError(f"the ball was found in only {info.n_found} of {len(df)} frames: at "
-                         f"least {fitmod.MIN_SAMPLES} are needed to fit mu")
+                         f"least {MIN_SAMPLES} are needed to fit mu")
     t_s, th, _ = _swing(df)
     use, why = resolve_offset(offset, t_s, th, setup, fit_method)
     info = dataclasses.replace(info, offset_fitted=use, offset_reason=why)

@@ -14,7 +14,8 @@ import sim
 from rollfric.fit.estimate import fit_mu
 from rollfric.geometry.theta import angles
 from rollfric.measurement import measure
-from rollfric.uncertainty.budget import budget, measurement_from_track
+from rollfric.uncertainty.budget import budget
+from rollfric.uncertainty.measured import measurement_from_track
 from synth.drawn import frames as dfm
 from synth.drawn.frames import make_frames
 from tests.measure_data import PIX, MemorySource, R, make_recording

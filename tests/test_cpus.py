@@ -20,7 +20,8 @@ from rollfric import parallel as cpus
 from rollfric.fit.estimate import fit_mu
 from rollfric.setup.model import load_setup
 from rollfric.track.dropped_frames import find_gaps, turning_gaps
-from rollfric.uncertainty.budget import Measurement, budget
+from rollfric.uncertainty.budget import budget
+from rollfric.uncertainty.measured import Measurement
 
 
 @pytest.mark.parametrize("workers", [1, 2, 3])

@@ -181,7 +181,8 @@ def test_a_recording_through_a_lens_measured_with_and_without_its_calibration(tm
     assert m["theta_rms_rad"] < math.radians(0.03)  # 0.4 mm pixels: 1 px is 0.29 deg
     assert m["center_rms_px"] < 0.15  # located vs the distorted projection of the centre
     # the budget re-evaluates the undistorted centres: its nominal re-fit is the fit
-    from rollfric.uncertainty.budget import budget, measurement_from_track
+    from rollfric.uncertainty.budget import budget
+    from rollfric.uncertainty.measured import measurement_from_track
 
     b = budget(measurement_from_track(r.track, r.track_info), r.fit)
     assert b.mu == pytest.approx(r.fit.mu, rel=1e-6)

@@ -1,4 +1,5 @@
-"""The sub-pixel locator's pass as one kernel call (rollfric.locate.kernels._pass_raw, issue 16)
+"""The sub-pixel locator's pass as one kernel call (rollfric.locate.kernels.passes.locate_pass_raw,
+issue 16)
 gives the answers of the pass made kernel by kernel from Python (``_reference_guess`` below,
 the code before the fold, kept as the oracle), to the bit: on analytically drawn balls (8 and
 16 bit, small balls of a known radius, noise, spots and shadows), a mirror ball's rim, partial
@@ -184,7 +185,7 @@ def _reference_guess(frame, background, r_px, guess, search, opts, noise, partia
 
 @numba.njit
 def _reference_profiles(rel, cx, cy, s0, ds, ns, n):
-    """rollfric.locate.kernels._profiles before its rays inside the crop went untested (main at
+    """rollfric.locate.kernels.rays.profiles before its rays inside the crop went untested (main at
     b37681f), kept as the oracle."""
     h, w = rel.shape
     prof = np.empty((n, ns), np.float64)
@@ -209,7 +210,8 @@ def _reference_profiles(rel, cx, cy, s0, ds, ns, n):
 
 @numba.njit
 def _reference_pixel_fit(rel, bgr, cx, cy, r, free, ray_ok, a_lv, b_lv, inset, iters):
-    """rollfric.locate.kernels._pixel_fit before its second pass reused the first's pixels (main
+    """rollfric.locate.kernels.pixelfit.pixel_fit before its second pass reused the first's pixels
+    (main
     at 2a10b8e), kept as the oracle."""
     h, w = rel.shape
     n = len(ray_ok)

@@ -72,7 +72,8 @@ def test_draw_zero_reproduces_the_measurement_and_fresh_draws_move_mu_as_the_bud
 def test_refit_with_the_asbuilt_setup_recovers_mu_and_a_radius_error_acts_by_its_row():
     from types import SimpleNamespace
 
-    from rollfric.uncertainty.budget import budget, measurement_from_track
+    from rollfric.uncertainty.budget import budget
+    from rollfric.uncertainty.measured import measurement_from_track
     from validation.track_level import measure_track, oracle_setup
 
     case = _case(seed=5)

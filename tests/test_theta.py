@@ -9,7 +9,7 @@ from test_lens import _target_lens_path
 from rollfric.geometry.theta import angles, centre_angles
 from rollfric.setup.model import thesis_setup
 from rollfric.track.track_info import TrackInfo
-from rollfric.uncertainty.budget import Measurement
+from rollfric.uncertainty.measured import Measurement
 
 
 def test_without_a_lens_the_angles_are_the_formula_and_a_missing_ball_stays_nan():

@@ -20,7 +20,8 @@ from rollfric.setup.model import (
     save_setup,
     thesis_setup,
 )
-from rollfric.uncertainty.budget import Measurement, budget, hac_covariance, measurement_from_track
+from rollfric.uncertainty.budget import budget, hac_covariance
+from rollfric.uncertainty.measured import Measurement, measurement_from_track
 
 LAB = """
 [cylinder]

@@ -14,7 +14,8 @@ import re
 
 import numpy as np
 
-from rollfric.uncertainty.budget import SECOND_ORDER, budget, measurement_from_track
+from rollfric.uncertainty.budget import SECOND_ORDER, budget
+from rollfric.uncertainty.measured import measurement_from_track
 from validation.case import Case
 
 # every metric a case reports (run_case; sim_only_case reports a subset): what a sweep's

@@ -22,6 +22,7 @@ TITLES = {
     "rollfric.setup.lens": "Setup and calibration",
     "rollfric.fit.estimate": "Fitting mu",
     "rollfric.fit.result": "Fitting mu",
+    "rollfric.uncertainty.measured": "Uncertainty",
     "rollfric.uncertainty.budget": "Uncertainty",
     "rollfric.errors": "Errors",
 }

@@ -233,7 +233,7 @@ def architecture(out):
 
 
 # rollfric's own packages in the order the data passes through them
-INSIDE = ("cli", "measurement", "io", "locate", "track", "geometry", "fit", "uncertainty",
+INSIDE = ("cli", "measurement", "io", "geometry", "locate", "track", "fit", "uncertainty",
           "output", "setup", "core")
 
 
@@ -251,7 +251,9 @@ def rollfric_modules(root=ROOT) -> dict[str, list[str]]:
     out: dict[str, list[str]] = {}
     for p in sorted((root / "rollfric").rglob("*.py")):
         if p.stem != "__init__":
-            out.setdefault(_rollfric_part(p, root), []).append(p.stem)
+            inner = p.relative_to(root / "rollfric").with_suffix("").parts[1:]
+            name = "/".join(inner) if len(inner) > 1 else p.stem
+            out.setdefault(_rollfric_part(p, root), []).append(name)
     return out
 
 
@@ -294,13 +296,12 @@ def rollfric_inside(out):
     ax.set_xlim(0, 10)
     ax.set_ylim(0, 10)
     ax.axis("off")
-    flow = [p for p in ("io", "locate", "track", "geometry", "fit", "uncertainty", "output")
-            if p in mods]
+    flow = [p for p in INSIDE[2:-2] if p in mods]
     boxes = {}
     for i, part in enumerate(flow):
         x = 0.75 + i * 1.4
         text = part + "/\n" + "\n".join(mods[part])
-        boxes[part] = _box(ax, x, 5.2, 1.3, 5.6, text, fs=6.6)
+        boxes[part] = _box(ax, x, 5.2, 1.3, 5.6, text, fs=6.0)
     for a, b in zip(flow, flow[1:], strict=False):
         _arrow(ax, boxes[a], boxes[b])
     top = "  ".join(f"{p}: {', '.join(mods[p])}" for p in ("cli", "measurement") if p in mods)
@@ -311,7 +312,7 @@ def rollfric_inside(out):
             fontsize=8)
     ax.text(0.1, 0.3, "used by every step: the setup, errors, the registries, the threads",
             fontsize=8)
-    bx = fig.add_axes([0.64, 0.16, 0.34, 0.7])
+    bx = fig.add_axes([0.64, 0.19, 0.34, 0.67])
     m = np.zeros((len(parts), len(parts)))
     for (a, b), n in edges.items():
         if a in parts and b in parts:

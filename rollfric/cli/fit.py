@@ -284,7 +284,7 @@ def _run(args) -> int:
     from rollfric.output.folder import remove_stale
     from rollfric.output.jsonfile import save_fit
     from rollfric.setup.model import load_setup
-    from rollfric.uncertainty.budget import Measurement
+    from rollfric.uncertainty.measured import Measurement
     from rollfric.uncertainty.report import run_budget, with_budget_reason
 
     out, png, budget_png = check_outputs(args.out, plot=args.plot, overwrite=args.overwrite,

@@ -229,7 +229,7 @@ def _run(args) -> int:
     from rollfric.measurement import measure
     from rollfric.output.folder import staged_folder
     from rollfric.output.jsonfile import save_fit
-    from rollfric.uncertainty.budget import measurement_from_track
+    from rollfric.uncertainty.measured import measurement_from_track
     from rollfric.uncertainty.report import check_arguments, run_budget, with_budget_reason
 
     out = check_tracking_outputs(args, OUTPUTS, "measure")

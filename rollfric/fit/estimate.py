@@ -22,7 +22,7 @@ import numpy as np
 from rollfric.errors import InputError
 from rollfric.fit.lsq import MU_MAX, NOISE_FLOOR
 from rollfric.fit.result import FitResult
-from rollfric.fit.start import MIN_SAMPLES, initial_guess  # noqa: F401 (MIN_SAMPLES: the tracker's)
+from rollfric.fit.start import initial_guess
 from rollfric.registry import FIT_METHODS
 from rollfric.setup.model import Setup
 from rollfric.uncertainty import quality

@@ -8,7 +8,7 @@ the bottom tell it from friction (:func:`offset_supported`).
 from __future__ import annotations
 
 from rollfric.errors import InputError
-from rollfric.fit import estimate as fitmod
+from rollfric.fit.start import initial_guess
 from rollfric.setup.model import Setup
 
 OFFSET_MIN_TURNS = 3  # turning points inside the track before the offset is fitted by default
@@ -38,7 +38,7 @@ def offset_supported(t, theta, setup: Setup) -> tuple[bool, str]:
         The reason, for the user.
     """
     try:
-        n = len(fitmod.initial_guess(t, theta, setup)["turning_points_s"])
+        n = len(initial_guess(t, theta, setup)["turning_points_s"])
     except (InputError, ValueError) as exc:
         return False, f"no turning points found ({exc})"
     if n >= OFFSET_MIN_TURNS:

@@ -10,7 +10,8 @@ import math
 
 from rollfric.errors import InputError
 from rollfric.uncertainty.anglemap import METHOD
-from rollfric.uncertainty.budget import CONTOUR_NOTE, Budget, Measurement, budget
+from rollfric.uncertainty.budget import CONTOUR_NOTE, Budget, budget
+from rollfric.uncertainty.measured import Measurement
 from rollfric.uncertainty.propagation import SECOND_ORDER
 from rollfric.uncertainty.reasons import Reason
 

@@ -36,7 +36,7 @@ def fitted_mask(t, theta, n_samples):
 class Refitter:
     """Local least-squares re-fits from the nominal solution, memoised on their inputs.
 
-    ``meas`` is the :class:`rollfric.uncertainty.budget.Measurement` the nominal least-squares
+    ``meas`` is the :class:`rollfric.uncertainty.measured.Measurement` the nominal least-squares
     fit ``result`` was made of; ``fit_length``: L is a free parameter of every re-fit."""
 
     def __init__(self, meas, result, *, fit_length: bool):
@@ -175,7 +175,7 @@ def moved(setup: Setup, field: str, component, delta_lab: float, factor: float) 
 
 def acts(meas, field: str) -> str:
     """'' when ``field`` can change mu in the measurement ``meas``
-    (:class:`rollfric.uncertainty.budget.Measurement`), else why not."""
+    (:class:`rollfric.uncertainty.measured.Measurement`), else why not."""
     if field in ("air_viscosity", "air_cd", "air_wall_factor") \
             and meas.setup.air_density == 0.0:
         return "no air (environment.air_density_kg_m3 = 0)"

@@ -28,7 +28,8 @@ import numpy as np
 
 import sim
 from rollfric.fit import eom
-from rollfric.fit.estimate import fit_mu, initial_guess
+from rollfric.fit.estimate import fit_mu
+from rollfric.fit.start import initial_guess
 from rollfric.fit.thesis import PAPER2_GRID, fit_paper2_grid
 from rollfric.output.folder import check_folder, staged_folder
 from rollfric.setup.model import thesis_setup

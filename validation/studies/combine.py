@@ -36,8 +36,9 @@ import pandas as pd
 from rollfric.errors import InputError
 from rollfric.fit.estimate import fit_mu
 from rollfric.setup.model import THESIS_BALLS, Setup
-from rollfric.uncertainty.budget import Measurement, budget
+from rollfric.uncertainty.budget import budget
 from rollfric.uncertainty.combine import birge_range, combine, run_from_fit
+from rollfric.uncertainty.measured import Measurement
 from validation.studies.coverage import drawn_as_built, drawn_centres, drawn_setups, misses
 
 RELEASE_SEEDS = 1000  # release k of setup s draws its noise with seed s * RELEASE_SEEDS + k

@@ -41,7 +41,8 @@ from rollfric.fit.estimate import fit_mu
 from rollfric.geometry.trough import ContourError, find_cylinder_center
 from rollfric.output.atomic import replacing
 from rollfric.setup.model import THESIS_BALLS, Setup
-from rollfric.uncertainty.budget import Measurement, budget
+from rollfric.uncertainty.budget import budget
+from rollfric.uncertainty.measured import Measurement
 from synth.drawn.frames import disk_coverage
 
 # the lab's nominal setup and its standard uncertainties (lab units), issue 14's lab

@@ -28,7 +28,8 @@ import numpy as np
 from rollfric.errors import InputError
 from rollfric.measurement import measure
 from rollfric.setup.model import SetupError
-from rollfric.uncertainty.budget import budget, measurement_from_track
+from rollfric.uncertainty.budget import budget
+from rollfric.uncertainty.measured import measurement_from_track
 from rollfric.uncertainty.report import with_budget_reason
 from validation.faults.recordings import Family, Recording, clean, faulty
 

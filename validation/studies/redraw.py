@@ -43,7 +43,8 @@ import pandas as pd
 from rollfric.fit.estimate import fit_mu
 from rollfric.fit.offset import resolve_offset
 from rollfric.setup.model import setup_from_dict
-from rollfric.uncertainty.budget import budget, measurement_from_track
+from rollfric.uncertainty.budget import budget
+from rollfric.uncertainty.measured import measurement_from_track
 from validation.case import Case, case_from_dict
 from validation.e2e import measure_recording
 from validation.lab import standard_normal
@@ -113,7 +114,7 @@ def refit(track, info, setup, offset: str = "auto"):
 
     What :func:`rollfric.measurement.measure` does after locating, with the angles about
     ``setup.center_px`` and the times frame / ``setup.fps``
-    (:meth:`rollfric.uncertainty.budget.Measurement.series`, the budget's own re-evaluation).
+    (:meth:`rollfric.uncertainty.measured.Measurement.series`, the budget's own re-evaluation).
 
     Parameters
     ----------
