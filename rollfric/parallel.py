@@ -1,15 +1,16 @@
 """Independent computations on the CPUs that are free, with the results of a plain loop.
 
-Every thread rollfric starts is started here: the tracker's segments
-(:func:`rollfric.track.tracker.track_recording`) and the refits of the dropped-frame search at
-turning points run on threads when CPUs are free; their numerical kernels (the locator's, the
-equation of motion's RK4) release the GIL. The least-squares fit's coarse starts and the
-uncertainty budget's refits run one after another: on threads they did not pay on the bench.
-Each computation is the same function call with the same inputs as in a loop, so the results
-are the same; only the order in which they finish differs, and :func:`map_ordered` hands them
-back in the order of the inputs. On a busy machine (no CPU free at the start) everything runs
-one after another in the calling thread: a second thread would only wait for the GIL while
-the first is descheduled.
+Every thread rollfric starts is started here. The tracker's segments
+(:func:`rollfric.track.tracker.track_recording`) and the fits that do not depend on one another
+(the least-squares fit's coarse starts, :mod:`rollfric.fit.lsq`; the refits of the dropped-frame
+search at turning points; the uncertainty budget's refits,
+:class:`rollfric.uncertainty.sensitivity.Refitter`) run on threads when CPUs are free: their
+numerical kernels (the locator's, the equation of motion's RK4, LAPACK) release the GIL. Each
+computation is the same function call with the same inputs as in a loop, so the results are the
+same; only the order in which they finish differs, and :func:`map_ordered` hands them back in
+the order of the inputs. On a busy machine (no CPU free at the start) everything runs one after
+another in the calling thread: a second thread would only wait for the GIL while the
+first is descheduled.
 """
 
 from __future__ import annotations

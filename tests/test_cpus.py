@@ -1,9 +1,8 @@
 """Independent computations on threads (rollfric.parallel): the results of the plain loop.
 
-The fits that run on threads when CPUs are free (the dropped-frame search's refits at turning
-points) are compared bit for bit with the same fits made one after another in the calling
-thread; the least-squares fit's coarse starts and the uncertainty budget's refits start no
-thread, whatever is free, and give the same results."""
+The fits that run on threads when CPUs are free (the least-squares fit's coarse starts, the
+dropped-frame search's refits at turning points, the uncertainty budget's refits) are compared
+bit for bit with the same fits made one after another in the calling thread."""
 
 from __future__ import annotations
 
@@ -92,21 +91,12 @@ def _both(monkeypatch, run):
     return out
 
 
-def _no_thread(monkeypatch):
-    """Make any thread of rollfric.parallel an error."""
-    def refuse(*args, **kwargs):
-        raise AssertionError("a thread was started")
-    monkeypatch.setattr(cpus, "map_ordered", refuse)
-    monkeypatch.setattr(cpus, "first_ordered", refuse)
-
-
-def test_the_fit_starts_no_thread_and_is_the_same_whatever_is_free(monkeypatch):
+def test_the_fit_on_threads_is_the_fit_in_one_thread(monkeypatch):
     x, y, _ = camera_track(np.arange(2500), seed=4)
     th = angles_of(x, y)
-    _no_thread(monkeypatch)
     one, two = _both(monkeypatch, lambda: fit_mu(np.arange(2500) / FPS, th, SETUP,
                                                   offset=True))
-    assert one.extra["n_starts"] > 2  # several starts, one after another
+    assert one.extra["n_starts"] > 2  # the starts ran on two threads
     assert _same(_fields(one), _fields(two))
 
 
@@ -127,12 +117,11 @@ def test_the_turning_point_refits_on_threads_find_the_same_lost_frame(monkeypatc
     assert _same(_fields(f1), _fields(f2)) and _same(_fields(r1), _fields(r2))
 
 
-def test_the_budget_s_refits_start_no_thread_and_are_the_same(monkeypatch, tmp_path):
+def test_the_budget_s_refits_on_threads_are_the_refits_in_one_thread(monkeypatch, tmp_path):
     lab = load_setup(write(tmp_path, LAB.replace("642.0", "640.0")))
     frames, x, y = _lab_track(seconds=2.0)
     meas = Measurement(setup=lab, frames=frames, x=x, y=y, center=lab.center_px)
     result = fit_mu(*meas.series(lab), lab)
-    _no_thread(monkeypatch)
     one, two = _both(monkeypatch, lambda: budget(meas, result))
     assert one.n_refits == two.n_refits > 8  # 5 inputs act: their 10 refits, and the nominal
     assert _same(_fields(one), _fields(two))

@@ -16,6 +16,7 @@ import time
 import numpy as np
 from scipy import optimize
 
+from rollfric import parallel
 from rollfric.errors import InputError
 from rollfric.fit import air, eom, filtering
 from rollfric.fit.filtering import on_grid
@@ -130,8 +131,8 @@ def _multistart(problem: _Problem, starts: list, g0: dict):
                      problem.upper)
         return label, problem.solve(x0, everything, STAGE1_NFEV, 1e-10)
 
-    # one after another: too short for threads to pay (the bench in docs/history.md, #34)
-    coarse = [coarse_fit(s) for s in starts]
+    # the starts are independent: on the CPUs that are free, the same fits (rollfric.parallel)
+    coarse = parallel.map_ordered(coarse_fit, starts, name="rollfric-fit")
     # polish every coarse fit that came near the best (a coarse fit that ranks first may
     # still stall in a flat valley): keep the best polished one
     coarse.sort(key=lambda c: c[1].cost)

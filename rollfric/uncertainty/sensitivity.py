@@ -4,7 +4,8 @@
 ``K`` with ``K_u``, a lens calibration's parameters), :func:`moved` is the setup with one of
 them moved, :func:`acts` / :func:`why_not` say whether it can act on mu in a measurement.
 :class:`Refitter` re-fits the measurement with a moved setup: a local least-squares
-refinement from the nominal solution over the nominal fit's samples, memoised.
+refinement from the nominal solution over the nominal fit's samples, memoised, and made on
+threads where CPUs are free (:func:`rollfric.parallel.map_ordered`).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import math
 import numpy as np
 from scipy import optimize
 
+from rollfric import parallel
 from rollfric.fit import eom
 from rollfric.fit.air import WALL_FACTOR_U, coefficients_of
 from rollfric.setup.model import LAB_KEYS, Setup, SetupError
@@ -67,6 +69,22 @@ class Refitter:
             self._cache[key] = self._solve(t, th, setup, jacobian, augmented)
             self.count += 1
         return self._cache[key]
+
+    def prefetch(self, jobs) -> None:
+        """Make the fits ``jobs`` = [(setup, jacobian, augmented), ...] that are not made yet
+        on the CPUs that are free (:func:`rollfric.parallel.map_ordered`): :meth:`fit` then finds
+        them made. Each is the fit :meth:`fit` would make, so the results, and ``count``, are
+        those of calling :meth:`fit` with them one after another."""
+        todo = {}
+        for setup, jacobian, augmented in jobs:
+            key, t, th = self._key(setup, jacobian, augmented)
+            if key not in self._cache and key not in todo:
+                todo[key] = (t, th, setup, jacobian, augmented)
+        done = parallel.map_ordered(lambda job: self._solve(*job), todo.values(),
+                                name="rollfric-budget")
+        for key, out in zip(todo, done, strict=True):
+            self._cache[key] = out
+            self.count += 1
 
     def _key(self, setup: Setup, jacobian: bool, augmented: bool):
         t, th = self.meas.series(setup)
