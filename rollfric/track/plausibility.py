@@ -293,26 +293,28 @@ def stuck(x, y, ok) -> np.ndarray:
     # could be lost in a few such changes may be a real halt
     acc = float(np.percentile(np.abs(np.diff(st)), STUCK_ACC_PERCENTILE))
 
-    def lead_speed(steps: np.ndarray) -> float:
-        """The speed a line through ``steps`` (oldest first) reaches one step on."""
-        t = np.arange(steps.size, dtype=float)
-        slope, icpt = np.polyfit(t, steps, 1)
-        return float(slope * steps.size + icpt)
-
+    # the speed a line through STUCK_LEAD steps (oldest first) reaches one step on: a fixed
+    # weighting of the steps (the least-squares line's value there), for every window at once
+    t = np.arange(STUCK_LEAD, dtype=float)
+    tc = t - t.mean()
+    weights = 1.0 / STUCK_LEAD + tc * (STUCK_LEAD - t.mean()) / float(tc @ tc)
+    win = np.lib.stride_tricks.sliding_window_view(st, STUCK_LEAD)  # win[j] = st[j:j + LEAD]
+    leads = {"before": (win @ weights, win.mean(axis=1), win.min(axis=1), win.max(axis=1)),
+             "after": (win[:, ::-1] @ weights, win.mean(axis=1), win.min(axis=1),
+                       win.max(axis=1))}
+    floor = max(STUCK_MIN_STEP_PX, STUCK_ACC_FACTOR * acc)
     for k in range(m - n_run):
-        run = st[k:k + n_run]  # steps of frames idx[k] .. idx[k + n_run]
-        # entered: the steps before the one into the run
-        for lead in (st[max(0, k - 1 - STUCK_LEAD):max(0, k - 1)],
-                     st[k + n_run + 1:k + n_run + 1 + STUCK_LEAD][::-1]):
-            if lead.size < STUCK_LEAD:
+        run_max = st[k:k + n_run].max()  # steps of frames idx[k] .. idx[k + n_run]
+        # entered: the steps before the one into the run; left: those after the one out of it
+        for side, j in (("before", k - 1 - STUCK_LEAD), ("after", k + n_run + 1)):
+            if j < 0 or j >= win.shape[0]:
                 continue
-            v = lead_speed(lead)
+            v_all, mean, lo_, hi_ = leads[side]
+            v = float(v_all[j])
             # a steady motion (no stuck place or jump among the lead's steps either)
-            if v < max(STUCK_MIN_STEP_PX, STUCK_KEEP * float(lead.mean()),
-                       STUCK_ACC_FACTOR * acc) \
-                    or lead.min() < STUCK_KEEP * lead.max():
+            if v < max(floor, STUCK_KEEP * float(mean[j])) or lo_[j] < STUCK_KEEP * hi_[j]:
                 continue
-            if run.max() < STUCK_FRAC * v:
+            if run_max < STUCK_FRAC * v:
                 # the whole still run: on while the steps stay below STUCK_FRAC v
                 lo, hi = k, k + n_run
                 while lo > 0 and st[lo - 1] < STUCK_FRAC * v:
