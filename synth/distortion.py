@@ -17,7 +17,7 @@ The distorted frame is made from an ideal render that covers the frame's undisto
 recorded pixel is the mean of the ideal image over its own area mapped back through the lens
 (SAMPLES x SAMPLES points spread over the pixel, each undistorted through the local Jacobian
 of the inverse and sampled bilinearly). One bilinear sample a pixel of a frame-resolution
-render (synth before 2026-11-23) is not a lens: its kernel (1 - f, f) follows the fractional
+render is not a lens: its kernel (1 - f, f) follows the fractional
 part f of the lens's displacement, and the locator's edge-model fit read that as up to
 0.06 px of ball centre; rendered finer and integrated over the footprint, the ball is where an
 exactly bent drawing of it is to 0.003 px (tests/test_lens.py).

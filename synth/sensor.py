@@ -11,11 +11,8 @@ function of (seed, stream, frame index, pixel) alone. Two noise generators (``no
   again with the next try number). The whole model - gamma table, fixed pattern, noise,
   quantisation - runs in one numba kernel over the pixels asked for (the normals of a block of
   rows first, phase by phase: the hashing, then the logs and square roots in a straight loop;
-  then the block's pixels; the same bytes as a pair's draw at a time in one loop, 8-15 % less
-  CPU for a row's normals first, 25-30 % less again for the phases, 2026-11-24): 3.7x less CPU
-  than the tiles for a tracker's 112 x 112 px region (0.24 vs 0.89 ms) before the phases, 1.55x
-  less for a 1280 x 1024 frame (23 vs 36 ms; CPU times measured side by side on a loaded
-  machine).
+  then the block's pixels): the same bytes as a pair's draw at a time in one loop, in a few
+  times less CPU than drawing the noise per tile.
 - ``"tiles/1"`` (recordings rendered before it, read with the bytes they were made with): the
   noise drawn per fixed TILE x TILE tile, each from its own ``numpy.random.default_rng`` seeded
   by (seed, stream, frame index, tile row, tile column); a region draws every tile it touches

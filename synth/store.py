@@ -59,8 +59,7 @@ def scratch_dir(n_frames: int) -> str | None:
     ``SCRATCH_SPARE_BYTES``; else None (the system's temporary folder).
 
     A recording is ~2 chunk files a frame, and creating a file on a disk's file system can cost
-    far more than rendering the frame: on the shared VM of 2026-11-24 0.02-0.8 ms of system
-    time a file, by where the new folder landed (docs/how/renderer.md).
+    more than rendering the frame (docs/how/renderer.md).
 
     Parameters
     ----------

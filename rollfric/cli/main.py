@@ -217,8 +217,7 @@ def _freeze_at_exit() -> None:
     passes skip: the memory goes back to the system with the process as before (the atexit
     handlers, ``finally`` blocks and the report's files are done by then). Registered once a
     process; in a process that goes on (tests calling :func:`main`) it runs only when that
-    process ends. Measured: a 1 s validate's time outside its printed total 3.39 -> 2.85 s
-    (medians of 6 alternating pairs of new processes, load 3.8-4.7; lower in each pair).
+    process ends (about half a second of a validate's exit: docs/history.md).
     """
     if not _freeze_registered:
         atexit.register(gc.freeze)
