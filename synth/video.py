@@ -35,14 +35,13 @@ QUALITY_RANGE = {"mjpeg": (1, 100), "h264": (0, 51)}
 DEFAULT_QUALITY = {"mjpeg": 75, "h264": 23}
 H264_PRESET = "medium"
 H264_GOP = 250
-# The same frames give the same bytes on any machine: x264 takes its thread count (PyAV:
-# slices) from the CPUs unless told, so it is fixed here (frame threads); and with x264's
-# macroblock tree (its default
-# rate-control lookahead) the P frames differed from the second encoder of a process on
-# (half of the runs on an AMD EPYC with AVX-512, even with one thread; deterministic with
-# x264's assembly off or the tree off: memory left from an earlier encoder), so the tree is
-# off. Without it the rate control spreads the quality more evenly over static and moving
-# areas; the codec and its artefacts (block DCT, motion compensation) are the same.
+# The same frames give the same bytes on any machine: x264 takes its thread count (PyAV: slices)
+# from the CPUs unless told, so it is fixed here (frame threads); and with x264's macroblock tree
+# (its default rate-control lookahead) the P frames differed from the second encoder of a process
+# on (half of the runs on an AMD EPYC with AVX-512, even with one thread; deterministic with x264's
+# assembly off or the tree off: memory left from an earlier encoder), so the tree is off. Without
+# it the rate control spreads the quality more evenly over static and moving areas; the codec and
+# its artefacts (block DCT, motion compensation) are the same.
 H264_THREADS = 4
 H264_PARAMS = "no-mbtree=1"
 
