@@ -162,7 +162,8 @@ def test_budget_air_rows_match_finite_differences():
 
 def test_the_default_case_is_in_room_air_and_its_lab_states_only_the_density():
     from sim import Scenario
-    from validation.case import case_from_dict, default_case_dict
+    from validation.case import case_from_dict
+    from validation.case_dict import default_case_dict
     from validation.track_level import oracle_setup
 
     case = case_from_dict(default_case_dict())

@@ -132,7 +132,8 @@ def test_thin_lens_keys_are_checked():
 
 
 def test_case_keys_in_lab_units():
-    from validation.case import CaseError, apply_overrides, case_from_dict, small_case_dict
+    from validation.case import CaseError, case_from_dict
+    from validation.case_dict import apply_overrides, small_case_dict
 
     d = apply_overrides(small_case_dict(), {"render.camera.f_number": 4,
                                             "render.camera.focus_distance_mm": 485.0,
@@ -150,7 +151,8 @@ def _render(tmp_path, name, **camera):
     import sim
     import synth
     from synth.store import open_recording
-    from validation.case import apply_overrides, case_from_dict, small_case_dict
+    from validation.case import case_from_dict
+    from validation.case_dict import apply_overrides, small_case_dict
 
     over = {f"render.camera.{k}": v for k, v in camera.items()}
     c = case_from_dict(apply_overrides(small_case_dict(0.012), over))

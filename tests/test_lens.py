@@ -159,10 +159,11 @@ def test_a_recording_through_a_lens_measured_with_and_without_its_calibration(tm
     4 px at the corners): with the calibration the trough centre and the angles are the
     undistorted truth's; without it they are not."""
     from validation import case as C
+    from validation import case_dict as CD
     from validation import e2e
     from validation.metrics import mode_metrics
 
-    d = C.default_case_dict()
+    d = CD.default_case_dict()
     d["scenario"]["motion"].update(theta0_deg=8.0, seconds=0.3)
     d["scenario"]["camera"] = {"pixel_size_mm": 0.4}
     lens = {"lens_distortion": [-0.18, 0.0, 0.0, 0.0, 0.0],

@@ -360,10 +360,10 @@ def test_validate_refuses_a_non_empty_report_folder_before_any_work(tmp_path, ca
 
 
 def test_validate_report_overwrite_keeps_other_files(tmp_path):
-    from validation import case as C
+    from validation import case_dict as CD
     from validation import e2e
 
-    d = C.small_case_dict(seconds=0.05)
+    d = CD.small_case_dict(seconds=0.05)
     d["render"].update(shadows=False)
     out = tmp_path / "report"
     out.mkdir()

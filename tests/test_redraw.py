@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from validation.case import apply_overrides, case_from_dict, small_case_dict
+from validation.case import case_from_dict
+from validation.case_dict import apply_overrides, small_case_dict
 from validation.studies.redraw import redraw_case, redrawn_lab, redrawn_setup, refit, summarize
 
 

@@ -20,7 +20,8 @@ from rollfric.setup.schema import (
     check_section,
 )
 from sim.errors import ScenarioError
-from validation.case import CaseError, case_from_dict, small_case_dict
+from validation.case import CaseError, case_from_dict
+from validation.case_dict import small_case_dict
 from validation.sweep import SweepError, sweep_from_dict
 
 

@@ -155,7 +155,7 @@ def test_same_seed_same_bytes(tmp_path):
 
 
 def test_short_case_end_to_end_on_the_mitsuba_backend():
-    from validation.case import small_case_dict
+    from validation.case_dict import small_case_dict
     from validation.e2e import run_case
 
     # 61 frames of a 160 x 96 px camera at twice the thesis's pixel size (ball radius 18.6 px),

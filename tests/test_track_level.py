@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from validation.case import apply_overrides, small_case_dict
+from validation.case_dict import apply_overrides, small_case_dict
 from validation.studies import thesis_error
 from validation.track_level import located_centres, measure_track, run_track_case
 

@@ -9,24 +9,25 @@ import numpy as np
 import pytest
 
 from validation import case as C
+from validation import case_dict as CD
 from validation import e2e
 from validation import lab as L
 
 
 def test_default_case_is_blind_with_the_scenario_as_nominal_and_no_center():
-    c = C.case_from_dict(C.default_case_dict())
+    c = C.case_from_dict(CD.default_case_dict())
     assert c.mode == "blind" and not c.oracle
     s = c.lab_setup_dict()
     assert "center_px" not in s["cylinder"]
     assert s["cylinder"]["radius_mm"] == pytest.approx(c.scenario.cylinder_radius * 1e3)
     assert s["camera"]["pixel_size_mm"] == pytest.approx(c.scene.camera.pixel_size * 1e3)
     assert all(v == 0 for v in c.lab.errors().values())
-    o = C.case_from_dict(C.apply_overrides(C.default_case_dict(), {"measure.oracle": True}))
+    o = C.case_from_dict(CD.apply_overrides(CD.default_case_dict(), {"measure.oracle": True}))
     assert o.mode == "oracle" and o.case_id != c.case_id
 
 
 def test_nominal_differs_from_as_built_by_case_keys():
-    d = C.apply_overrides(C.default_case_dict(), {
+    d = CD.apply_overrides(CD.default_case_dict(), {
         "scenario.cylinder.radius_mm": 85.8, "lab.cylinder.radius_mm": 85.3,
         "lab.ball.diameter_mm": 10.01, "lab.center_error_px": [0.5, -0.25]})
     c = C.case_from_dict(d)
@@ -40,7 +41,7 @@ def test_nominal_differs_from_as_built_by_case_keys():
 
 
 def test_as_built_drawn_from_the_tolerances_with_the_case_seed():
-    toml = C.case_from_dict(C.default_case_dict()).scenario.to_toml_dict()
+    toml = C.case_from_dict(CD.default_case_dict()).scenario.to_toml_dict()
     table = {"draw": True, "cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.2},
              "camera": {"pixel_size_mm_u": 0.0004}}
     a, over_a = L.parse_lab(table, toml, default_seed=7)
@@ -60,14 +61,14 @@ def test_as_built_drawn_from_the_tolerances_with_the_case_seed():
     assert abs(r.mean() - 85.3) < 4 * 0.2 / math.sqrt(2000)
     assert r.std() == pytest.approx(0.2, rel=0.08)
     # through the case: the simulated scenario and the camera get the drawn values
-    d = C.apply_overrides(C.default_case_dict(), {"lab": table, "render.seed": 7})
+    d = CD.apply_overrides(CD.default_case_dict(), {"lab": table, "render.seed": 7})
     case = C.case_from_dict(d)
     assert case.scenario.cylinder_radius * 1e3 == pytest.approx(a.asbuilt["cylinder.radius_mm"])
     assert case.scene.camera.pixel_size * 1e3 == pytest.approx(
         a.asbuilt["camera.pixel_size_mm"])
     assert case.lab_setup_dict()["cylinder"]["radius_mm"] == 85.3
     # without draw the tolerances are only stated: the truth is the scenario's
-    d = C.apply_overrides(d, {"lab.draw": False})
+    d = CD.apply_overrides(d, {"lab.draw": False})
     assert C.case_from_dict(d).scenario.cylinder_radius == pytest.approx(0.0853)
 
 
@@ -77,13 +78,13 @@ def test_case_seed_draws_anew_in_every_case_and_the_same_in_the_same_case():
     table = {"draw": True, "seed": "case", "cylinder": {"radius_mm": 85.3, "radius_mm_u": 0.5}}
 
     def radius(lighting):
-        d = C.apply_overrides(C.default_case_dict(), {"lab": table, "render.lighting": lighting})
+        d = CD.apply_overrides(CD.default_case_dict(), {"lab": table, "render.lighting": lighting})
         return C.case_from_dict(d).scenario.cylinder_radius
 
     assert radius("thesis") == radius("thesis")
     assert radius("thesis") != radius("harsh")
     shared = dict(table, seed=0)
-    same = [C.case_from_dict(C.apply_overrides(C.default_case_dict(), {
+    same = [C.case_from_dict(CD.apply_overrides(CD.default_case_dict(), {
         "lab": shared, "render.lighting": li})).scenario.cylinder_radius
             for li in ("thesis", "harsh")]
     assert same[0] == same[1]
@@ -105,12 +106,12 @@ def test_case_seed_draws_anew_in_every_case_and_the_same_in_the_same_case():
 ])
 def test_bad_lab_keys_are_refused(key, value, match):
     with pytest.raises(C.CaseError, match=match):
-        C.case_from_dict(C.apply_overrides(C.default_case_dict(), {key: value}))
+        C.case_from_dict(CD.apply_overrides(CD.default_case_dict(), {key: value}))
 
 
 def _whole_trough_case(seconds: float) -> dict:
     """A coarse camera (0.4 mm/px, 320 x 256 px) that sees the trough's whole lower half."""
-    d = C.default_case_dict()
+    d = CD.default_case_dict()
     d["name"] = "blind-small"
     d["scenario"]["motion"].update(theta0_deg=8.0, seconds=seconds)
     d["scenario"]["camera"] = {"pixel_size_mm": 0.4}
@@ -137,7 +138,7 @@ def test_camera_roll_is_the_fitted_angle_offset(tmp_path):
     angle offset (on by default: three turning points in 1.2 s) finds it and keeps mu."""
     from rollfric.fit.estimate import fit_mu
 
-    d = C.small_case_dict(seconds=1.2)
+    d = CD.small_case_dict(seconds=1.2)
     d["render"]["shadows"] = False
     d["render"]["camera"]["roll_deg"] = 0.5
     r = e2e.run_case(d, recording=tmp_path / "rec.zarr", render_workers=1)

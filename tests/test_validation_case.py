@@ -8,11 +8,12 @@ import pytest
 
 from rollfric.cli.main import main
 from validation import case as C
+from validation import case_dict as CD
 from validation import sweep as S
 
 
 def test_default_case_is_the_thesis_10mm_ball():
-    c = C.case_from_dict(C.default_case_dict())
+    c = C.case_from_dict(CD.default_case_dict())
     assert c.scenario.mu == 0.0079
     assert math.isclose(c.scenario.ball_diameter, 0.010)
     assert (c.scene.camera.width, c.scene.camera.height) == (1280, 1024)
@@ -22,29 +23,29 @@ def test_default_case_is_the_thesis_10mm_ball():
 
 
 def test_case_toml_round_trip_and_stable_id(tmp_path):
-    d = C.small_case_dict()
+    d = CD.small_case_dict()
     d["render"]["sensor"] = {"read_noise": 20.0, "shot_noise": False}
     d["render"]["lamps"] = [{"position_mm": [50, 10, 300], "intensity": 0.1}]
     p = tmp_path / "case.toml"
     p.write_text(C.dumps_case(d))
-    back = C.load_case_dict(p)
-    assert back == C.merge_case(C.default_case_dict(), d)
-    assert C.case_id(back) == C.case_id(d)
+    back = CD.load_case_dict(p)
+    assert back == CD.merge_case(CD.default_case_dict(), d)
+    assert CD.case_id(back) == CD.case_id(d)
     c = C.case_from_dict(back)
     assert c.sensor.read_noise == 20.0 and c.sensor.shot_noise is False
     assert c.scene.lighting.lamps[0].position == (0.05, 0.01, 0.3)
     # the id follows the parameters, not the name
-    d2 = C.apply_overrides(d, {"name": "other"})
-    assert C.case_id(d2) == C.case_id(d)
-    d3 = C.apply_overrides(d, {"render.sensor.read_noise": 21.0})
-    assert C.case_id(d3) != C.case_id(d)
+    d2 = CD.apply_overrides(d, {"name": "other"})
+    assert CD.case_id(d2) == CD.case_id(d)
+    d3 = CD.apply_overrides(d, {"render.sensor.read_noise": 21.0})
+    assert CD.case_id(d3) != CD.case_id(d)
 
 
 def test_lamp_knobs_scale_and_move_the_preset_lamps():
-    d = C.apply_overrides(C.default_case_dict(), {"render.intensity_scale": 2.0,
+    d = CD.apply_overrides(CD.default_case_dict(), {"render.intensity_scale": 2.0,
                                                   "render.lamp_spread": 0.5,
                                                   "render.lamp_dy_mm": 10.0})
-    base = C.case_from_dict(C.default_case_dict()).scene.lighting.lamps
+    base = C.case_from_dict(CD.default_case_dict()).scene.lighting.lamps
     lamps = C.case_from_dict(d).scene.lighting.lamps
     for a, b in zip(base, lamps, strict=True):
         assert b.intensity == pytest.approx(2 * a.intensity)
@@ -72,7 +73,7 @@ def test_plain_scenario_file_is_a_case(tmp_path):
     ("render.scene.ball_model", "cube", "ball_model"),
 ])
 def test_bad_case_keys_are_named(key, value, words):
-    d = C.apply_overrides(C.default_case_dict(), {key: value})
+    d = CD.apply_overrides(CD.default_case_dict(), {key: value})
     with pytest.raises(C.CaseError, match=words.replace(".", r"\.")):
         C.case_from_dict(d)
 
@@ -95,7 +96,7 @@ def test_sweep_grid_list_and_seeds_expand(tmp_path):
     assert set(spec.swept) == {"render.sensor.read_noise", "render.lighting", "render.seed"}
     assert len({c.case_id for c in spec.cases}) == 8
     c0 = spec.cases[0]
-    assert C.get_dotted(c0.case, "render.sensor.read_noise") == c0.params[
+    assert CD.get_dotted(c0.case, "render.sensor.read_noise") == c0.params[
         "render.sensor.read_noise"]
     lst = S.sweep_from_dict({"sweep": {"mode": "list"},
                              "cases": [{"scenario.motion.mu": 0.005},

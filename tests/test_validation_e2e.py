@@ -11,12 +11,13 @@ import pytest
 
 from rollfric.cli.main import main
 from validation import case as C
+from validation import case_dict as CD
 from validation import e2e
 
 
 def test_validate_small_case_end_to_end(tmp_path, capsys):
     """The cropped camera, 0.3 s of motion, thesis lighting with shadows, realistic noise."""
-    d = C.small_case_dict(seconds=0.3)
+    d = CD.small_case_dict(seconds=0.3)
     path = tmp_path / "case.toml"
     path.write_text(C.dumps_case(d))
     out = tmp_path / "report"
@@ -48,12 +49,12 @@ def test_validate_small_case_end_to_end(tmp_path, capsys):
     assert "http://" not in page and "https://" not in page and "<script" not in page
     assert json.loads((out / "metrics.json").read_text())["case_id"] == m["case_id"]
     # the report's case file runs the same case
-    assert C.case_id(C.load_case_dict(out / "case.toml")) == m["case_id"]
+    assert CD.case_id(CD.load_case_dict(out / "case.toml")) == m["case_id"]
     assert not (out / "recording.zarr").exists()
 
 
 def _tiny(seed: int) -> dict:
-    d = C.small_case_dict(seconds=0.12)
+    d = CD.small_case_dict(seconds=0.12)
     d["render"].update(shadows=False, seed=seed)
     return d
 

@@ -150,7 +150,7 @@ def test_resume_runs_only_the_missing_cases(client, tmp_path):
 
 def test_real_pipeline_sweep_keeps_recordings(client, tmp_path):
     """Two tiny cases through sim -> synth -> rollfric on the workers (one renderer each)."""
-    from validation.case import small_case_dict
+    from validation.case_dict import small_case_dict
 
     base = small_case_dict(seconds=0.2)
     base["render"]["shadows"] = False
@@ -233,7 +233,7 @@ def test_recordings_measured_again_blind_and_oracle(client, tmp_path):
     blind, the same code gives the same metrics as the run that rendered them; oracle, the
     same recordings with the setup from the recording (the as-built draws stay the
     recording's); the recorded folder is left as it was."""
-    from validation.case import small_case_dict
+    from validation.case_dict import small_case_dict
 
     base = small_case_dict(seconds=0.2)
     base["render"]["shadows"] = False
@@ -281,7 +281,8 @@ def test_recording_of_another_case_is_refused(tmp_path):
     """Re-measuring a recording as a case it was not rendered from is refused."""
     import sim
     import synth
-    from validation.case import case_from_dict, small_case_dict
+    from validation.case import case_from_dict
+    from validation.case_dict import small_case_dict
 
     d = small_case_dict(seconds=0.05)
     d["render"]["shadows"] = False
@@ -302,7 +303,7 @@ def test_from_recordings_cli_checks_its_input(tmp_path, capsys):
     dry run lists them), refused (exit 2, nothing written) for --out SRC itself, for a --set
     of a key that would change what was rendered, and for a SRC without recordings."""
     from rollfric.cli.main import main
-    from validation.case import small_case_dict
+    from validation.case_dict import small_case_dict
 
     spec = S.sweep_from_dict({"sweep": {"name": "rec"}, "base": small_case_dict(0.1),
                               "grid": {"scenario.motion.mu": [0.005, 0.006]}})

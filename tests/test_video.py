@@ -119,7 +119,8 @@ def test_video_spec_refuses_bad_values(bad):
 
 
 def test_case_keys_for_timing_and_video():
-    from validation.case import CaseError, case_from_dict, small_case_dict
+    from validation.case import CaseError, case_from_dict
+    from validation.case_dict import small_case_dict
 
     d = small_case_dict()
     d["render"]["timing"] = {"jitter_us": 5, "dropped": [10, 20], "timestamps": True}

@@ -157,6 +157,7 @@ def handle_validate(args) -> int:
     import synth.pipeline
     from rollfric.output.folder import check_folder, check_not_input
     from validation import case as case_mod
+    from validation import case_dict as CD
 
     check_not_input(args.out, (args.case,))
     # a folder that is refused before the case is read (without the report's file names, which
@@ -175,8 +176,8 @@ def handle_validate(args) -> int:
         overrides["render.noise"] = args.noise
     if args.seed is not None:
         overrides["render.seed"] = args.seed
-    base = case_mod.load_case_dict(args.case) if args.case else case_mod.default_case_dict()
-    case = case_mod.case_from_dict(case_mod.apply_overrides(base, overrides),
+    base = CD.load_case_dict(args.case) if args.case else CD.default_case_dict()
+    case = case_mod.case_from_dict(CD.apply_overrides(base, overrides),
                                    source=args.case or "built-in case")
     # the render's fork server first: its imports (~1 s) on the other core while this process
     # imports the measurement and the report (~1.2 s)

@@ -1,7 +1,7 @@
 """One case end to end: scenario -> sim -> synth -> rollfric -> metrics, with stage timings.
 
-    >>> from validation import case, e2e
-    >>> result = e2e.run_case(case.case_from_dict(case.default_case_dict()))
+    >>> from validation import case, case_dict, e2e
+    >>> result = e2e.run_case(case.case_from_dict(case_dict.default_case_dict()))
     >>> result.metrics["mu_bias_rel"], result.timings["render"]
 
 The metrics separate the engine's bias from the pipeline's: ``mu_engine`` is what the same

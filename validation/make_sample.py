@@ -32,7 +32,7 @@ import numpy as np
 import sim
 import synth
 from rollfric.setup.model import save_setup, setup_from_dict
-from validation.case import ROOM_AIR_DENSITY
+from validation.case_dict import ROOM_AIR_DENSITY
 
 DEFAULT_OUT = Path(__file__).resolve().parent.parent / "rollfric" / "data" / "sample"
 FRAMES = 400

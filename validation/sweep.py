@@ -28,7 +28,7 @@ A sweep file (TOML)::
                                # sweep.stages = "track", a case setting a key the track level
                                # does not represent, validation.track_level.EXACT_KEYS, is full)
 
-Each case's id is a hash of its full case dict (:func:`validation.case.case_id`), so the same
+Each case's id is a hash of its full case dict (:func:`validation.case_dict.case_id`), so the same
 parameters always give the same id. A finished case is written at once to
 ``OUT/parts/<case_id>.parquet`` (one row: the parameters, status, error, the metrics); the
 combined ``OUT/results.parquet`` and ``OUT/results.csv`` are rebuilt from the parts. Running the
@@ -51,13 +51,8 @@ from rollfric.errors import InputError
 from rollfric.io.limits import MAX_CASES
 from rollfric.setup.schema import Key, Schema, read_section
 from rollfric.setup.tomlfile import read_text
-from validation.case import (
-    apply_overrides,
-    case_from_dict,
-    case_id,
-    default_case_dict,
-    merge_case,
-)
+from validation.case import case_from_dict
+from validation.case_dict import apply_overrides, case_id, default_case_dict, merge_case
 from validation.metrics import METRICS, is_metric
 
 STAGES = ("full", "sim", "track")

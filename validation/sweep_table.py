@@ -18,7 +18,8 @@ import pandas as pd
 
 from rollfric.output.atomic import replacing, write_text
 from validation import html_report
-from validation.case import _case_seeded_lab, apply_overrides, case_id
+from validation.case import _case_seeded_lab
+from validation.case_dict import apply_overrides, case_id
 from validation.sweep import DEFAULT_METRICS, SweepCase, SweepError, SweepSpec
 from validation.sweep_plots import metric_axis
 

@@ -23,7 +23,7 @@ OUT = Path(__file__).resolve().parents[1] / "img" / "readme.png"
 
 def main(out: Path = OUT) -> Path:
     from rollfric import open_recording
-    from validation.case import default_case_dict
+    from validation.case_dict import default_case_dict
     from validation.e2e import run_case
 
     with tempfile.TemporaryDirectory() as tmp:

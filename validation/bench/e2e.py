@@ -16,7 +16,7 @@ import numpy as np
 
 from validation.bench import locate, render
 from validation.bench.table import Row
-from validation.case import default_case_dict
+from validation.case_dict import default_case_dict
 
 
 def _child_env() -> dict:

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from rollfric.output.atomic import replacing, write_text
-from validation.case import apply_overrides, default_case_dict
+from validation.case_dict import apply_overrides, default_case_dict
 from validation.track_level import LOCATOR_SIGMA_PX, measure_track
 
 BALLS = {  # thesis ball -> (diameter_mm, mass_g, mu, the thesis's relative error)
