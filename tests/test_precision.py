@@ -1,12 +1,20 @@
 """The locator's precision: the centre's Cramér-Rao bound (rollfric.locate.precision)."""
 
+import dataclasses
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
+import tifffile
+from measure_data import make_recording
 from scipy import ndimage
 
+from rollfric.io.readers import open_recording
 from rollfric.locate.precision import centre_crb
+from rollfric.measurement import measure
+from rollfric.track.precision import estimate_precision
+from synth.drawn.frames import background, draw_ball, to_dtype
 from validation.bench.locate import cramer_rao_rms
 
 
@@ -49,3 +57,62 @@ def test_matches_a_brute_force_fisher_sum_on_a_drawn_image(e):
     iyy = (c / s) ** 2 * np.sum(dy * dy)
     brute = math.sqrt(1 / ixx + 1 / iyy)
     assert centre_crb(r, c, s, e) == pytest.approx(brute, rel=0.05)
+
+
+def _drawn(blur, noise=3.0, n=40, seed=1):
+    """A drawn recording (a 14 px ball) blurred by a Gaussian of ``blur`` px before its pixel
+    noise: (background, frames, track of the true centres, true contrast DN, recording)."""
+    rec = make_recording(n, noise=noise, ball_mm=12.0)
+    sc = rec.scene
+    rng = np.random.default_rng(seed)
+    bgf = background(sc)
+
+    def g(a):
+        return ndimage.gaussian_filter(a, blur) if blur > 0 else a
+    bg = to_dtype(g(bgf), dataclasses.replace(sc, noise=0.0))
+    frames = [to_dtype(g(draw_ball(bgf, sc, cx, cy)), sc, rng) for cx, cy in rec.centers]
+    track = pd.DataFrame({"x_px": rec.centers[:, 0], "y_px": rec.centers[:, 1], "found": 1})
+    contrast = np.mean([abs(sc.ball - bgf[int(round(cy)), int(round(cx))]) * sc.full_scale
+                        for cx, cy in rec.centers])
+    return bg, frames, track, contrast, rec
+
+
+@pytest.mark.parametrize("blur", [0.0, 1.0, 2.0])
+def test_estimates_the_drawn_contrast_noise_and_edge_width(blur):
+    bg, frames, track, contrast, rec = _drawn(blur)
+    p = estimate_precision(frames, bg, track, r_px=rec.scene.r_px, n_frames=30)
+    noise = math.sqrt(3.0 ** 2 + 1.0 / 12.0)  # the drawn noise and the rounding to integers
+    assert p.frames_used == 30
+    assert p.contrast_dn == pytest.approx(contrast, rel=0.1)
+    assert p.noise_dn == pytest.approx(noise, rel=0.1)
+    if blur > 0:
+        assert p.edge_sigma_px == pytest.approx(blur, rel=0.1)
+    else:
+        assert p.edge_sigma_px < 0.3
+    truth = centre_crb(rec.scene.r_px, contrast, noise, blur)
+    assert p.crb_px == pytest.approx(truth, rel=0.1)
+    assert math.isnan(p.reached_px) and math.isnan(p.ratio)
+
+
+def test_reached_precision_is_the_located_scatter_along_the_path(tmp_path):
+    rec = make_recording(160, noise=3.0, ball_mm=12.0, seed=3)
+    tifffile.imwrite(tmp_path / "rec.tif", np.stack(rec.frames))
+    track, _, result = measure(tmp_path / "rec.tif", rec.setup, rec.background)
+    L = rec.setup.track_radius / rec.setup.pixel_size
+    p = estimate_precision(open_recording(tmp_path / "rec.tif"), rec.background, track,
+                           r_px=rec.scene.r_px, rms_residual_rad=result.rms_residual,
+                           track_radius_px=L)
+    # the drawn noise's effect: the located centres' scatter along the path about the truth
+    scatter = float(np.std((track["theta_rad"].to_numpy() - rec.theta) * L))
+    assert scatter / 1.5 < p.reached_px < 1.5 * scatter
+    assert p.ratio == pytest.approx(p.reached_px / (p.crb_px / math.sqrt(2)), rel=1e-12)
+    assert p.ratio > 1.0  # no unbiased locator beats the bound
+
+
+def test_too_few_found_frames_give_no_estimate():
+    bg, frames, track, _, rec = _drawn(0.0, n=40)
+    track["found"] = 0
+    p = estimate_precision(frames, bg, track, r_px=rec.scene.r_px, rms_residual_rad=1e-4,
+                           track_radius_px=100.0)
+    assert p.frames_used == 0 and math.isnan(p.crb_px) and p.reached_px == pytest.approx(0.01)
+    assert p.json()["crb_px"] is None and p.json()["reached_px"] == pytest.approx(0.01)
