@@ -34,6 +34,7 @@ from rollfric.registry import LOCATORS
 from rollfric.setup.model import Setup, load_setup
 from rollfric.track.camera_motion import correct_for_motion
 from rollfric.track.dropped_frames import turning_gaps
+from rollfric.track.precision import estimate_precision
 from rollfric.track.setup_checks import (
     ball_radius_px,
     check_setup_fits,
@@ -199,7 +200,19 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         info, result = _checked(df, info, result, setup, axis, bg.coded, offset=used,
                                 angle=angle, fit_method=fit_method, fit_kwargs=fit_kwargs,
                                 stages=stages)
+        info = _with_precision(source, bg.image, df, info, result)
+        stages.lap("locator precision")
     return df, dataclasses.replace(info, seconds=stages.seconds), result
+
+
+def _with_precision(source, background, df, info, result):
+    """The info with the locator's precision on these frames: the Cramér-Rao bound from a
+    few tens of found frames and the fit's reached scatter along the path."""
+    rms = getattr(result, "rms_residual", None)
+    prec = estimate_precision(source, background, df, r_px=info.ball_radius_px,
+                              rms_residual_rad=rms if rms is not None and np.isfinite(rms)
+                              else None, track_radius_px=info.track_radius_px)
+    return dataclasses.replace(info, locator_precision=prec.json())
 
 
 class _Stages:

@@ -1,6 +1,7 @@
 """The locator's precision: the centre's Cramér-Rao bound (rollfric.locate.precision)."""
 
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -10,9 +11,11 @@ import tifffile
 from measure_data import make_recording
 from scipy import ndimage
 
+from rollfric.cli.main import main
 from rollfric.io.readers import open_recording
 from rollfric.locate.precision import centre_crb
 from rollfric.measurement import measure
+from rollfric.setup.model import save_setup
 from rollfric.track.precision import estimate_precision
 from synth.drawn.frames import background, draw_ball, to_dtype
 from validation.bench.locate import cramer_rao_rms
@@ -116,3 +119,25 @@ def test_too_few_found_frames_give_no_estimate():
                            track_radius_px=100.0)
     assert p.frames_used == 0 and math.isnan(p.crb_px) and p.reached_px == pytest.approx(0.01)
     assert p.json()["crb_px"] is None and p.json()["reached_px"] == pytest.approx(0.01)
+
+
+def test_measure_writes_locator_precision_to_fit_json(tmp_path):
+    rec = make_recording(160, noise=3.0, ball_mm=12.0, seed=3)
+    tifffile.imwrite(tmp_path / "rec.tif", np.stack(rec.frames))
+    tifffile.imwrite(tmp_path / "bg.tif", rec.background)
+    save_setup(rec.setup, tmp_path / "setup.toml")
+    code = main(["measure", str(tmp_path / "rec.tif"), "--setup", str(tmp_path / "setup.toml"),
+                 "--background", str(tmp_path / "bg.tif"), "--out", str(tmp_path / "m"),
+                 "--no-progress"])
+    assert code in (0, 3)
+    fit = json.loads((tmp_path / "m" / "fit.json").read_text())
+    p = fit["locator_precision"]
+    assert set(p) == {"crb_px", "reached_px", "ratio", "contrast_dn", "noise_dn",
+                      "edge_sigma_px", "frames_used"}
+    L = rec.setup.track_radius / rec.setup.pixel_size
+    assert p["reached_px"] == pytest.approx(fit["rms_residual_rad"] * L, rel=1e-9)
+    assert p["noise_dn"] == pytest.approx(math.sqrt(9 + 1 / 12), rel=0.1)
+    # (the bound is taken at the located radius, within a few 0.01 px of the drawn one)
+    assert p["crb_px"] == pytest.approx(centre_crb(rec.scene.r_px, p["contrast_dn"],
+                                                   p["noise_dn"], p["edge_sigma_px"]), rel=0.01)
+    assert p["frames_used"] == 30

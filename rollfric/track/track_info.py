@@ -115,12 +115,16 @@ class TrackInfo:
         The camera's motion found from the static scene (:mod:`rollfric.track.camera_motion`:
         "still", a "bump" at a frame or a "drift", the shifts sampled); the centres in the
         track are moved back into the background's frame by it. None: not looked for.
+    locator_precision : dict or None
+        The locator's Cramér-Rao bound on the recording's own frames and the precision the fit
+        reached (:meth:`rollfric.track.precision.LocatorPrecision.json`); None without a fit.
     seconds : dict of str to float
         Wall time of each stage of :func:`rollfric.measure` (s): "open" (the recording, the
         setup, the
         frame times), "background", "trough centre", "tracking", "fit", "turning points"
         (the dropped-frame search where the ball turns), "ellipse check", "path check" (the
-        path's ellipse: a tilted camera or an out-of-round bore), "checks"; empty
+        path's ellipse: a tilted camera or an out-of-round bore), "checks", "locator
+        precision"; empty
         from :func:`rollfric.track_recording` alone. Not written to fit.json.
     background_from : str
         How the background was had: "given" (an image), "recording" (the recording's own),
@@ -176,6 +180,7 @@ class TrackInfo:
     path_ellipse: dict | None = None
     angle_map: tuple | None = None
     camera_motion: dict | None = None
+    locator_precision: dict | None = None
 
 
     def json_keys(self, track, *, fitted: bool = False) -> dict:
@@ -241,5 +246,8 @@ class TrackInfo:
                      # (rollfric.geometry.pathshape)
                      "path_ellipse": self.path_ellipse,
                      # the camera's motion from the static scene (rollfric.track.camera_motion)
-                     "camera_motion": self.camera_motion})
+                     "camera_motion": self.camera_motion,
+                     # the centre's Cramér-Rao bound from the recording's contrast, noise and
+                     # edge width beside the fit's reached scatter (rollfric.track.precision)
+                     "locator_precision": self.locator_precision})
         return keys
