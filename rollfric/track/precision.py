@@ -9,7 +9,7 @@ import logging
 import math
 
 import numpy as np
-from scipy import optimize, special
+from scipy import optimize, special, stats
 
 from rollfric.locate.precision import centre_crb
 
@@ -155,19 +155,28 @@ def _robust_std(v):
 
 def _edge_fit(u, v, noise):
     """(contrast DN, edge sigma px) of an erf step fitted to the values ``v`` at signed
-    distances ``u`` from the rim (inside negative); the pixels' own area (variance 1/12 px^2
-    across any edge direction) taken out of the fitted width."""
-    outside, inside = np.median(v[u > 4.0]) if np.any(u > 4.0) else np.median(v), \
-        np.median(v[u < -2.0]) if np.any(u < -2.0) else np.median(v)
+    distances ``u`` from the rim (inside negative): to their medians in 0.1 px bins (robust to
+    the ball's texture, and a few hundred points whatever the frames), the pixels' own area
+    (variance 1/12 px^2 across any edge direction) taken out of the fitted width."""
+    edges = np.arange(u.min(), u.max() + 0.1, 0.1)
+    med, _, _ = stats.binned_statistic(u, v, "median", bins=edges)
+    cnt, _, _ = stats.binned_statistic(u, v, "count", bins=edges)
+    mid = 0.5 * (edges[1:] + edges[:-1])
+    keep = cnt >= 3
+    if np.count_nonzero(keep) < 8:
+        return math.nan, math.nan
+    uu, vv, ww = mid[keep], med[keep], np.sqrt(cnt[keep])
+    outside = np.median(vv[uu > 4.0]) if np.any(uu > 4.0) else np.median(vv)
+    inside = np.median(vv[uu < -2.0]) if np.any(uu < -2.0) else np.median(vv)
 
-    def model(p):
+    def resid(p):
         a, c, du, s = p
-        return a + c * 0.5 * special.erfc((u - du) / (math.sqrt(2.0) * s))
+        return ww * (a + c * 0.5 * special.erfc((uu - du) / (math.sqrt(2.0) * s)) - vv)
 
     p0 = [outside, inside - outside, 0.0, 0.7]
     try:
-        fit = optimize.least_squares(lambda p: model(p) - v, p0, loss="soft_l1",
-                                     f_scale=max(2.0 * noise, 0.5),
+        fit = optimize.least_squares(resid, p0, loss="soft_l1",
+                                     f_scale=max(2.0 * noise, 0.5) * float(np.median(ww)),
                                      bounds=([-np.inf, -np.inf, -3.0, 0.2],
                                              [np.inf, np.inf, 3.0, 10.0]))
     except (ValueError, np.linalg.LinAlgError):
