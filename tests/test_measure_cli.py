@@ -66,7 +66,7 @@ def test_measure_cli_tiff(tmp_path, capsys):
     assert code == 0
     df = pd.read_csv(out / "track.csv")
     assert list(df.columns) == ["frame", "t_s", "x_px", "y_px", "theta_rad", "found", "flag",
-                                "still"]
+                                "still", "x_u_px", "y_u_px"]
     assert df["flag"].isna().all()  # every frame good: empty flags
     assert len(df) == 160 and df["found"].all()
     err = np.hypot(df["x_px"] - rec.centers[:, 0], df["y_px"] - rec.centers[:, 1])

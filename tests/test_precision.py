@@ -12,12 +12,15 @@ from measure_data import make_recording
 from scipy import ndimage
 
 from rollfric.cli.main import main
+from rollfric.cli.measure import write_track_csv
 from rollfric.io.readers import open_recording
 from rollfric.locate.precision import centre_crb
+from rollfric.locate.subpixel import locate_subpixel
 from rollfric.measurement import measure
 from rollfric.setup.model import save_setup
 from rollfric.track.precision import estimate_precision
-from synth.drawn.frames import background, draw_ball, to_dtype
+from rollfric.track.tracker import TRACK_COLUMNS
+from synth.drawn.frames import Scene, background, draw_ball, make_frames, to_dtype
 from validation.bench.locate import cramer_rao_rms
 
 
@@ -141,3 +144,32 @@ def test_measure_writes_locator_precision_to_fit_json(tmp_path):
     assert p["crb_px"] == pytest.approx(centre_crb(rec.scene.r_px, p["contrast_dn"],
                                                    p["noise_dn"], p["edge_sigma_px"]), rel=0.01)
     assert p["frames_used"] == 30
+    csv = pd.read_csv(tmp_path / "m" / "track.csv")
+    assert list(csv.columns) == TRACK_COLUMNS + ["x_u_px", "y_u_px"]
+    assert np.allclose(csv["x_u_px"], csv["y_u_px"])
+
+
+def test_track_csv_gives_each_axis_share_of_the_locators_sigma(tmp_path):
+    # a still ball in 150 noisy drawn frames: x_u_px, y_u_px are the located centres' own
+    # scatter per axis
+    sc = Scene(width=200, height=200, center=(100.0, -400.0), R_px=600.0, r_px=14.0,
+               noise=4.0, spot=0.0)
+    c = (100.3, 100.6)
+    bg, frames = make_frames(sc, [c] * 150, seed=2)
+    locs = [locate_subpixel(f, bg, sc.r_px, guess=c) for f in frames]
+    track = pd.DataFrame({"frame": np.arange(150), "t_s": np.arange(150) / 100.0,
+                          "x_px": [loc.x for loc in locs], "y_px": [loc.y for loc in locs],
+                          "theta_rad": 0.0, "found": [int(loc.found) for loc in locs],
+                          "flag": "", "still": "", "sigma_px": [loc.sigma for loc in locs]})
+    track.loc[3, ["x_px", "y_px", "theta_rad", "sigma_px"]] = np.nan  # a frame not found
+    track.loc[3, "found"] = 0
+    write_track_csv(track, tmp_path / "track.csv")
+    out = pd.read_csv(tmp_path / "track.csv", keep_default_na=False, na_values=[""])
+    assert list(out.columns) == TRACK_COLUMNS + ["x_u_px", "y_u_px"]
+    assert np.isnan(out.loc[3, "x_u_px"]) and np.isnan(out.loc[3, "y_u_px"])
+    ok = out["found"] == 1
+    assert np.allclose(out["x_u_px"][ok], track["sigma_px"][ok] / math.sqrt(2), atol=1e-6)
+    assert np.array_equal(out["x_u_px"], out["y_u_px"], equal_nan=True)
+    for axis in ("x", "y"):
+        scatter = float(np.std(out[f"{axis}_px"][ok]))
+        assert scatter / 1.3 < float(np.median(out[f"{axis}_u_px"][ok])) < 1.3 * scatter

@@ -51,7 +51,7 @@ def test_track_writes_the_track_of_a_short_recording(tmp_path, capsys):
     assert main(_args(tmp_path, "track", out, "--plot")) == 0, capsys.readouterr().err
     df = pd.read_csv(out / "track.csv")
     assert list(df.columns) == ["frame", "t_s", "x_px", "y_px", "theta_rad", "found", "flag",
-                                "still"]
+                                "still", "x_u_px", "y_u_px"]
     assert len(df) == 15 and df["found"].all()
     err = np.hypot(df["x_px"] - rec.centers[:, 0], df["y_px"] - rec.centers[:, 1])
     assert np.sqrt(np.mean(err ** 2)) < 0.1

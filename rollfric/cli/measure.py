@@ -139,7 +139,8 @@ def check_tracking_outputs(args, outputs: dict, command: str):
 
 
 def write_track_csv(track, path) -> None:
-    """The track's TRACK_COLUMNS as track.csv (empty where no ball was found).
+    """The track's TRACK_COLUMNS as track.csv (empty where no ball was found), then
+    ``x_u_px``, ``y_u_px``: the centre's standard uncertainty per axis.
 
     Parameters
     ----------
@@ -151,6 +152,12 @@ def write_track_csv(track, path) -> None:
     from rollfric.track.tracker import TRACK_COLUMNS
 
     csv = track[TRACK_COLUMNS].copy()
+    # the locator's sigma is the rms of both axes together (the pixel fit's
+    # sqrt(var_x + var_y)): each axis's share, where the ball was found
+    u = track["sigma_px"].where((track["found"] == 1) & track["x_px"].notna()) / 2 ** 0.5 \
+        if "sigma_px" in track else float("nan")
+    csv["x_u_px"] = u
+    csv["y_u_px"] = u
     csv.to_csv(path, index=False, float_format="%.6f", na_rep="")
 
 
