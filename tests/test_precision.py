@@ -173,3 +173,15 @@ def test_track_csv_gives_each_axis_share_of_the_locators_sigma(tmp_path):
     for axis in ("x", "y"):
         scatter = float(np.std(out[f"{axis}_px"][ok]))
         assert scatter / 1.3 < float(np.median(out[f"{axis}_u_px"][ok])) < 1.3 * scatter
+
+
+def test_a_track_at_the_frame_border_gives_nulls_not_an_error():
+    # located centres outside the frame: far off, no pixels about them; just off, pixels
+    # but none near the rim
+    bg, frames, track, _, rec = _drawn(0.0, n=40)
+    for x in (-500.0, -rec.scene.r_px - 9.0):
+        track["x_px"] = x
+        p = estimate_precision(frames, bg, track, r_px=rec.scene.r_px)
+        assert math.isnan(p.crb_px) and math.isnan(p.contrast_dn)
+        j = p.json()
+        assert j["crb_px"] is None and j["ratio"] is None and j["edge_sigma_px"] is None

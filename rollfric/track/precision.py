@@ -158,6 +158,8 @@ def _edge_fit(u, v, noise):
     distances ``u`` from the rim (inside negative): to their medians in 0.1 px bins (robust to
     the ball's texture, and a few hundred points whatever the frames), the pixels' own area
     (variance 1/12 px^2 across any edge direction) taken out of the fitted width."""
+    if u.size < 50 or not np.all(np.isfinite(v)):
+        return math.nan, math.nan
     edges = np.arange(u.min(), u.max() + 0.1, 0.1)
     med, _, _ = stats.binned_statistic(u, v, "median", bins=edges)
     cnt, _, _ = stats.binned_statistic(u, v, "count", bins=edges)
