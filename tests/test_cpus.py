@@ -142,6 +142,7 @@ def test_measure_on_threads_is_measure_in_one_thread_and_times_its_stages(monkey
     assert dataclasses.replace(info1, seconds={}) == dataclasses.replace(info2, seconds={})
     for info in (info1, info2):
         assert set(info.seconds) == {"open", "background", "trough centre", "tracking", "fit",
-                                     "turning points", "ellipse check", "path check", "checks"}
+                                     "turning points", "ellipse check", "path check", "checks",
+                                     "locator precision"}
         assert all(v >= 0.0 for v in info.seconds.values())
         assert info.seconds["tracking"] > 0.0 and info.seconds["fit"] > 0.0

@@ -98,8 +98,8 @@ def test_track_info_gives_the_files_keys_in_their_order():
     assert keys["timing_irregular"] == [{"frame": 3, "step_ratio": 1.5}]
     assert keys["center_px"] == [1.0, 2.0] and keys["frames_flagged"] == {"not_found": 1}
     fitted = _info().json_keys(track, fitted=True)
-    assert list(fitted)[-5:] == ["offset_fitted", "offset_reason", "contour_ellipse",
-                                 "path_ellipse", "camera_motion"]
+    assert list(fitted)[-6:] == ["offset_fitted", "offset_reason", "contour_ellipse",
+                                 "path_ellipse", "camera_motion", "locator_precision"]
     assert fitted["offset_reason"] == "turns" and fitted["camera_motion"] == {"kind": "still"}
     none = _info().json_keys(track.assign(sigma_px=np.nan))
     assert none["median_sigma_px"] is None
