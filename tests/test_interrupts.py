@@ -77,6 +77,69 @@ def test_a_signal_inside_a_numba_kernel_exits_with_its_status(monkeypatch, capsy
     assert [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)] == before
 
 
+@pytest.mark.parametrize("signum, status, word", [(signal.SIGINT, 130, "interrupted"),
+                                                  (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_inside_a_finalizer_still_ends_the_command(monkeypatch, capsys, signum, status,
+                                                            word):
+    # a signal whose handler runs inside an object's __del__ (llvmlite's, as numba frees a
+    # compiled function): Python cannot raise there and printed "Exception ignored in ...
+    # Traceback"; the command went on as if never interrupted
+    from rollfric.cli import main as cli
+
+    ran_on = []
+
+    class Finalized:
+        def __del__(self):
+            os.kill(os.getpid(), int(signum))  # the handler runs before __del__ returns
+            for _ in range(1000):
+                pass
+
+    def work(args):
+        Finalized()  # freed at once: the signal lands in its finalizer
+        for _ in range(200):  # the command's further work, where the interruption belongs
+            time.sleep(0.005)
+            ran_on.append(True)
+        return 0
+
+    def parser():
+        p = argparse.ArgumentParser(prog="rollfric")
+        sub = p.add_subparsers(dest="command")
+        sub.add_parser("freeing").set_defaults(func=work)
+        return p
+
+    monkeypatch.setattr(cli, "build_parser", parser)
+    hook = sys.unraisablehook
+    assert cli.main(["freeing"]) == status
+    assert len(ran_on) < 200  # interrupted, not run to the end
+    assert capsys.readouterr().err == f"rollfric freeing: {word}\n"
+    assert sys.unraisablehook is hook
+
+
+def test_a_signal_in_a_finalizer_as_the_command_ends_is_still_reported(monkeypatch, capsys):
+    # the command returns before the signal could be raised again: 130 all the same, and the
+    # timer that would raise it is stopped (no SIGALRM left to end the process)
+    from rollfric.cli import main as cli
+
+    class Finalized:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGINT)
+
+    def work(args):
+        Finalized()
+        return 0
+
+    def parser():
+        p = argparse.ArgumentParser(prog="rollfric")
+        sub = p.add_subparsers(dest="command")
+        sub.add_parser("quick").set_defaults(func=work)
+        return p
+
+    monkeypatch.setattr(cli, "build_parser", parser)
+    assert cli.main(["quick"]) == 130
+    assert capsys.readouterr().err == "rollfric quick: interrupted\n"
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+
+
 def test_an_error_that_is_no_interruption_is_not_taken_for_one(monkeypatch):
     # a SystemError (or any bug) with no signal behind it is still raised, not reported as 130
     from rollfric.cli import main as cli

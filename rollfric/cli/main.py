@@ -11,6 +11,7 @@ exit status 2 and the ``pip install`` line that brings them.
 
 from __future__ import annotations
 
+import _thread
 import argparse
 import atexit
 import functools
@@ -188,6 +189,34 @@ def _on_signal(signum, frame):
     raise KeyboardInterrupt
 
 
+_pending: list[int] = []  # signals caught in a finalizer, to be raised again (_redeliver)
+
+
+def _redeliver(previous):
+    """An unraisable-exception hook: a signal's exception raised where Python cannot raise it
+    (an object's finalizer, e.g. llvmlite's as numba frees a function) is raised again a
+    millisecond later from SIGALRM's handler (:func:`_on_alarm`), in the command's own code,
+    instead of being printed and lost; any other goes to ``previous``. (Raising it from the
+    hook itself would land in the hook, where Python cannot raise either.)"""
+    def hook(unraisable):
+        exc = unraisable.exc_value
+        if not isinstance(exc, (KeyboardInterrupt, _Terminated)):
+            previous(unraisable)
+            return
+        _pending.append(signal.SIGTERM if isinstance(exc, _Terminated) else signal.SIGINT)
+        if hasattr(signal, "setitimer"):
+            signal.setitimer(signal.ITIMER_REAL, 1e-3)
+        else:  # no timer signal (Windows): the main thread's next check
+            _thread.interrupt_main(_pending[-1])
+    return hook
+
+
+def _on_alarm(signum, frame):
+    """SIGALRM after :func:`_redeliver`: the signal caught in a finalizer, raised again."""
+    if _pending:
+        _on_signal(_pending.pop(), frame)
+
+
 def _interruption(exc: BaseException, received: list[int]) -> int | None:
     """The signal that ended a command with ``exc``: SIGINT for a KeyboardInterrupt, SIGTERM
     for _Terminated, anywhere in the exception's chain, else the last signal ``received``
@@ -244,22 +273,33 @@ def main(argv: list[str] | None = None) -> int:
     try:
         for signum in (signal.SIGINT, signal.SIGTERM):
             previous[signum] = signal.signal(signum, _on_signal)
+        if hasattr(signal, "SIGALRM"):
+            previous[signal.SIGALRM] = signal.signal(signal.SIGALRM, _on_alarm)
     except ValueError:  # not the main thread: signals are the main thread's
         pass
+    unraisable = sys.unraisablehook
+    if previous:
+        sys.unraisablehook = _redeliver(unraisable)
     from rollfric.output.folder import signals_received
 
     if not _running:  # a new command, not one that another runs: no signal has reached it
         signals_received.clear()
+        _pending.clear()
     mark, depth = len(signals_received), len(_running)
     command = "command"
     try:
         try:
             return _main(argv)
         finally:
+            if _pending and not depth and hasattr(signal, "setitimer"):  # before the alarm
+                signal.setitimer(signal.ITIMER_REAL, 0.0)
             for signum, handler in previous.items():
                 signal.signal(signum, handler)
+            sys.unraisablehook = unraisable
             command = _running[-1] if len(_running) > depth else command
             del _running[depth:]
+            if _pending and not depth:  # caught in a finalizer as the command ended
+                _on_signal(_pending.pop(), None)
     except BaseException as exc:
         # a signal raises where it lands: inside a numba kernel its exception comes back as
         # numba's SystemError ("returned a result with an exception set"), in a clean-up as
