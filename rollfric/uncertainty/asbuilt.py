@@ -15,8 +15,8 @@ or seen by the images and read two ways):
   curvature and the bore's angle slope (as :func:`rollfric.geometry.ellipse_checks.contour_check`
   does; a diagonal axis moves only the bottom, which the offset takes).
 - **the camera yawed or pitched** against the trough's axis: seen as the same ellipse, else a
-  stated tolerance ``camera.yaw_deg_u`` / ``pitch_deg_u`` (its effect is quadratic and
-  one-signed: :func:`rollfric.geometry.ellipse.camera_bias`).
+  stated tolerance ``camera.yaw_deg_u`` / ``pitch_deg_u``: the angles seen through the
+  compressed image fitted again (:func:`camera_tilt_bias`; quadratic and one-signed).
 - **an ellipse seen** in the path (:mod:`rollfric.geometry.pathshape`) or the contour: the
   camera's and the bore's readings. Where the data cannot tell them apart, both enter: the two
   readings equally likely, u(mu) is the root mean square of mu's differences from them (a
@@ -188,13 +188,28 @@ def ovality_bias(refit: Refitter, setup: Setup, mu: float, ovality: float,
     return out[0], out[1]
 
 
-def camera_tilt_bias(angle: float, amplitude: float, *, pitch: bool) -> float:
+def camera_tilt_bias(meas: Measurement, result, setup: Setup, params: dict, angle: float, *,
+                     pitch: bool, fit_length: bool = False) -> tuple[float, int]:
     """The relative mu bias of a camera pitched (``pitch``) or yawed by ``angle`` (rad)
-    against the trough's axis, orthographic: the image compressed by cos(angle) across the
-    tilt axis (:func:`rollfric.geometry.ellipse.camera_bias`)."""
-    image = ell.ContourEllipse(center=(0.0, 0.0), semi_axes=(1.0, math.cos(angle)),
-                               angle_deg=0.0 if pitch else 90.0, rms_px=0.0, n_points=0)
-    return ell.camera_bias(image, amplitude)
+    against the trough's axis, orthographic: the measured angles seen through the image
+    compressed by cos(angle) across the tilt axis (about the fitted bottom) and fitted again
+    (the compression's slope at the turning points, :func:`rollfric.geometry.ellipse.camera_bias`,
+    and its change of the swing's shape).
+
+    Returns
+    -------
+    bias : float
+        mu fitted to the compressed angles / mu - 1 (+ for a pitch, - for a yaw).
+    n_refits : int
+        Re-fits made (1).
+    """
+    t, th = meas.series(setup)
+    off = params.get("offset", 0.0)
+    c = math.cos(angle)
+    seen = np.arctan2(np.sin(th - off) * (1.0 if pitch else c),
+                      np.cos(th - off) * (c if pitch else 1.0)) + off
+    refit = Refitter(Measurement(setup=setup, t=t, theta=seen), result, fit_length=fit_length)
+    return refit.mu(setup) / params["mu"] - 1.0, refit.count
 
 
 def two_readings_u(mu: float, readings) -> float:
@@ -317,7 +332,9 @@ def as_built_rows(meas: Measurement, result, refit: Refitter, setup: Setup, para
         if bound == 0.0:
             exact.append(source)
             continue
-        bias = camera_tilt_bias(math.radians(bound), amp, pitch=pitch)
+        bias, k = camera_tilt_bias(meas, result, setup, params, math.radians(bound),
+                                   pitch=pitch, fit_length=fit_length)
+        n += k
         rows.append((source, value, u, bias * mu / u if u else None, abs(bias) * mu,
                      f"quadratic, one-signed ({'+' if bias > 0 else '-'}): not corrected, "
                      "u(mu) the bias at |angle| + u"))
