@@ -208,6 +208,37 @@ def test_fit_json_lists_the_as_built_rows(tmp_path):
         fit["uncertainty"]["exact_inputs"])
 
 
+def test_an_elliptic_contour_enters_with_both_readings_and_gives_way_to_the_path():
+    """The contour's two readings, mu / (1 + bias) each, equally likely: u(mu) the rms of mu's
+    differences from them; the stated tolerances give way to it; a path read as a camera (mu
+    corrected) replaces it."""
+    setup = thesis_setup("10mm", uncertainty=(("cylinder_ovality", 2e-5),
+                                              ("camera_yaw", math.radians(0.3))))
+    t = np.arange(1500) / 1000.0
+    th, _, _ = eom.solve_reference(math.radians(20.0), 0.0, 0.0079, t,
+                                   track_radius=setup.track_radius)
+    res = fit_mu(t, th, setup)
+    contour = {"significant": True, "mu_bias_if_camera": 0.001, "mu_bias_if_trough": 0.0035}
+    b = budget(Measurement(setup=setup, t=t, theta=th,
+                           as_built={"contour_ellipse": contour, "path_ellipse": None}), res)
+    row = next(r for r in b.rows if r.source == asbuilt.CONTOUR)
+    d = [b.mu - b.mu / 1.001, b.mu - b.mu / 1.0035]
+    assert row.u_mu == pytest.approx(math.sqrt((d[0] ** 2 + d[1] ** 2) / 2), rel=1e-9)
+    assert "both readings" in row.note
+    assert not {asbuilt.OVALITY, asbuilt.YAW} & ({r.source for r in b.rows} | set(b.exact))
+    # not significant: the tolerances stand
+    quiet = budget(Measurement(setup=setup, t=t, theta=th, as_built={
+        "contour_ellipse": dict(contour, significant=False)}), res)
+    assert {asbuilt.OVALITY, asbuilt.YAW} <= {r.source for r in quiet.rows}
+    path = {"verdict": "camera", "mu_as_measured": 0.0080, "mu_if_camera": b.mu,
+            "mu_if_trough": 0.0077, "chi2": 400.0, "tilt_deg_if_camera": 8.0}
+    both = budget(Measurement(setup=setup, t=t, theta=th, as_built={
+        "contour_ellipse": contour, "path_ellipse": path}), res)
+    rows = {r.source: r for r in both.rows}
+    assert asbuilt.CONTOUR not in rows
+    assert rows[asbuilt.PATH].u_mu == pytest.approx(abs(0.0080 - b.mu) / 20, rel=1e-9)
+
+
 # -- drawn recordings: the camera yawed, the bore out of round -------------------------------
 
 MU = 0.01
