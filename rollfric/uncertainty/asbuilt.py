@@ -173,9 +173,29 @@ def tilt_bias(meas: Measurement, result, setup: Setup, params: dict, tilt: float
 
 def ovality_bias(refit: Refitter, setup: Setup, mu: float, ovality: float,
                  amplitude: float) -> tuple[float, float]:
-    """The relative mu bias of a bore ``ovality`` (m, D_max - D_min) out of round: (major
-    axis horizontal, vertical), each a re-fit with R at the bottom's radius of curvature
-    divided by the bore's angle slope (:func:`rollfric.geometry.ellipse.trough_scale`)."""
+    """The relative mu bias of a bore ``ovality`` out of round, major axis horizontal and
+    vertical: each a re-fit with R at the bottom's radius of curvature, divided by the bore's
+    angle slope (:func:`rollfric.geometry.ellipse.trough_scale`).
+
+    Parameters
+    ----------
+    refit : Refitter
+        The budget's re-fitter.
+    setup : Setup
+        The setup the budget uses (its R the bore's mean radius).
+    mu : float
+        The nominal mu.
+    ovality : float
+        D_max - D_min, m.
+    amplitude : float
+        The swing's typical turning-point angle, rad.
+
+    Returns
+    -------
+    tuple of float
+        The biases (mu as measured / the bore's reading - 1) with the major axis horizontal
+        and vertical.
+    """
     R, r = setup.cylinder_radius, setup.ball_radius
     out = []
     for angle in (0.0, 90.0):
@@ -196,6 +216,23 @@ def camera_tilt_bias(meas: Measurement, result, setup: Setup, params: dict, angl
     (the compression's slope at the turning points, :func:`rollfric.geometry.ellipse.camera_bias`,
     and its change of the swing's shape).
 
+    Parameters
+    ----------
+    meas : Measurement
+        The measurement.
+    result : FitResult
+        Its least-squares fit.
+    setup : Setup
+        The setup the budget uses.
+    params : dict
+        The nominal re-fit's parameters (its ``offset`` is the bottom's angle).
+    angle : float
+        The camera's yaw or pitch, rad.
+    pitch : bool
+        A pitch (the image compressed vertically), else a yaw (horizontally).
+    fit_length : bool
+        L is fitted.
+
     Returns
     -------
     bias : float
@@ -214,7 +251,26 @@ def camera_tilt_bias(meas: Measurement, result, setup: Setup, params: dict, angl
 
 def two_readings_u(mu: float, readings) -> float:
     """u of mu when the truth is one of ``readings``, equally likely: the root mean square of
-    mu's differences from them (one reading: the whole difference)."""
+    mu's differences from them (one reading: the whole difference).
+
+    Parameters
+    ----------
+    mu : float
+        mu as reported.
+    readings : iterable of float or None
+        The possible values of the truth (None or NaN: left out).
+
+    Returns
+    -------
+    float
+        u(mu); 0 without a reading.
+
+    Examples
+    --------
+    >>> from rollfric.uncertainty.asbuilt import two_readings_u
+    >>> round(two_readings_u(1.0, [0.97, 1.04]), 6)  # sqrt((0.03^2 + 0.04^2) / 2)
+    0.035355
+    """
     d = [mu - m for m in readings if m is not None and math.isfinite(m)]
     return float(math.sqrt(sum(x * x for x in d) / len(d))) if d else 0.0
 
