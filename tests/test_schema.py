@@ -106,6 +106,11 @@ def test_the_setup_keys_with_an_uncertainty_are_read_from_the_schema():
         "air_density": ("environment", "air_density_kg_m3", 1.0),
         "air_viscosity": ("environment", "air_viscosity_pa_s", 1.0),
         "air_cd": ("environment", "air_cd", 1.0),
+        # the trough and camera as built (rollfric.uncertainty.asbuilt): deg and mm
+        "cylinder_tilt": ("cylinder", "tilt_deg", pytest.approx(180.0 / math.pi)),
+        "cylinder_ovality": ("cylinder", "ovality_mm", 1e3),
+        "camera_yaw": ("camera", "yaw_deg", pytest.approx(180.0 / math.pi)),
+        "camera_pitch": ("camera", "pitch_deg", pytest.approx(180.0 / math.pi)),
     }
 
 
@@ -117,7 +122,16 @@ def _setup(edit):
 
 @pytest.mark.parametrize("edit, message", [
     (lambda d: d["cylinder"].update(z=1), "S: unknown key cylinder.z (known: radius_mm, "
-     "center_px, contour_depth_mm, each with an optional _u: its standard uncertainty)"),
+     "center_px, contour_depth_mm, tilt_deg, ovality_mm, each with an optional _u: its "
+     "standard uncertainty)"),
+    (lambda d: d["cylinder"].update(tilt_deg=12.0), "S: cylinder.tilt_deg must be the axis's "
+     "tilt along its length in degrees, -10..10, got 12.0"),
+    (lambda d: d["cylinder"].update(tilt_deg_u=0.05), "S: cylinder.tilt_deg_u (a standard "
+     "uncertainty) is given without cylinder.tilt_deg"),
+    (lambda d: d["camera"].update(yaw_deg="x"), "S: camera.yaw_deg must be the camera's yaw "
+     "against the trough's axis in degrees, -10..10, got 'x'"),
+    (lambda d: d["cylinder"].update(ovality_mm=-0.1), "S: cylinder.ovality_mm must be the "
+     "bore's D_max - D_min in mm, >= 0, got -0.1"),
     (lambda d: d.pop("camera"), "S: missing section [camera]"),
     (lambda d: d["ball"].update(mass_g="x"), "S: ball.mass_g must be a number, got 'x'"),
     (lambda d: d["ball"].update(mass_g=0), "S: ball.mass_g must be positive, got 0"),

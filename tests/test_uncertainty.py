@@ -129,7 +129,8 @@ def test_budget_rows_follow_the_geometry(tmp_path):
                          "cylinder.center_px[y]", "ball.diameter_mm", "camera.fps",
                          "camera.pixel_size_mm", "method (angle map)"}
     assert b.exact == ("ball.mass_g", "environment.gravity_m_s2",
-                       "environment.air_density_kg_m3")
+                       "environment.air_density_kg_m3", "cylinder.tilt_deg",
+                       "cylinder.ovality_mm", "camera.yaw_deg", "camera.pitch_deg")
     assert b.mu == pytest.approx(result.mu, rel=1e-7)  # the local re-fit is the fit
     # radius and diameter act only through L = R - d/2: their sensitivities are -2 : 1 (the
     # secants over +-0.5 mm and +-0.0025 mm of L differ by the curvature, ~0.2 %)

@@ -54,6 +54,20 @@ contour is moved to the ball's plane along the line of sight::
 
 The optical axis meets the image at the calibration's (cx, cy), else at the frame's centre.
 
+The trough and camera as built (:mod:`rollfric.uncertainty.asbuilt`; each a budget row with
+its ``_u``, none corrected)::
+
+    [cylinder]
+    tilt_deg = 0.0        # the axis tilted along its length (the lab's level reading)
+    tilt_deg_u = 0.03     # its standard uncertainty; absent: the trough is taken as level
+    ovality_mm = 0.0      # out-of-roundness D_max - D_min of the bore
+    ovality_mm_u = 0.02
+    [camera]
+    yaw_deg = 0.0         # the optical axis swung sideways (yaw) / up or down (pitch)
+    yaw_deg_u = 0.3       # against the trough's axis
+    pitch_deg = 0.0
+    pitch_deg_u = 0.3
+
 The camera's effective bit depth, where the recording's file does not state it (a TIFF of 16-bit
 words from a 12-bit camera)::
 
@@ -92,6 +106,13 @@ from rollfric.setup.schema import (
 from rollfric.setup.tomlfile import read_toml
 
 STANDARD_GRAVITY = 9.81  # m/s^2, the value the thesis uses
+# degrees in the lab file, radians in the Setup (``per``: back to degrees, as LAB_KEYS scales)
+ANGLE_DEG = Unit("deg", math.pi / 180.0, 180.0 / math.pi)
+# the fields of the trough and camera as built: budget rows of their own
+# (rollfric.uncertainty.asbuilt), not inputs the budget's re-fits move
+AS_BUILT_FIELDS = ("cylinder_tilt", "cylinder_ovality", "camera_yaw", "camera_pitch")
+# the largest as-built tilt (trough axis, camera yaw/pitch) a setup takes, deg
+MAX_ASBUILT_DEG = 10.0
 
 
 class SetupError(InputError):
@@ -127,6 +148,14 @@ class Setup:
         The ball's drag coefficient as the lab measured it; None: the wall-corrected law.
     air_wall_factor : float
         The wall's factor on the free sphere's drag law (:data:`rollfric.fit.air.WALL_FACTOR`).
+    cylinder_tilt : float
+        The trough's axis tilted along its length, as the lab states it (rad; 0: level).
+    cylinder_ovality : float
+        The bore's out-of-roundness D_max - D_min (m; 0: round).
+    camera_yaw, camera_pitch : float
+        The camera's optical axis swung sideways / up or down against the trough's axis
+        (rad). These four are not corrected: with their ``_u`` they are rows of the budget
+        (:mod:`rollfric.uncertainty.asbuilt`).
     uncertainty : tuple
         Standard uncertainties of the fields above, SI (center_px: px, a pair), as
         ((field name, u), ...); a field not listed is exact.
@@ -168,6 +197,10 @@ class Setup:
     air_viscosity: float = AIR_VISCOSITY  # Pa s
     air_cd: float | None = None  # None: the wall-corrected drag law
     air_wall_factor: float = WALL_FACTOR
+    cylinder_tilt: float = 0.0  # rad, the axis along its length (rollfric.uncertainty.asbuilt)
+    cylinder_ovality: float = 0.0  # m, D_max - D_min of the bore
+    camera_yaw: float = 0.0  # rad, against the trough's axis
+    camera_pitch: float = 0.0  # rad
 
     def __post_init__(self) -> None:
         for name in ("cylinder_radius", "ball_diameter", "ball_mass", "fps", "pixel_size",
@@ -187,6 +220,16 @@ class Setup:
                                  f"got {value!r}")
             if name in PLAUSIBLE:
                 check_plausible(name, float(value), SetupError)
+            object.__setattr__(self, name, float(value))
+        for name in ("cylinder_tilt", "camera_yaw", "camera_pitch", "cylinder_ovality"):
+            value = getattr(self, name)
+            limit = math.radians(MAX_ASBUILT_DEG) if name != "cylinder_ovality" else \
+                0.5 * self.cylinder_radius
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or not abs(value) <= limit \
+                    or (name == "cylinder_ovality" and value < 0):
+                raise SetupError(f"{name} must be a finite number within +-{limit:g} (SI; "
+                                 f"ovality >= 0), got {value!r}")
             object.__setattr__(self, name, float(value))
         if self.ball_diameter >= 2 * self.cylinder_radius:
             raise SetupError(
@@ -273,6 +316,12 @@ class Setup:
             out["camera"]["bit_depth"] = int(self.bit_depth)
         if self.contour_depth is not None:
             cyl["contour_depth_mm"] = self.contour_depth * 1e3
+        # the trough and camera as built: written when stated (a value or its _u)
+        for name, table in (("cylinder_tilt", cyl), ("cylinder_ovality", cyl),
+                            ("camera_yaw", out["camera"]), ("camera_pitch", out["camera"])):
+            if getattr(self, name) != 0.0 or self.u(name) is not None:
+                _, key, scale = LAB_KEYS[name]
+                table[key] = getattr(self, name) * scale
         env: dict = {}
         if self.gravity != STANDARD_GRAVITY:
             env["gravity_m_s2"] = self.gravity
@@ -302,7 +351,13 @@ SETUP_SCHEMA = Schema(
                 plausible="cylinder_radius", uncertain=True),
             Key("center_px", "pair", hint="must be [x, y] in pixels", uncertain=True),
             Key("contour_depth_mm", field="contour_depth", unit=MM,
-                hint="must be a number (mm)")),
+                hint="must be a number (mm)"),
+            Key("tilt_deg", field="cylinder_tilt", unit=ANGLE_DEG, default=0.0,
+                bounds=(-MAX_ASBUILT_DEG, MAX_ASBUILT_DEG), uncertain=True,
+                hint=f"must be the axis's tilt along its length in degrees, "
+                     f"-{MAX_ASBUILT_DEG:g}..{MAX_ASBUILT_DEG:g}"),
+            Key("ovality_mm", field="cylinder_ovality", unit=MM, default=0.0, sign=">=0",
+                uncertain=True, hint="must be the bore's D_max - D_min in mm, >= 0")),
         "ball": (
             Key("diameter_mm", field="ball_diameter", unit=MM, required=True, sign=">0",
                 plausible="ball_diameter", uncertain=True),
@@ -318,6 +373,10 @@ SETUP_SCHEMA = Schema(
             Key("distortion", "any", uncertain="own", read=False),
             Key("image_size_px", "any", read=False),
             Key("working_distance_mm", field="working_distance", unit=MM, sign=">0"),
+            *(Key(f"{k}_deg", field=f"camera_{k}", unit=ANGLE_DEG, default=0.0,
+                  bounds=(-MAX_ASBUILT_DEG, MAX_ASBUILT_DEG), uncertain=True,
+                  hint=f"must be the camera's {k} against the trough's axis in degrees, "
+                       f"-{MAX_ASBUILT_DEG:g}..{MAX_ASBUILT_DEG:g}") for k in ("yaw", "pitch")),
             Key("bit_depth", "int", bounds=(1, 16),
                 hint="must be the camera's effective bit depth, a whole number of bits 1..16 "
                      "(12 for a 12-bit camera)")),

@@ -22,6 +22,12 @@ A budget has one row per source:
   lens calibration with ``matrix_u`` / ``distortion_u`` (the located centres undistorted
   again with the moved calibration).
 
+- the trough and camera as built (:mod:`rollfric.uncertainty.asbuilt`): the axis's tilt along
+  its length, an out-of-round bore and the camera's yaw and pitch, from the tolerances the
+  setup states (``cylinder.tilt_deg_u``, ``ovality_mm_u``, ``camera.yaw_deg_u``,
+  ``pitch_deg_u``) or from the ellipse the contour or the path shows (both readings when
+  the data cannot tell a camera from a bore). None is corrected; without a tolerance the
+  trough is taken as level and round and the camera as square on it (listed as exact).
 - ``"method (angle map)"``: the measurement's own smooth angle error (a locator's error that
   varies smoothly with the angle, e.g. a lamp's shadow or highlight), which the noise fit
   absorbs into its angle map: the 2nd and 3rd order of that map through the nominal fit's
@@ -52,6 +58,7 @@ from rollfric.fit.hac import autocorrelation, hac_covariance  # noqa: F401 (re-e
 from rollfric.setup.model import Setup
 from rollfric.uncertainty import propagation
 from rollfric.uncertainty.anglemap import METHOD, method_row
+from rollfric.uncertainty.asbuilt import as_built_rows
 from rollfric.uncertainty.measured import Measurement
 from rollfric.uncertainty.propagation import SECOND_ORDER
 from rollfric.uncertainty.sensitivity import Refitter, moved, setup_inputs, why_not
@@ -265,6 +272,9 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     u_m, note, statistical["method"] = method_row(
         refit, setup, aug, _angle_inputs(meas, refit, setup, active), statistical["inflation"])
     rows.append(Row(METHOD, None, u_m, 1.0, u_m, note))
+    built = as_built_rows(meas, result, refit, setup, params, fit_length=fit_length)
+    rows += [Row(*r) for r in built.rows]
+    exact += list(built.exact)
     if order == 2 and active:
         u_2, note = propagation.second_order_row(refit, setup, active)
         rows.append(Row(SECOND_ORDER, None, u_2, 1.0, u_2, note))
@@ -277,7 +287,8 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     return Budget(mu=mu, u_mu=u_mu, U_mu=coverage_factor * u_mu,
                   coverage_factor=coverage_factor, rows=tuple(rows), statistical=statistical,
                   exact=tuple(exact), length=length, monte_carlo=mc,
-                  seconds=time.perf_counter() - start, n_refits=refit.count, order=order)
+                  seconds=time.perf_counter() - start, n_refits=refit.count + built.n_refits,
+                  order=order)
 
 
 def _statistical(refit: Refitter, setup: Setup):

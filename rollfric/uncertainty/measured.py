@@ -44,6 +44,12 @@ class Measurement:
         Standard uncertainty of a contour-found ``center`` (px).
     distorted : bool, optional
         ``x``, ``y`` are in the recorded (distorted) image.
+    angle_map : tuple, optional
+        A tilted camera's compression undone before the angles.
+    as_built : dict, optional
+        The trough's contour and the ball's path as ellipses (fit.json's
+        ``contour_ellipse``, ``path_ellipse``): their readings are budget rows
+        (:mod:`rollfric.uncertainty.asbuilt`).
 
     Examples
     --------
@@ -74,6 +80,9 @@ class Measurement:
     # a tilted camera's compression undone about the centre before the angles
     # (rollfric.geometry.pathshape; TrackInfo.angle_map); None: none
     angle_map: tuple | None = None
+    # the ellipses the measurement saw, as in fit.json: {"contour_ellipse": ...,
+    # "path_ellipse": ...} (rollfric.uncertainty.asbuilt reads them); None: none
+    as_built: dict | None = None
 
     @property
     def from_centres(self) -> bool:
@@ -161,4 +170,6 @@ def measurement_from_track(track, info) -> Measurement:
                        center_u=None if center_u is None or info.setup.center_px is not None
                        else tuple(float(v) for v in center_u),
                        distorted=bool(info.undistorted),
-                       angle_map=getattr(info, "angle_map", None))
+                       angle_map=getattr(info, "angle_map", None),
+                       as_built={"contour_ellipse": getattr(info, "contour_ellipse", None),
+                                 "path_ellipse": getattr(info, "path_ellipse", None)})

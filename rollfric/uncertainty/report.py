@@ -10,6 +10,8 @@ import math
 
 from rollfric.errors import InputError
 from rollfric.uncertainty.anglemap import METHOD
+from rollfric.uncertainty.asbuilt import SOURCES as AS_BUILT
+from rollfric.uncertainty.asbuilt import TILT
 from rollfric.uncertainty.budget import CONTOUR_NOTE, Budget, budget
 from rollfric.uncertainty.measured import Measurement
 from rollfric.uncertainty.propagation import SECOND_ORDER
@@ -42,7 +44,7 @@ def format_budget(b: Budget) -> str:
         lines.append(f"  {r.source:<26} {value:>11} {r.u:>10.3g} {sens:>12} {r.u_mu:>10.3g}"
                      f" {rel(r.u_mu):>8}" + (f"  ({r.note})" if r.note and (
                          r.u_mu == 0 or r.note == CONTOUR_NOTE or r.source == SECOND_ORDER
-                         or r.source == METHOD)
+                         or r.source == METHOD or r.source in AS_BUILT)
                          else ""))
     lines.append(f"  combined u(mu) = {b.u_mu:.3g} ({rel(b.u_mu).strip()}), expanded U(mu) = "
                  f"{b.U_mu:.3g} ({rel(b.U_mu).strip()}, k = {b.coverage_factor:g})")
@@ -52,6 +54,9 @@ def format_budget(b: Budget) -> str:
                  f"{st['lag_window']})")
     if b.exact:
         lines.append(f"  taken as exact (no _u in the setup): {', '.join(b.exact)}")
+    if TILT in b.exact:
+        lines.append("  the trough is taken as level along its axis (state cylinder.tilt_deg "
+                     "and tilt_deg_u: a tilt of 0.055 deg biases mu by about -0.1 % over 2 s)")
     if b.length is not None:
         ln = b.length
         nom = "" if ln["u_L_nominal_mm"] is None else f" +- {ln['u_L_nominal_mm']:.3g}"

@@ -19,7 +19,7 @@ from scipy import optimize
 from rollfric import parallel
 from rollfric.fit import eom
 from rollfric.fit.air import WALL_FACTOR_U, coefficients_of
-from rollfric.setup.model import LAB_KEYS, Setup, SetupError
+from rollfric.setup.model import AS_BUILT_FIELDS, LAB_KEYS, Setup, SetupError
 
 # parameter -> (lower, upper, typical scale) of the local re-fits (as in rollfric.fit.estimate)
 _BOUNDS = {"mu": (0.0, 1.0, 1e-3), "theta0": (-math.pi / 2, math.pi / 2, 1e-3),
@@ -139,9 +139,13 @@ AIR_LAW = "environment.air_cd (drag law: wall factor)"
 
 def setup_inputs(setup: Setup):
     """(source name, setup field, component or None, value in lab units, u in lab units,
-    factor lab -> SI) for every numeric setup input; u 0 where exact."""
+    factor lab -> SI) for every numeric setup input; u 0 where exact. The trough and camera as
+    built (AS_BUILT_FIELDS) are not among them: :mod:`rollfric.uncertainty.asbuilt` makes their
+    rows."""
     out = []
     for name, (section, key, scale) in LAB_KEYS.items():
+        if name in AS_BUILT_FIELDS:
+            continue
         value = getattr(setup, name)
         u = setup.u(name)
         if name == "center_px":
