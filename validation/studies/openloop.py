@@ -9,7 +9,7 @@ not assume or knows only within a stated u:
 - ``air``: room air (density drawn 1.20 +- 0.03 kg/m^3, the setup's stated u) with a
   **constant** drag coefficient drawn over the fitter's law's stated u: the law's Cd at the
   swing's Reynolds number (the free sphere's Schiller-Naumann Cd, energy-weighted over the
-  first swing, :func:`swing_cd`) times a wall factor drawn uniform over 1 .. 2
+  record's swings, :func:`swing_cd`) times a wall factor drawn uniform over 1 .. 2
   (:data:`rollfric.fit.air.WALL_FACTOR` +- its rectangular half-width); sim's reference engine
   with ``air_drag = "constant"``. The lab states room air (the setup's default).
 - ``air_beyond``: the same with the wall factor uniform over :data:`WALL_FACTOR_BEYOND`
@@ -104,11 +104,15 @@ SOURCES = (("wall_factor_off", "|wall factor - 1.5|", ("air", "air_beyond", "all
 
 
 def swing_cd(d_m: float, L_m: float, theta0: float, density: float,
-             wall_factor: float = 1.0, gravity: float = 9.81) -> tuple[float, float]:
+             wall_factor: float = 1.0, *, mu: float = 0.0, seconds: float = 0.0,
+             gravity: float = 9.81) -> tuple[float, float]:
     """The drag law's coefficient at the swing's Reynolds number: the free sphere's
     Schiller-Naumann Cd times ``wall_factor``, weighted by the drag's power (v^3) over the
-    first swing (the frictionless speed v_top |cos|, v_top^2 = (10/7) g L (1 - cos theta0)):
-    the constant Cd that takes the law's energy from that swing.
+    record's half-swings: the constant Cd that takes the law's energy from the swing. Each
+    half-swing runs at the frictionless speed v_top |cos| (v_top^2 = (10/7) g L (1 - cos A)),
+    its amplitude A falling by 2 mu a half-swing (rolling resistance at small angles) until
+    |A| <= mu (the ball sticks) or the record (``seconds``) ends; ``seconds`` 0: the first
+    half-swing alone.
 
     Parameters
     ----------
@@ -120,21 +124,33 @@ def swing_cd(d_m: float, L_m: float, theta0: float, density: float,
         Air density (kg/m^3).
     wall_factor : float
         The wall's factor on the free sphere's Cd.
+    mu : float
+        Rolling-resistance coefficient (the amplitude's loss).
+    seconds : float
+        The record's length (s).
     gravity : float
         m/s^2.
 
     Returns
     -------
     cd, re_top : float
-        The constant Cd and the Reynolds number at the top speed.
+        The constant Cd and the Reynolds number at the first swing's top speed.
     """
+    half_period = math.pi * math.sqrt(7.0 * L_m / (5.0 * gravity))
+    n_half = max(1, math.ceil(seconds / half_period))
+    phase = np.linspace(0.0, 0.5 * math.pi, 2001)[1:-1]
+    num = den = 0.0
+    amp = abs(theta0)
+    for _ in range(n_half):
+        if amp <= mu:
+            break
+        v = math.sqrt(10.0 / 7.0 * gravity * L_m * (1.0 - math.cos(amp))) * np.cos(phase)
+        power = v**3  # the drag's power over equal steps of time (phase)
+        num += float(np.sum(cd_sphere(density * v * d_m / AIR_VISCOSITY) * power))
+        den += float(np.sum(power))
+        amp -= 2.0 * mu
     v_top = math.sqrt(10.0 / 7.0 * gravity * L_m * (1.0 - math.cos(theta0)))
-    phase = np.linspace(0.0, 0.5 * math.pi, 2001)[1:]
-    v = v_top * np.cos(phase)
-    v = v[v > 0]
-    re = density * v * d_m / AIR_VISCOSITY
-    cd = float(np.sum(cd_sphere(re) * v**3) / np.sum(v**3))
-    return wall_factor * cd, density * v_top * d_m / AIR_VISCOSITY
+    return wall_factor * num / den, density * v_top * d_m / AIR_VISCOSITY
 
 
 def draw_openloop(seed: int, family: str) -> dict:
@@ -159,7 +175,8 @@ def draw_openloop(seed: int, family: str) -> dict:
     d_m = case["true_diameter_mm"] * 1e-3
     L_m = (case["true_radius_mm"] - 0.5 * case["true_diameter_mm"]) * 1e-3
     th0 = math.radians(case["theta0_deg"])
-    cd, re_top = swing_cd(d_m, L_m, th0, density, wall)
+    cd, re_top = swing_cd(d_m, L_m, th0, density, wall, mu=case["mu"],
+                          seconds=case["seconds"])
     v_top = math.sqrt(10.0 / 7.0 * 9.81 * L_m * (1.0 - math.cos(th0)))
     case.update(
         family=family,
@@ -436,17 +453,20 @@ def summarize(df: pd.DataFrame) -> dict:
 
 
 def plot(df: pd.DataFrame, path: Path) -> None:
-    """Histograms of z (blind) and z_phys (the physics alone) per family."""
+    """Histograms of z (blind) and z_phys (the physics alone) per family, and below them z and
+    z_phys against each drawn source's magnitude (its own family: dots; ``all``: crosses)."""
     from matplotlib.figure import Figure  # no pyplot: no backend, no global figure state
 
     fams = [f for f in FAMILIES if (df["family"] == f).any()]
-    cols = min(4, len(fams))
-    rows = math.ceil(len(fams) / cols)
-    fig = Figure(figsize=(4.2 * cols, 3.4 * rows))
-    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    srcs = [src for src in SOURCES if df["family"].isin(src[2]).any()]
+    cols = max(4, len(srcs))
+    rows = math.ceil(len(fams) / cols) + (1 if srcs else 0)
+    fig = Figure(figsize=(3.9 * cols, 3.3 * rows))
+    axes = fig.subplots(rows, cols, squeeze=False)
     grid = np.linspace(-4, 4, 200)
     bins = np.linspace(-6, 6, 49)
-    for ax, fam in zip(axes, fams, strict=False):
+    hist_axes = axes[:math.ceil(len(fams) / cols)].ravel()
+    for ax, fam in zip(hist_axes, fams, strict=False):
         g = df[df["family"] == fam]
         z = np.clip(g["z"].to_numpy(float), -6, 6)
         zp = np.clip(g["z_phys"].to_numpy(float), -6, 6)
@@ -459,11 +479,29 @@ def plot(df: pd.DataFrame, path: Path) -> None:
                      f"|z| <= 2: {100 * _frac(z, 2):.1f} %", fontsize=9)
         ax.set_xlabel("(mu - truth) / u_mu, clipped to +-6", fontsize=8)
         ax.legend(fontsize=7)
-    for ax in axes[len(fams):]:
+    for ax in hist_axes[len(fams):]:
         ax.set_visible(False)
+    if srcs:
+        for ax, (col, what, src_fams) in zip(axes[-1], srcs, strict=False):
+            for fam, marker in ((src_fams[0], "o"), ("all", "x")):
+                g = df[df["family"] == fam]
+                if not len(g) or (fam == "all" and src_fams[0] == "all"):
+                    continue
+                m = g[col].to_numpy(float)
+                ax.scatter(m, np.clip(g["z"], -8, 8), s=9, marker=marker, color="tab:blue",
+                           label=f"z ({fam})")
+                ax.scatter(m, np.clip(g["z_phys"], -8, 8), s=9, marker=marker,
+                           color="tab:red", label=f"z_phys ({fam})")
+            ax.axhline(2, color="k", lw=0.6, ls="--")
+            ax.axhline(-2, color="k", lw=0.6, ls="--")
+            ax.set_xlabel(what, fontsize=8)
+            ax.set_ylabel("z (clipped to +-8)", fontsize=8)
+            ax.legend(fontsize=6)
+        for ax in axes[-1][len(srcs):]:
+            ax.set_visible(False)
     fig.tight_layout()
     with replacing(path) as tmp:
-        fig.savefig(tmp, dpi=100)
+        fig.savefig(tmp, dpi=90)
 
 
 def family_of(i: int, families) -> str:
