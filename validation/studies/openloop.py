@@ -233,8 +233,8 @@ def lab_setup(case: dict):
         "environment": {} if case["air_density"] > 0 else {"air_density_kg_m3": 0.0},
     }
     asbuilt = {"tilt_deg_u": TILT_DEG_U, "ovality_mm_u": OVALITY_MM_U}
-    # the stated tolerances alone, then with their nominal values (a level, round trough)
-    for extra in (asbuilt, {"tilt_deg": 0.0, "ovality_mm": 0.0, **asbuilt}):
+    # with their nominal values (a level, round trough), then the tolerances alone
+    for extra in ({"tilt_deg": 0.0, "ovality_mm": 0.0, **asbuilt}, asbuilt):
         try:
             return setup_from_dict({**data, "cylinder": {**data["cylinder"], **extra}},
                                    "openloop lab"), True
@@ -274,21 +274,17 @@ def _law_module():
         return None
 
 
-def law_verdict(law, t, theta, setup, result) -> dict:
-    """The friction-law test's verdict on the fitted track: ``law_selected``, ``law_mu0``,
-    ``law_mu0_u`` (the keys of fit.json ``friction_law``), or ``law_error`` when its public
-    function could not be called as expected."""
-    func = next((getattr(law, n) for n in ("friction_law", "test_law", "law_test", "decide")
-                 if callable(getattr(law, n, None))), None)
-    if func is None:
-        return {"law_error": "no public test function found"}
+def law_verdict(law, meas: Measurement, result) -> dict:
+    """The friction-law test's verdict (``rollfric.fit.law.friction_law``) on the measured
+    track: ``law_selected`` ("coulomb", "speed", or None with the test's reason),
+    ``law_mu0``, ``law_mu0_u``, ``law_p_value``; ``law_error`` when it could not be called
+    as expected."""
     try:
-        out = func(t, theta, setup, result)
-    except Exception as exc:  # another branch's API: record, do not stop the study
+        out = law.friction_law(meas, result)
+    except Exception as exc:  # another module's API: recorded, the study goes on
         return {"law_error": f"{type(exc).__name__}: {exc}"}
-    get = out.get if isinstance(out, dict) else (lambda k, d=None: getattr(out, k, d))
-    return {"law_selected": get("selected"), "law_mu0": get("mu0"), "law_mu0_u": get("mu0_u"),
-            "law_p_value": get("p_value")}
+    return {"law_selected": out.selected or "none", "law_mu0": out.mu0,
+            "law_mu0_u": out.mu0_u, "law_p_value": out.p_value}
 
 
 def _path_reading(meas: Measurement, result, lab):
@@ -348,8 +344,8 @@ def run_case(case: dict, law=None) -> dict:
     mu_phys = fit_mu(*m_x.series(exact), exact, checks=False).mu
     out.update(mu_phys=mu_phys, bias_phys=mu_phys / mu_true - 1.0,
                z_phys=(mu_phys - mu_true) / b.u_mu, z_rest=(b.mu - mu_phys) / b.u_mu)
-    if law is not None and case["speed_fraction"] > 0:
-        out.update(law_verdict(law, *meas.series(lab), lab, res))
+    if law is not None:  # every case: its false alarms on air and the trough as built too
+        out.update(law_verdict(law, meas, res))
     return out
 
 
@@ -439,12 +435,15 @@ def summarize(df: pd.DataFrame) -> dict:
         law = {"cases": len(speed), "law_test": "law_selected" in df,
                "coulomb_bias_median": float(np.median(speed["mu"] / speed["mu_true"] - 1.0))}
         if "law_selected" in df:
-            sel = speed["law_selected"].fillna("error")
-            law["verdicts"] = {str(k): int(v) for k, v in sel.value_counts().items()}
-            sp = speed[sel == "speed"]
+            sel = df["law_selected"].fillna("error")
+            law["verdicts"] = {f"{fam}, {'speed law' if sp else 'coulomb'}": {
+                str(k): int(v) for k, v in g.value_counts().items()}
+                for (fam, sp), g in sel.groupby([df["family"], df["speed_fraction"] > 0])}
+            sp = speed[sel[speed.index] == "speed"]
             zl = (sp["law_mu0"].astype(float) - sp["mu_true"]) / sp["law_mu0_u"].astype(float)
             law["mu0_within_U_when_speed"] = _frac(zl, 2.0)
             law["mu0_within_u_when_speed"] = _frac(zl, 1.0)
+            law["mu0_cases_when_speed"] = len(sp)
         else:
             law["note"] = ("rollfric.fit.law absent: the Coulomb fit's mu against the truth's "
                            "mu0 (family 'speed' and the speed-law cases of 'all')")
