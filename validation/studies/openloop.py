@@ -386,16 +386,18 @@ def coverage_of(df: pd.DataFrame, prefix: str = "") -> dict:
 
 
 def by_source(df: pd.DataFrame) -> dict:
-    """The misses against each drawn source's magnitude, in the families that draw it: the
-    cases in the lower and upper half of the magnitude, their fractions within U, the median
-    physics bias of each half and the rank correlation of z_phys (and |z|) with the
-    magnitude."""
+    """The misses against each drawn source's magnitude, in the families that draw it (in
+    ``all``, the cases without the speed law, but for the speed law's own row): the cases in
+    the lower and upper half of the magnitude, their fractions within U, the median physics
+    bias of each half and the rank correlation of z_phys (and |z|) with the magnitude."""
     from scipy.stats import spearmanr
 
     out = {}
     for col, what, fams in SOURCES:
         for fam in fams:
             g = df[(df["family"] == fam) & np.isfinite(df["z"])]
+            if fam == "all" and col != "speed_fraction":  # the speed law would swamp it
+                g = g[g["speed_fraction"] == 0]
             if len(g) < 4:
                 continue
             mag = g[col].to_numpy(float)
@@ -425,6 +427,11 @@ def summarize(df: pd.DataFrame) -> dict:
          "stated_coulomb": coverage_of(stated[stated["speed_fraction"] == 0]),
          "all_cases": coverage_of(df),
          "families": {f: coverage_of(g) for f, g in df.groupby("family", sort=False)},
+         # the everything-at-once family with and without its speed law
+         "all_split": {name: coverage_of(g) for name, g in (
+             ("coulomb", df[(df["family"] == "all") & (df["speed_fraction"] == 0)]),
+             ("speed law", df[(df["family"] == "all") & (df["speed_fraction"] > 0)]))
+             if len(g)},
          "sources": by_source(df),
          "draws": {"tilt_deg_u": TILT_DEG_U, "ovality_mm_u": OVALITY_MM_U,
                    "camera_deg": CAMERA_DEG, "wall_factor_stated": list(WALL_FACTOR_STATED),
