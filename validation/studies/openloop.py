@@ -36,6 +36,9 @@ verdict corrects the angles) and the budget. z = (mu - truth) / u_mu. Each case 
 fitted on its **exact** centres (no noise, the exact as-built setup, the lab's air): that
 fit's error, ``bias_phys`` (relative) and ``z_phys`` (in the blind u_mu), is what the drawn
 physics alone does to mu, so a miss is told from the budget's own tolerances and noise.
+Where rollfric has its friction-law test (``rollfric.fit.law.friction_law``), every case's
+verdict is counted and the speed-law cases' mu0 compared with the truth's; without it the
+Coulomb fit's mu is compared with the truth's mu0 (the summary's ``speed_law`` says which).
 
 ``python -m validation.studies.openloop --cases 420 --out DIR`` writes DIR/openloop.csv (one
 row a case), DIR/openloop.json (the fractions, by family, and the misses by source) and
