@@ -390,17 +390,19 @@ def coverage_of(df: pd.DataFrame, prefix: str = "") -> dict:
 
 def by_source(df: pd.DataFrame) -> dict:
     """The misses against each drawn source's magnitude, in the families that draw it (in
-    ``all``, the cases without the speed law, but for the speed law's own row): the cases in
-    the lower and upper half of the magnitude, their fractions within U, the median physics
-    bias of each half and the rank correlation of z_phys (and |z|) with the magnitude."""
+    ``all``, the cases without the speed law; for the speed law's row, those with it): the
+    cases in the lower and upper half of the magnitude, their fractions within U, the median
+    physics bias of each half and the rank correlation of z_phys (and |z|) with the
+    magnitude."""
     from scipy.stats import spearmanr
 
     out = {}
     for col, what, fams in SOURCES:
         for fam in fams:
             g = df[(df["family"] == fam) & np.isfinite(df["z"])]
-            if fam == "all" and col != "speed_fraction":  # the speed law would swamp it
-                g = g[g["speed_fraction"] == 0]
+            if fam == "all":  # the speed law would swamp the other sources
+                g = g[g["speed_fraction"] > 0] if col == "speed_fraction" else \
+                    g[g["speed_fraction"] == 0]
             if len(g) < 4:
                 continue
             mag = g[col].to_numpy(float)
