@@ -494,10 +494,13 @@ def plot(df: pd.DataFrame, path: Path) -> None:
         ax.set_visible(False)
     if srcs:
         for ax, (col, what, src_fams) in zip(axes[-1], srcs, strict=False):
-            for fam, marker in ((src_fams[0], "o"), ("all", "x")):
+            for fam in src_fams:
                 g = df[df["family"] == fam]
-                if not len(g) or (fam == "all" and src_fams[0] == "all"):
+                if fam == "all":  # as by_source: the speed law apart from the rest
+                    g = g[(g["speed_fraction"] > 0) == (col == "speed_fraction")]
+                if not len(g):
                     continue
+                marker = "x" if fam == "all" else "o" if fam == src_fams[0] else "^"
                 m = g[col].to_numpy(float)
                 ax.scatter(m, np.clip(g["z"], -8, 8), s=9, marker=marker, color="tab:blue",
                            label=f"z ({fam})")
