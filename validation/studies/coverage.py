@@ -96,14 +96,21 @@ def drawn_centres(case: dict, true: Setup):
     th, _, _ = eom.solve_reference(math.radians(case["theta0_deg"]), 0.0, case["mu"],
                                    frames / true.fps, track_radius=true.track_radius)
     L_px = true.track_radius / true.pixel_size
+    e = locator_noise(case, n)
+    xc, yc = true.center_px
+    return frames, xc + L_px * np.sin(th) + e[0], yc + L_px * np.cos(th) + e[1]
+
+
+def locator_noise(case: dict, n: int) -> np.ndarray:
+    """(2, n) AR(1) locator noise (px, x and y) of rms ``noise_px`` and lag-1 correlation
+    ``ar``, drawn with the case's seed."""
     rng = np.random.default_rng(10_000 + case["seed"])
     w = rng.normal(0.0, case["noise_px"] * math.sqrt(1 - case["ar"] ** 2), (2, n))
     e = np.empty_like(w)
     e[:, 0] = rng.normal(0.0, case["noise_px"], 2)
     for i in range(1, n):
         e[:, i] = case["ar"] * e[:, i - 1] + w[:, i]
-    xc, yc = true.center_px
-    return frames, xc + L_px * np.sin(th) + e[0], yc + L_px * np.cos(th) + e[1]
+    return e
 
 
 FRAME = (1280, 1024)  # the thesis camera's frame (px): the contour background's size
