@@ -12,10 +12,10 @@ physical side) with a one-sided Wald statistic z = mu1 / u(mu1), where u(mu1) ho
   below the ordinary one, so residuals correlated from frame to frame do not make a law;
 - every uncertain setup input (``K_u``), the air's above all: the drag's Stokes part is
   linear in speed, exactly as mu1 |theta'| g is, so a drag law off by its u makes a mu1. Each
-  input moved by +-u, the fit's shift is its Gauss-Newton step -(J'J)^-1 J' dr (dr the change
-  of the residuals at the fitted parameters: the model's for L, g and the air, the angles'
-  for the centre, scale and lens, the times' for the frame rate): the budget's re-fit with
-  the input moved, to first order, at the cost of two model evaluations an input.
+  input moved by u, the fit's shift is its Gauss-Newton step -(J'J)^-1 J' dr (dr the change
+  of the residuals at the fitted parameters: the model's for g and the air, the angles' for
+  the centre, scale and lens, the times' for the frame rate): the budget's re-fit with the
+  input moved, to first order, at the cost of at most one model evaluation an input.
 
 Under Coulomb friction z is a standard normal variable (the one-sided test is the likelihood
 ratio test with mu1 >= 0 as its boundary: chi-bar-squared, half chi^2_0, half chi^2_1); its
@@ -46,6 +46,9 @@ STATISTIC = "one-sided Wald z = mu1 / u(mu1), u: HAC covariance and the setup's 
 # the speed law needs the decay's dependence on the amplitude: at least this many turning
 # points of the fitted motion (three half-swings) before mu0 and mu1 are told apart
 MIN_TURNING_POINTS = 2
+# the trough bottom's angle is free in the speed law's fit from this many turning points (as
+# rollfric.fit.offset's "auto": with fewer, friction and an offset shift the swing alike)
+OFFSET_TURNING_POINTS = 3
 # the fit's parameters, their bounds and scales (as rollfric.fit.lsq); mu1 on both sides of 0
 _BOUNDS = {"mu": (0.0, 1.0, 1e-3), "theta0": (-math.pi / 2, math.pi / 2, 1e-3),
            "omega0": (-np.inf, np.inf, 1e-2), "offset": (-0.5, 0.5, 1e-3),
@@ -202,26 +205,31 @@ def friction_law(meas, result, *, level: float = LEVEL) -> LawTest:
     used = getattr(result, "used", None)
     mask = used if used is not None and used.shape == t_all.shape else \
         fitted_mask(t_all, th_all, result.n_samples)
-    if _turning_points(result.curve[mask]) < MIN_TURNING_POINTS:
+    turning = _turning_points(result.curve[mask])
+    if turning < MIN_TURNING_POINTS:
         return LawTest(None, why=f"fewer than {MIN_TURNING_POINTS} turning points fitted: "
                                  "too short to tell the laws apart")
     names = [n for n in ("mu", "theta0", "omega0", "offset") if n in result.stderr] \
         or ["mu", "theta0", "omega0"]
-    names = names + ["mu1"]
+    if "offset" not in names and turning >= OFFSET_TURNING_POINTS:
+        names.append("offset")  # a nuisance of either law, free where the swings fix it
+    names = names + ["mu1", "length"]
+    L0 = setup.track_radius
     x0 = {"mu": result.mu, "theta0": result.theta0, "omega0": result.omega0,
-          "offset": result.offset, "mu1": result.mu1}
-    lower = np.array([_BOUNDS[n][0] for n in names])
-    upper = np.array([_BOUNDS[n][1] for n in names])
-    scale = np.array([_BOUNDS[n][2] for n in names])
+          "offset": result.offset, "mu1": result.mu1, "length": L0}
+    bounds = dict(_BOUNDS, length=(0.5 * L0, 2.0 * L0, 1e-4))
+    lower = np.array([bounds[n][0] for n in names])
+    upper = np.array([bounds[n][1] for n in names])
+    scale = np.array([bounds[n][2] for n in names])
 
     def model(x, t, s):
         p = dict(zip(names, x, strict=True))
         off = p.get("offset", 0.0)
-        w = math.sqrt(eom.omega_squared(s.track_radius, s.gravity))
+        w = math.sqrt(eom.omega_squared(p["length"], s.gravity))
         # the compiled integrator itself: eom.solve refuses mu1 < 0, the two-sided fit
         # needs it (a resistance that falls with speed, within the noise)
         th, _, _ = eom._solve_rk4(t, float(p["theta0"] - off), float(p["omega0"]),
-                                  float(p["mu"]), float(p["mu1"]), float(s.track_radius),
+                                  float(p["mu"]), float(p["mu1"]), float(p["length"]),
                                   float(s.gravity), 1.0 / (STEPS_PER_RADIAN * w),
                                   coefficients_of(s))
         return th + off
@@ -229,37 +237,48 @@ def friction_law(meas, result, *, level: float = LEVEL) -> LawTest:
     t, y = t_all[mask], th_all[mask]
     sol = optimize.least_squares(lambda x: model(x, t, setup) - y,
                                  np.clip([x0[n] for n in names], lower, upper),
-                                 bounds=(lower, upper), x_scale=scale, xtol=1e-12, ftol=1e-12,
-                                 gtol=1e-12, max_nfev=NFEV)
+                                 bounds=(lower, upper), x_scale=scale, xtol=1e-10, ftol=1e-10,
+                                 gtol=1e-10, max_nfev=NFEV)
     jac, res = sol.jac, sol.fun
     ordinary, hac, _, _ = hac_covariance(jac, res)
     var_stat = np.maximum(np.diag(ordinary), np.diag(hac))
     if not np.all(np.isfinite(var_stat)):
         return LawTest(None, why="the speed law's fit is singular (mu0 and mu1 not apart)")
-    # each uncertain input moved by +-u: the fit's first-order shift
-    pinv = np.linalg.pinv(jac)
-    var_inputs = np.zeros(len(names))
-    inputs = []
+    # each uncertain input moved by u: the change of the residuals at the fitted parameters
+    # (the model's where the input acts on it, the angles' or times' where on the data; L is
+    # fitted, so the track radius acts on neither), and the fit's Gauss-Newton shift
+    model_key = (coefficients_of(setup).tobytes(), setup.gravity)
+    changes, inputs = [], []
     for source, field, comp, _, u, factor in setup_inputs(setup):
         if u == 0.0 or why_not(meas, field, False):
             continue
-        r = []
-        for sign in (1.0, -1.0):
-            s = moved(setup, field, comp, sign * u, factor)
-            tm, thm = meas.series(s)
-            r.append(model(sol.x, tm[mask], s) - thm[mask])
-        dx = -pinv @ (0.5 * (r[0] - r[1]))
-        var_inputs += dx**2
-        inputs.append((source, abs(float(dx[-1]))))
+        s = moved(setup, field, comp, u, factor)
+        tm, thm = meas.series(s)
+        tm, thm = tm[mask], thm[mask]
+        if np.array_equal(tm, t) and (coefficients_of(s).tobytes(), s.gravity) == model_key:
+            r = res + y - thm  # the model as it was, the angles moved
+        else:
+            r = model(sol.x, tm, s) - thm
+        if np.array_equal(r, res):
+            continue
+        changes.append(r - res)
+        inputs.append(source)
     i0, i1 = names.index("mu"), names.index("mu1")
+    var_inputs = np.zeros(len(names))
+    if changes:
+        dx = -np.linalg.lstsq(jac, np.stack(changes, axis=1), rcond=None)[0]
+        var_inputs = np.sum(dx**2, axis=1)
+        inputs = [(s, abs(float(d))) for s, d in zip(inputs, dx[i1], strict=True)]
     mu0, mu1 = float(sol.x[i0]), float(sol.x[i1])
     u0 = math.sqrt(var_stat[i0] + var_inputs[i0])
     u1 = math.sqrt(var_stat[i1] + var_inputs[i1])
     z = mu1 / u1 if u1 > 0 else math.nan
     p = float(stats.norm.sf(z)) if math.isfinite(z) else math.nan
-    curve = np.full(t_all.shape, np.nan)
-    fin = np.isfinite(t_all)
-    curve[fin] = model(sol.x, t_all[fin], setup)
+    curve = None
+    if p < level:  # the speed law's curve, for the residual checks of judged()
+        curve = np.full(t_all.shape, np.nan)
+        fin = np.isfinite(t_all)
+        curve[fin] = model(sol.x, t_all[fin], setup)
     return LawTest("speed" if p < level else "coulomb", p_value=p, z=z, mu0=mu0, mu0_u=u0,
                    mu1=mu1, mu1_u=u1, mu1_u_statistical=math.sqrt(var_stat[i1]),
                    mu1_u_inputs=math.sqrt(var_inputs[i1]),
