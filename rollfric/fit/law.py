@@ -19,7 +19,7 @@ physical side) with a one-sided Wald statistic z = mu1 / u(mu1), where u(mu1) ho
 
 Under Coulomb friction z is a standard normal variable (the one-sided test is the likelihood
 ratio test with mu1 >= 0 as its boundary: chi-bar-squared, half chi^2_0, half chi^2_1); its
-level is checked by simulation (``validation.studies.friction_law``). The smallest mu1 the
+level is checked by simulation (docs/how/friction-law.md). The smallest mu1 the
 recording could have detected is (z_(1-level) + z_power) u(mu1), at the power
 :data:`POWER` (0.8).
 """
