@@ -36,7 +36,7 @@ def _errorbars(ax, x, rows, **kw):
 def figure(data: dict, out: Path) -> None:
     """Draw the four panels of ``data`` (the study's summary) into ``out``."""
     power = data["power"]
-    level = data["level"]
+    level = data["test_level"]
     fig, axes = plt.subplots(1, 4, figsize=(13.0, 3.4), gridspec_kw={"width_ratios":
                                                                       [1.6, 1, 1, 1]})
     ax = axes[0]
@@ -64,6 +64,9 @@ def figure(data: dict, out: Path) -> None:
         ax.axhline(level, color="0.4", lw=0.8, ls="--")
         if log:
             ax.set_xscale("log")
+        xs = [r[key] for r in rows]
+        ax.set_xticks(xs, [f"{v:g}" for v in xs])
+        ax.minorticks_off()
         ax.set_ylim(0, 1.08)
         ax.set_xlabel(label)
         ax.set_title(f"({'bcd'[list(power['curves']).index(key) - 1]}) 10 mm ball, mu1 = "

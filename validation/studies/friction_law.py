@@ -296,7 +296,7 @@ SUMMARIES = {"level": summarize_level, "power": summarize_power,
 
 def summarize(out: Path) -> dict:
     """Every part's csv found in ``out``, summarised."""
-    s = {"study": "validation.studies.friction_law", "level": LEVEL}
+    s = {"study": "validation.studies.friction_law", "test_level": LEVEL}
     for part, fn in SUMMARIES.items():
         path = out / f"friction_law_{part}.csv"
         if path.exists():
