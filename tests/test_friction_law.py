@@ -166,3 +166,22 @@ def test_the_study_runs_and_summarises(tmp_path):
     row = study.run_case(study.draw_case(5, mu1=3e-4, ball="10mm", seconds=2.0,
                                          noise_px=0.02))
     assert row["selected"] == "speed" and abs(row["z1"]) < 3
+
+
+def test_the_shipped_study_meets_its_targets_and_draws_the_page_figure(tmp_path):
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    data = json.loads((root / "docs" / "data" / "friction_law.json").read_text())
+    level = data["level"]["wall_normal"]["rejected"]
+    assert level["n"] >= 400 and abs(level["rate"] - 0.05) <= 0.02
+    cov = data["coverage"]
+    for key in ("mu0_within_U", "mu1_within_U"):
+        assert abs(cov[key]["rate"] - 0.95) <= 0.03 + 1e-9
+    spec = importlib.util.spec_from_file_location(
+        "friction_law_figure", root / "docs" / "scripts" / "friction_law_figure.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.figure(data, tmp_path / "f.png")
+    assert (tmp_path / "f.png").stat().st_size > 20000
