@@ -41,8 +41,7 @@ def register(sub) -> None:
                         "paper2_grid: the second paper's grid search (slow)")
     p.add_argument("--offset", action="store_true",
                    help="also fit a constant angle offset of the trough bottom")
-    p.add_argument("--model", default="coulomb", choices=["coulomb", "velocity"],
-                   help="friction model: constant mu, or mu0 + mu1 |theta'| (lsq only)")
+    add_model_argument(p)
     p.add_argument("--plot", action="store_true",
                    help="also write the angle-vs-model figure beside FIT.json (.png) and the "
                         "uncertainty budget's bar chart (_budget.png)")
@@ -51,6 +50,21 @@ def register(sub) -> None:
                         "output is refused (exit 2)")
     add_budget_arguments(p)
     p.set_defaults(func=run)
+
+
+def add_model_argument(parser) -> None:
+    """The ``--model`` option of ``rollfric fit`` and ``rollfric measure``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The command's parser.
+    """
+    parser.add_argument("--model", default="coulomb", choices=["coulomb", "speed", "velocity"],
+                        help="friction law fitted: coulomb (constant mu, default) or speed "
+                             "(mu0 + mu1 |theta'|, mu = mu0; 'velocity' is the same); either "
+                             "way the laws are tested against each other (fit.json "
+                             "friction_law; lsq only)")
 
 
 def add_budget_arguments(parser) -> None:
@@ -281,6 +295,7 @@ def run(args) -> int:
 
 def _run(args) -> int:
     from rollfric.fit.estimate import fit_mu
+    from rollfric.fit.law import fitted_model, verdict
     from rollfric.output.folder import remove_stale
     from rollfric.output.jsonfile import save_fit
     from rollfric.setup.model import load_setup
@@ -291,10 +306,12 @@ def _run(args) -> int:
                                          inputs=(args.track, args.setup))
     setup = load_setup(args.setup)
     t, theta = check_track(*read_track(args.track), args.track, fps=setup.fps)
-    kw = {"model": args.model} if args.method == "lsq" else {}
+    kw = {"model": fitted_model(args.model)} if args.method == "lsq" else {}
     result = fit_mu(t, theta, setup, method=args.method, offset=args.offset, **kw)
-    keys, budget = run_budget(Measurement(setup=setup, t=t, theta=theta), result, args)
+    meas = Measurement(setup=setup, t=t, theta=theta)
+    keys, budget = run_budget(meas, result, args)
     result = with_budget_reason(result, budget)
+    result, keys["friction_law"] = verdict(meas, result, args.model)
     # the setup it was fitted with, so that runs can be compared (rollfric combine)
     save_fit(result, out, **keys, setup=setup.to_toml_dict())
     if args.plot:

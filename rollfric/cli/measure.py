@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from rollfric.cli.fit import add_budget_arguments
+from rollfric.cli.fit import add_budget_arguments, add_model_argument
 from rollfric.cli.helpformat import HelpFormatter, example
 from rollfric.registry import FIT_METHODS, LOCATORS
 
@@ -43,6 +43,7 @@ def register(sub) -> None:
                    choices=["auto", "on", "off"],
                    help="fit the angle of the trough's bottom (a camera rolled about its axis): "
                         "auto = when the track has three turning points or more; --offset = on")
+    add_model_argument(p)
     p.add_argument("--plot", action="store_true",
                    help="also write fit.png (angle vs model) and overlays.png")
     p.add_argument("--overlay-frames", default=None, metavar="I,J,...",
@@ -233,6 +234,7 @@ def _run(args) -> int:
 
     from rollfric.cli.fit import report_quality
     from rollfric.errors import InputError
+    from rollfric.fit.law import fitted_model, verdict
     from rollfric.measurement import measure
     from rollfric.output.folder import staged_folder
     from rollfric.output.jsonfile import save_fit
@@ -256,9 +258,13 @@ def _run(args) -> int:
                                   offset={"on": True, "off": False}.get(args.offset, "auto"),
                                   progress=not args.no_progress,
                                   median_frames=args.median_frames, times=args.times,
-                                  background_from=args.background_from)
-    keys, budget = run_budget(measurement_from_track(track, info), result, args)
+                                  background_from=args.background_from,
+                                  fit_kwargs={"model": fitted_model(args.model)}
+                                  if args.fit_method == "lsq" else None)
+    meas = measurement_from_track(track, info)
+    keys, budget = run_budget(meas, result, args)
     result = with_budget_reason(result, budget)
+    result, keys["friction_law"] = verdict(meas, result, args.model)
     remove_legacy_leftovers(out)
     with staged_folder(out, OUTPUTS, overwrite=args.overwrite, command="measure") as tmp:
         write_track_csv(track, tmp / "track.csv")

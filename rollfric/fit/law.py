@@ -1,0 +1,400 @@
+"""The friction law decided against its rival: Coulomb + drag against speed + drag.
+
+Rolling friction that does not depend on speed (M = mu r N; Minkin and Sikes, Am. J. Phys. 86,
+77, 2018: a linear decay of the amplitude) against a resistance that grows with it
+(mu(theta') = mu0 + mu1 |theta'|; Cross's "roughly proportional to speed"), both with the air
+of :mod:`rollfric.fit.air`. :func:`friction_law` fits the speed law to the samples the
+Coulomb fit used, with mu1 free on both sides of 0, and tests mu1 = 0 against mu1 > 0 (the
+physical side) with a one-sided Wald statistic z = mu1 / u(mu1), where u(mu1) holds
+
+- the statistical part: the HAC (Newey-West, prewhitened) covariance of the fit
+  (:func:`rollfric.fit.hac.hac_covariance`), as the uncertainty budget's statistical row, never
+  below the ordinary one, so residuals correlated from frame to frame do not make a law;
+- every uncertain setup input (``K_u``), the air's above all: the drag's Stokes part is
+  linear in speed, exactly as mu1 |theta'| g is, so a drag law off by its u makes a mu1. Each
+  input moved by u, the fit's shift is its Gauss-Newton step -(J'J)^-1 J' dr (dr the change
+  of the residuals at the fitted parameters: the model's for g and the air, the angles' for
+  the centre, scale and lens, the times' for the frame rate): the budget's re-fit with the
+  input moved, to first order, at the cost of at most one model evaluation an input.
+
+Under Coulomb friction z is a standard normal variable (the one-sided test is the likelihood
+ratio test with mu1 >= 0 as its boundary: chi-bar-squared, half chi^2_0, half chi^2_1); its
+level is checked by simulation (docs/how/friction-law.md). The smallest mu1 the
+recording could have detected is (z_(1-level) + z_power) u(mu1), at the power
+:data:`POWER` (0.8).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+from scipy import optimize, stats
+
+from rollfric.fit import eom
+from rollfric.fit.air import coefficients_of
+from rollfric.fit.hac import hac_covariance
+from rollfric.uncertainty.budget import _contour_centre_as_input
+from rollfric.uncertainty.reasons import Reason
+from rollfric.uncertainty.sensitivity import fitted_mask, moved, setup_inputs, why_not
+
+LEVEL = 0.05
+POWER = 0.8  # of mu1_detectable
+STATISTIC = "one-sided Wald z = mu1 / u(mu1), u: HAC covariance and the setup's inputs (air)"
+# the speed law needs the decay's dependence on the amplitude: at least this many turning
+# points of the fitted motion (three half-swings) before mu0 and mu1 are told apart
+MIN_TURNING_POINTS = 2
+# the trough bottom's angle is free in the speed law's fit from this many turning points (as
+# rollfric.fit.offset's "auto": with fewer, friction and an offset shift the swing alike)
+OFFSET_TURNING_POINTS = 3
+# the fit's parameters, their bounds and scales (as rollfric.fit.lsq); mu1 on both sides of 0
+_BOUNDS = {"mu": (0.0, 1.0, 1e-3), "theta0": (-math.pi / 2, math.pi / 2, 1e-3),
+           "omega0": (-np.inf, np.inf, 1e-2), "offset": (-0.5, 0.5, 1e-3),
+           "mu1": (-np.inf, np.inf, 1e-4)}
+NFEV = 100
+STEPS_PER_RADIAN = 200.0  # the integrator's step, as rollfric.fit.eom.solve
+
+
+@dataclasses.dataclass(frozen=True)
+class LawTest:
+    """The outcome of :func:`friction_law` (SI: mu1 in s/rad).
+
+    Attributes
+    ----------
+    selected : str or None
+        "coulomb" or "speed"; None when the track is too short to tell them apart.
+    p_value, z : float
+        The one-sided p-value of mu1 = 0 and the statistic.
+    mu0, mu0_u, mu1, mu1_u : float
+        The speed law's coefficients and their standard uncertainties (statistical and the
+        setup's inputs).
+    mu1_u_statistical, mu1_u_inputs : float
+        The two parts of u(mu1).
+    mu1_detectable : float
+        The smallest mu1 the recording detects at ``level`` with probability ``power``.
+    why : str
+        Why the test was not made ('' when it was).
+    """
+
+    selected: str | None
+    p_value: float = math.nan
+    z: float = math.nan
+    mu0: float = math.nan
+    mu0_u: float = math.nan
+    mu1: float = math.nan
+    mu1_u: float = math.nan
+    mu1_u_statistical: float = math.nan
+    mu1_u_inputs: float = math.nan
+    mu1_detectable: float = math.nan
+    level: float = LEVEL
+    power: float = POWER
+    rms_residual: float = math.nan
+    n_samples: int = 0
+    seconds: float = 0.0
+    why: str = ""
+    inputs: tuple = ()  # (source, u(mu1) of it)
+    curve: np.ndarray | None = dataclasses.field(default=None, repr=False)
+
+    def to_json(self) -> dict:
+        """fit.json's ``friction_law`` object.
+
+        Returns
+        -------
+        dict
+            ``selected``, ``p_value``, ``mu0``, ``mu0_u``, ``mu1`` (s/rad), ``mu1_u``,
+            ``mu1_detectable`` with ``detectable_power``, ``level``, ``statistic`` and the
+            details; ``why`` instead of the figures when the test was not made.
+        """
+        def num(v):
+            return float(v) if math.isfinite(v) else None
+
+        if self.selected is None:
+            return {"selected": None, "why": self.why, "level": self.level,
+                    "statistic": STATISTIC}
+        return {"selected": self.selected, "p_value": num(self.p_value), "z": num(self.z),
+                "mu0": num(self.mu0), "mu0_u": num(self.mu0_u), "mu1": num(self.mu1),
+                "mu1_u": num(self.mu1_u), "mu1_u_statistical": num(self.mu1_u_statistical),
+                "mu1_u_inputs": num(self.mu1_u_inputs),
+                "mu1_detectable": num(self.mu1_detectable), "detectable_power": self.power,
+                "level": self.level, "statistic": STATISTIC, "units": {"mu1": "s/rad"},
+                "rms_residual_rad": num(self.rms_residual), "n_samples": self.n_samples,
+                "inputs": [{"source": s, "u_mu1": num(u)} for s, u in self.inputs],
+                "seconds": self.seconds}
+
+    def line(self) -> str:
+        """The test in one line, as the commands print it."""
+        if self.selected is None:
+            return f"friction law: not tested ({self.why})"
+        return (f"friction law: {self.selected} (p = {self.p_value:.2g}; speed law mu0 = "
+                f"{self.mu0:.6f} +- {self.mu0_u:.2g}, mu1 = {self.mu1:.3g} +- {self.mu1_u:.2g}"
+                f" s/rad; detectable mu1 >= {self.mu1_detectable:.2g} s/rad at "
+                f"{100 * self.power:.0f} % power)")
+
+
+def detectable(u_mu1: float, level: float = LEVEL, power: float = POWER) -> float:
+    """The smallest mu1 a one-sided test at ``level`` detects with probability ``power``.
+
+    Parameters
+    ----------
+    u_mu1 : float
+        The standard uncertainty of the fitted mu1 (s/rad).
+    level : float
+        The test's level.
+    power : float
+        The probability of detection (0.5: the mu1 at the threshold itself).
+
+    Returns
+    -------
+    float
+        (z_(1-level) + z_power) u_mu1, s/rad.
+    """
+    return float((stats.norm.isf(level) + stats.norm.ppf(power)) * u_mu1)
+
+
+def _turning_points(curve: np.ndarray) -> int:
+    d = np.diff(curve)
+    d = d[d != 0]
+    return int(np.count_nonzero(np.diff(np.sign(d)) != 0))
+
+
+def friction_law(meas, result, *, level: float = LEVEL) -> LawTest:
+    """Test Coulomb + drag against speed + drag on the samples the fit ``result`` used.
+
+    Parameters
+    ----------
+    meas : rollfric.uncertainty.measured.Measurement
+        The measurement ``result`` was fitted to (its setup, the air included).
+    result : rollfric.fit.result.FitResult
+        Its least-squares fit (model "coulomb" or "velocity"): the start and the samples.
+    level : float
+        The test's level.
+
+    Returns
+    -------
+    LawTest
+        ``selected`` "speed" when p < ``level``, else "coulomb"; None (with ``why``) for a
+        fit other than least squares or a track with fewer than
+        :data:`MIN_TURNING_POINTS` turning points.
+
+    Examples
+    --------
+    The exact motion of a 10 mm ball with mu = 0.008 + 0.0003 |theta'|, in a vacuum:
+
+    >>> import numpy as np, rollfric
+    >>> from rollfric.fit.eom import solve_reference
+    >>> from rollfric.fit.law import friction_law
+    >>> setup = rollfric.thesis_setup("10mm")
+    >>> t = np.arange(4000) / 1000.0
+    >>> theta, _, _ = solve_reference(np.radians(20.0), 0.0, 0.008, t, mu1=0.0003,
+    ...                               track_radius=setup.track_radius)
+    >>> theta = theta + np.random.default_rng(1).normal(0.0, 1e-4, t.size)
+    >>> fit = rollfric.fit_mu(t, theta, setup)
+    >>> law = friction_law(rollfric.Measurement(setup=setup, t=t, theta=theta), fit)
+    >>> law.selected, round(law.mu0, 4), round(law.mu1 * 1e4, 1)
+    ('speed', 0.008, 3.0)
+    """
+    start = time.perf_counter()
+    if result.method != "lsq":
+        return LawTest(None, why=f"the {result.method} fit has no Jacobian (lsq only)")
+    # a centre found from the background's contour is an input with its u, as in the budget
+    meas, _ = _contour_centre_as_input(meas)
+    setup = meas.setup
+    t_all, th_all = meas.series(setup)
+    used = getattr(result, "used", None)
+    mask = used if used is not None and used.shape == t_all.shape else \
+        fitted_mask(t_all, th_all, result.n_samples)
+    turning = _turning_points(result.curve[mask])
+    if turning < MIN_TURNING_POINTS:
+        return LawTest(None, why=f"fewer than {MIN_TURNING_POINTS} turning points fitted: "
+                                 "too short to tell the laws apart")
+    names = [n for n in ("mu", "theta0", "omega0", "offset") if n in result.stderr] \
+        or ["mu", "theta0", "omega0"]
+    if "offset" not in names and turning >= OFFSET_TURNING_POINTS:
+        names.append("offset")  # a nuisance of either law, free where the swings fix it
+    names = names + ["mu1", "length"]
+    L0 = setup.track_radius
+    x0 = {"mu": result.mu, "theta0": result.theta0, "omega0": result.omega0,
+          "offset": result.offset, "mu1": result.mu1, "length": L0}
+    bounds = dict(_BOUNDS, length=(0.5 * L0, 2.0 * L0, 1e-4))
+    lower = np.array([bounds[n][0] for n in names])
+    upper = np.array([bounds[n][1] for n in names])
+    scale = np.array([bounds[n][2] for n in names])
+
+    def model(x, t, s):
+        p = dict(zip(names, x, strict=True))
+        off = p.get("offset", 0.0)
+        w = math.sqrt(eom.omega_squared(p["length"], s.gravity))
+        # the compiled integrator itself: eom.solve refuses mu1 < 0, the two-sided fit
+        # needs it (a resistance that falls with speed, within the noise)
+        th, _, _ = eom._solve_rk4(t, float(p["theta0"] - off), float(p["omega0"]),
+                                  float(p["mu"]), float(p["mu1"]), float(p["length"]),
+                                  float(s.gravity), 1.0 / (STEPS_PER_RADIAN * w),
+                                  coefficients_of(s))
+        return th + off
+
+    t, y = t_all[mask], th_all[mask]
+    sol = optimize.least_squares(lambda x: model(x, t, setup) - y,
+                                 np.clip([x0[n] for n in names], lower, upper),
+                                 bounds=(lower, upper), x_scale=scale, xtol=1e-10, ftol=1e-10,
+                                 gtol=1e-10, max_nfev=NFEV)
+    jac, res = sol.jac, sol.fun
+    ordinary, hac, _, _ = hac_covariance(jac, res)
+    var_stat = np.maximum(np.diag(ordinary), np.diag(hac))
+    if not np.all(np.isfinite(var_stat)):
+        return LawTest(None, why="the speed law's fit is singular (mu0 and mu1 not apart)")
+    # each uncertain input moved by u: the change of the residuals at the fitted parameters
+    # (the model's where the input acts on it, the angles' or times' where on the data; L is
+    # fitted, so the track radius acts on neither), and the fit's Gauss-Newton shift
+    model_key = (coefficients_of(setup).tobytes(), setup.gravity)
+    changes, inputs = [], []
+    for source, field, comp, _, u, factor in setup_inputs(setup):
+        if u == 0.0 or why_not(meas, field, False):
+            continue
+        s = moved(setup, field, comp, u, factor)
+        tm, thm = meas.series(s)
+        tm, thm = tm[mask], thm[mask]
+        if np.array_equal(tm, t) and (coefficients_of(s).tobytes(), s.gravity) == model_key:
+            r = res + y - thm  # the model as it was, the angles moved
+        else:
+            r = model(sol.x, tm, s) - thm
+        if np.array_equal(r, res):
+            continue
+        changes.append(r - res)
+        inputs.append(source)
+    i0, i1 = names.index("mu"), names.index("mu1")
+    var_inputs = np.zeros(len(names))
+    if changes:
+        dx = -np.linalg.lstsq(jac, np.stack(changes, axis=1), rcond=None)[0]
+        var_inputs = np.sum(dx**2, axis=1)
+        inputs = [(s, abs(float(d))) for s, d in zip(inputs, dx[i1], strict=True)]
+    mu0, mu1 = float(sol.x[i0]), float(sol.x[i1])
+    u0 = math.sqrt(var_stat[i0] + var_inputs[i0])
+    u1 = math.sqrt(var_stat[i1] + var_inputs[i1])
+    z = mu1 / u1 if u1 > 0 else math.nan
+    p = float(stats.norm.sf(z)) if math.isfinite(z) else math.nan
+    curve = None
+    if p < level:  # the speed law's curve, for the residual checks of judged()
+        curve = np.full(t_all.shape, np.nan)
+        fin = np.isfinite(t_all)
+        curve[fin] = model(sol.x, t_all[fin], setup)
+    return LawTest("speed" if p < level else "coulomb", p_value=p, z=z, mu0=mu0, mu0_u=u0,
+                   mu1=mu1, mu1_u=u1, mu1_u_statistical=math.sqrt(var_stat[i1]),
+                   mu1_u_inputs=math.sqrt(var_inputs[i1]),
+                   mu1_detectable=detectable(u1, level), level=level,
+                   rms_residual=float(np.sqrt(np.mean(res**2))), n_samples=int(res.size),
+                   seconds=time.perf_counter() - start, inputs=tuple(inputs), curve=curve)
+
+
+def law_reason(law: LawTest) -> Reason:
+    """The quality reason of a test that rejects Coulomb friction.
+
+    Parameters
+    ----------
+    law : LawTest
+        A test with ``selected`` "speed".
+
+    Returns
+    -------
+    rollfric.uncertainty.reasons.Reason
+        ``friction_law``, with mu0 and mu1.
+    """
+    return Reason("friction_law", f"the rolling friction depends on speed: mu(theta') = mu0 + "
+                  f"mu1 |theta'| with mu0 = {law.mu0:.6f} +- {law.mu0_u:.2g}, mu1 = "
+                  f"{law.mu1:.3g} +- {law.mu1_u:.2g} s/rad (Coulomb's mu1 = 0 rejected, p = "
+                  f"{law.p_value:.2g} at level {law.level:g}, drag and setup "
+                  "uncertainties included): mu is the Coulomb coefficient of a law the data "
+                  "reject; --model speed gives mu0 as the result")
+
+
+# the generic residual reasons a speed law can explain
+RESIDUAL_CODES = ("residual_structure", "residual_noise")
+
+
+def judged(meas, result, law: LawTest, *, model: str = "coulomb"):
+    """``result`` with the test's verdict in its quality reasons.
+
+    When the test rejects Coulomb friction and ``model`` is "coulomb", the reason
+    ``friction_law`` (:func:`law_reason`) is added, and the generic residual reasons
+    (:data:`RESIDUAL_CODES`) the speed law explains (they do not hold for the speed law's
+    fit) are taken out. Otherwise ``result`` is returned as it is.
+
+    Parameters
+    ----------
+    meas : rollfric.uncertainty.measured.Measurement
+        The measurement ``result`` was fitted to.
+    result : rollfric.fit.result.FitResult
+        The fit.
+    law : LawTest
+        :func:`friction_law` of them.
+    model : str
+        The model of ``result`` ("coulomb", "speed" or "velocity").
+
+    Returns
+    -------
+    rollfric.fit.result.FitResult
+    """
+    from rollfric.fit.lsq import NOISE_FLOOR
+    from rollfric.uncertainty import quality
+
+    if law.selected != "speed" or model != "coulomb":
+        return result
+    reasons = list(result.quality_reasons)
+    if any(r.code in RESIDUAL_CODES for r in reasons):
+        t, theta = meas.series(meas.setup)
+        good = np.isfinite(t) & np.isfinite(theta)
+        used = result.used if result.used is not None else good
+        speed = dataclasses.replace(result, curve=law.curve)
+        # the checks' own rule (rollfric.uncertainty.quality) on the speed law's residual
+        left = {r.code for r in quality._residual_reasons(t, theta, good, used, speed,
+                                                          meas.setup, NOISE_FLOOR)}
+        reasons = [r for r in reasons if r.code not in RESIDUAL_CODES or r.code in left]
+    return dataclasses.replace(result, quality_reasons=tuple(reasons) + (law_reason(law),))
+
+
+MODELS = ("coulomb", "speed", "velocity")  # the commands' --model; "velocity": "speed"
+
+
+def fitted_model(model: str) -> str:
+    """The least-squares fit's model of a command's ``--model``: "coulomb" or "velocity".
+
+    Parameters
+    ----------
+    model : str
+        One of :data:`MODELS`.
+
+    Returns
+    -------
+    str
+    """
+    return "coulomb" if model == "coulomb" else "velocity"
+
+
+def verdict(meas, result, model: str = "coulomb"):
+    """The test as a command makes it: (result judged, fit.json's ``friction_law``), its line
+    printed on stdout; with ``model`` "speed" (or "velocity") fit.json's ``model`` says
+    "speed".
+
+    Parameters
+    ----------
+    meas : rollfric.uncertainty.measured.Measurement
+        The measurement ``result`` was fitted to.
+    result : rollfric.fit.result.FitResult
+        The command's fit.
+    model : str
+        The command's ``--model``.
+
+    Returns
+    -------
+    result : rollfric.fit.result.FitResult
+        With :func:`judged`'s reasons.
+    friction_law : dict
+        :meth:`LawTest.to_json`.
+    """
+    law = friction_law(meas, result)
+    print(law.line())
+    result = judged(meas, result, law, model=fitted_model(model))
+    if model != "coulomb" and result.method == "lsq":
+        result = dataclasses.replace(result, extra={**result.extra, "model": "speed"})
+    return result, law.to_json()
