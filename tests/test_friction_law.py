@@ -1,4 +1,4 @@
-"""The friction-law test (rollfric.fit.law): Coulomb + drag against speed + drag."""
+"""The friction-law test (rollfric.uncertainty.law): Coulomb + drag against speed + drag."""
 
 import json
 import math
@@ -9,8 +9,8 @@ import pytest
 from rollfric.cli.main import main
 from rollfric.fit import air, eom
 from rollfric.fit.estimate import fit_mu
-from rollfric.fit.law import detectable, friction_law, judged
 from rollfric.setup.model import save_setup, thesis_setup
+from rollfric.uncertainty.law import detectable, friction_law, judged
 from rollfric.uncertainty.measured import Measurement
 
 T4 = np.arange(4000) / 1000.0

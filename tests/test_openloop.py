@@ -99,9 +99,9 @@ def test_air_draws_the_law_within_its_stated_u():
     assert scen.air_cd == pytest.approx(case["wall_factor"] * ol.swing_cd(
         scen.ball_diameter, scen.track_radius, scen.theta0, scen.air_density, mu=scen.mu,
         seconds=case["seconds"])[0])
-    lab, _ = ol.lab_setup(case)
+    lab = ol.lab_setup(case)
     assert lab.air_density == pytest.approx(1.20) and lab.u("air_density") == 0.03
-    assert ol.lab_setup(ol.draw_openloop(4, "camera"))[0].air_density == 0.0
+    assert ol.lab_setup(ol.draw_openloop(4, "camera")).air_density == 0.0
 
 
 def test_speed_law_and_lab_setup():
@@ -112,7 +112,7 @@ def test_speed_law_and_lab_setup():
     v_top = math.sqrt(10 / 7 * 9.81 * L * (1 - math.cos(math.radians(case["theta0_deg"]))))
     assert case["mu_speed_s_m"] * v_top == pytest.approx(case["speed_fraction"] * case["mu"])
     assert ol.truth_scenario(case).mu_speed == case["mu_speed_s_m"]
-    lab, _ = ol.lab_setup(case)
+    lab = ol.lab_setup(case)
     assert lab.cylinder_radius == pytest.approx(85.3e-3)
     assert lab.u("cylinder_radius") == pytest.approx(0.5e-3)
     assert lab.u("center_px") == (2.0, 2.0)

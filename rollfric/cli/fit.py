@@ -295,10 +295,10 @@ def run(args) -> int:
 
 def _run(args) -> int:
     from rollfric.fit.estimate import fit_mu
-    from rollfric.fit.law import fitted_model, verdict
     from rollfric.output.folder import remove_stale
     from rollfric.output.jsonfile import save_fit
     from rollfric.setup.model import load_setup
+    from rollfric.uncertainty.law import fitted_model, verdict
     from rollfric.uncertainty.measured import Measurement
     from rollfric.uncertainty.report import run_budget, with_budget_reason
 

@@ -234,10 +234,10 @@ def _run(args) -> int:
 
     from rollfric.cli.fit import report_quality
     from rollfric.errors import InputError
-    from rollfric.fit.law import fitted_model, verdict
     from rollfric.measurement import measure
     from rollfric.output.folder import staged_folder
     from rollfric.output.jsonfile import save_fit
+    from rollfric.uncertainty.law import fitted_model, verdict
     from rollfric.uncertainty.measured import measurement_from_track
     from rollfric.uncertainty.report import check_arguments, run_budget, with_budget_reason
 

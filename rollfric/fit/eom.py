@@ -154,13 +154,13 @@ def _check_times(t):
     return t
 
 
-def _check_inputs(t, track_radius, gravity, mu, mu1):
+def _check_inputs(t, track_radius, gravity, mu, mu1, signed=False):
     t = _check_times(t)
     if not track_radius > 0:
         raise ValueError(f"track_radius (R - r) must be positive, got {track_radius}")
     if not gravity > 0:
         raise ValueError(f"gravity must be positive, got {gravity}")
-    if mu < 0 or mu1 < 0:
+    if mu < 0 or (mu1 < 0 and not signed):
         raise ValueError(f"mu and mu1 must not be negative, got mu={mu}, mu1={mu1}")
     return t
 
@@ -446,7 +446,7 @@ def _solve_rk4(t, theta0, omega0, mu0, mu1, L, g, h_max, air):
 
 def solve(theta0: float, omega0: float, mu: float, t, *, track_radius: float,
           gravity: float = STANDARD_GRAVITY, mu1: float = 0.0, steps_per_radian: float = 200.0,
-          air=None):
+          air=None, signed_mu1: bool = False):
     """Fast integration of the equation of motion (compiled RK4, exact turning points).
 
     Same arguments and results as :func:`solve_reference`. The step is at most
@@ -475,6 +475,9 @@ def solve(theta0: float, omega0: float, mu: float, t, *, track_radius: float,
     air : array_like or None
         The air's coefficients (:meth:`rollfric.fit.air.Air.coefficients`: buoyancy, added mass,
         drag); None: no air.
+    signed_mu1 : bool
+        Accept a negative ``mu1`` (a resistance that falls with speed: the two-sided fit of the
+        friction law's test, :mod:`rollfric.uncertainty.law`).
 
     Returns
     -------
@@ -489,9 +492,9 @@ def solve(theta0: float, omega0: float, mu: float, t, *, track_radius: float,
     ------
     ValueError
         If ``t`` is empty, not 1-D or not strictly increasing, ``track_radius`` or ``gravity``
-        is not positive, or ``mu`` or ``mu1`` is negative.
+        is not positive, or ``mu`` or (without ``signed_mu1``) ``mu1`` is negative.
     """
-    t = _check_inputs(t, track_radius, gravity, mu, mu1)
+    t = _check_inputs(t, track_radius, gravity, mu, mu1, signed_mu1)
     w = math.sqrt(omega_squared(track_radius, gravity))
     h_max = 1.0 / (steps_per_radian * w)
     return _solve_rk4(t, float(theta0), float(omega0), float(mu), float(mu1),

@@ -1,4 +1,4 @@
-"""The friction-law test (:mod:`rollfric.fit.law`) calibrated by simulation, at track level.
+"""The friction-law test (:mod:`rollfric.uncertainty.law`) calibrated by simulation, at track level.
 
 Each case draws a motion of one of the thesis's three balls in room air: mu(theta') = mu0 + mu1
 |theta'| (mu1 = 0: Coulomb), a release angle, a record length, a locator noise (white or AR(1),
@@ -7,7 +7,7 @@ from their stated distributions, :mod:`rollfric.fit.air`). The ball's path is th
 motion with that air (:func:`rollfric.fit.eom.solve` at a step five times finer than the
 fitter's), sampled at 1000 Hz, projected to pixels about the trough's centre, the noise added;
 the measurement sees the nominal room air with its u and runs the real Coulomb fit
-(:func:`rollfric.fit.estimate.fit_mu`) and the test (:func:`rollfric.fit.law.friction_law`).
+(:func:`rollfric.fit.estimate.fit_mu`) and the test (:func:`rollfric.uncertainty.law.friction_law`).
 
 Parts (``--part``, each a few minutes of one core):
 
@@ -44,8 +44,8 @@ from scipy import stats
 
 from rollfric.fit import air, eom
 from rollfric.fit.estimate import fit_mu
-from rollfric.fit.law import LEVEL, friction_law
 from rollfric.setup.model import THESIS_BALLS, thesis_setup
+from rollfric.uncertainty.law import LEVEL, friction_law
 from rollfric.uncertainty.measured import Measurement
 
 FPS = 1000.0

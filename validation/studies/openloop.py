@@ -29,16 +29,16 @@ not assume or knows only within a stated u:
 The lab's setup (:func:`lab_setup`) is what coverage's lab states (radius, diameter, centre,
 fps, pixel size with their ``_u``), room air where the truth has air (else
 ``air_density_kg_m3 = 0``), and the trough-as-built tolerances ``cylinder.tilt_deg_u``,
-``cylinder.ovality_mm_u`` when rollfric's setup schema accepts them (``asbuilt_rows``). The
+``cylinder.ovality_mm_u`` (rows of the budget: :mod:`rollfric.uncertainty.asbuilt`). The
 measurement runs rollfric's fit, the path-ellipse reading of a tilted camera
 (:func:`rollfric.geometry.pathshape.read_path`, as ``rollfric measure`` does: a "camera"
 verdict corrects the angles) and the budget. z = (mu - truth) / u_mu. Each case is also
 fitted on its **exact** centres (no noise, the exact as-built setup, the lab's air): that
 fit's error, ``bias_phys`` (relative) and ``z_phys`` (in the blind u_mu), is what the drawn
 physics alone does to mu, so a miss is told from the budget's own tolerances and noise.
-Where rollfric has its friction-law test (``rollfric.fit.law.friction_law``), every case's
-verdict is counted and the speed-law cases' mu0 compared with the truth's; without it the
-Coulomb fit's mu is compared with the truth's mu0 (the summary's ``speed_law`` says which).
+The friction-law test (:func:`rollfric.uncertainty.law.friction_law`) runs on every case: its
+verdicts are counted (its false alarms on air and the trough as built too) and, where it
+selects the speed law, mu0 is compared with the truth's.
 
 ``python -m validation.studies.openloop --cases 420 --out DIR`` writes DIR/openloop.csv (one
 row a case), DIR/openloop.json (the fractions, by family, and the misses by source) and
@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import importlib
 import json
 import logging
 import math
@@ -73,8 +72,9 @@ from rollfric.geometry import ellipse as ell
 from rollfric.geometry import pathshape
 from rollfric.geometry.theta import angles
 from rollfric.output.atomic import replacing
-from rollfric.setup.model import SetupError, setup_from_dict
+from rollfric.setup.model import setup_from_dict
 from rollfric.uncertainty.budget import budget
+from rollfric.uncertainty.law import friction_law
 from rollfric.uncertainty.measured import Measurement
 from validation.studies.coverage import (
     NOMINAL,
@@ -220,9 +220,7 @@ def truth_scenario(case: dict):
 
 def lab_setup(case: dict):
     """The lab's setup file (lab units): coverage's nominal values and tolerances, room air
-    (its default u) where the truth has air, else none, and the trough-as-built tolerances
-    when rollfric's setup schema knows them. Returns (Setup, whether those rows were
-    accepted)."""
+    (its default u) where the truth has air, else none, and the trough-as-built tolerances."""
     tol = TOLERANCE
     data = {
         "cylinder": {"radius_mm": NOMINAL["radius_mm"], "radius_mm_u": tol["radius_mm"],
@@ -235,15 +233,9 @@ def lab_setup(case: dict):
                    "pixel_size_mm_u": tol["pixel_size_mm"]},
         "environment": {} if case["air_density"] > 0 else {"air_density_kg_m3": 0.0},
     }
-    asbuilt = {"tilt_deg_u": TILT_DEG_U, "ovality_mm_u": OVALITY_MM_U}
-    # with their nominal values (a level, round trough), then the tolerances alone
-    for extra in ({"tilt_deg": 0.0, "ovality_mm": 0.0, **asbuilt}, asbuilt):
-        try:
-            return setup_from_dict({**data, "cylinder": {**data["cylinder"], **extra}},
-                                   "openloop lab"), True
-        except SetupError:
-            continue
-    return setup_from_dict(data, "openloop lab"), False
+    data["cylinder"].update(tilt_deg=0.0, tilt_deg_u=TILT_DEG_U, ovality_mm=0.0,
+                            ovality_mm_u=OVALITY_MM_U)  # a level, round trough, within these
+    return setup_from_dict(data, "openloop lab")
 
 
 def camera_map(x, y, center, yaw_deg: float, pitch_deg: float):
@@ -269,21 +261,13 @@ def exact_centres(case: dict, traj, true):
     return np.arange(n, dtype=float), x, y
 
 
-def _law_module():
-    """rollfric's friction-law test (another branch's ``rollfric.fit.law``), or None."""
-    try:
-        return importlib.import_module("rollfric.fit.law")
-    except ImportError:
-        return None
-
-
-def law_verdict(law, meas: Measurement, result) -> dict:
-    """The friction-law test's verdict (``rollfric.fit.law.friction_law``) on the measured
+def law_verdict(meas: Measurement, result) -> dict:
+    """The friction-law test's verdict (``rollfric.uncertainty.law.friction_law``) on the measured
     track: ``law_selected`` ("coulomb", "speed", or None with the test's reason),
     ``law_mu0``, ``law_mu0_u``, ``law_p_value``; ``law_error`` when it could not be called
     as expected."""
     try:
-        out = law.friction_law(meas, result)
+        out = friction_law(meas, result)
     except Exception as exc:  # another module's API: recorded, the study goes on
         return {"law_error": f"{type(exc).__name__}: {exc}"}
     return {"law_selected": out.selected or "none", "law_mu0": out.mu0,
@@ -316,7 +300,7 @@ def _path_reading(meas: Measurement, result, lab):
     return result, meas, reading.verdict, reason
 
 
-def run_case(case: dict, law=None) -> dict:
+def run_case(case: dict) -> dict:
     """Simulate one case's truth, film it, measure it blind with the lab's setup, and fit its
     exact centres (the physics' own bias)."""
     import sim
@@ -328,7 +312,7 @@ def run_case(case: dict, law=None) -> dict:
     out["sim_seconds"] = time.perf_counter() - start
     frames, xe, ye = exact_centres(case, traj, true)
     e = locator_noise(case, frames.size)
-    lab, out["asbuilt_rows"] = lab_setup(case)
+    lab = lab_setup(case)
     meas = Measurement(setup=lab, frames=frames, x=xe + e[0], y=ye + e[1],
                        center=lab.center_px)
     start = time.perf_counter()
@@ -347,8 +331,7 @@ def run_case(case: dict, law=None) -> dict:
     mu_phys = fit_mu(*m_x.series(exact), exact, checks=False).mu
     out.update(mu_phys=mu_phys, bias_phys=mu_phys / mu_true - 1.0,
                z_phys=(mu_phys - mu_true) / b.u_mu, z_rest=(b.mu - mu_phys) / b.u_mu)
-    if law is not None:  # every case: its false alarms on air and the trough as built too
-        out.update(law_verdict(law, meas, res))
+    out.update(law_verdict(meas, res))  # every case: false alarms on air, the trough too
     return out
 
 
@@ -426,7 +409,6 @@ def summarize(df: pd.DataFrame) -> dict:
     (:func:`by_source`) and, for the speed law, the friction-law test's verdicts."""
     stated = df[df["family"] != "air_beyond"]
     s = {"targets": {"within_U": [0.92, 0.98], "within_u": [0.63, 0.73]},
-         "asbuilt_rows": bool(df["asbuilt_rows"].all()) if "asbuilt_rows" in df else None,
          "stated": coverage_of(stated),
          # the same without the speed law (its truth mu0 is not what a Coulomb fit measures)
          "stated_coulomb": coverage_of(stated[stated["speed_fraction"] == 0]),
@@ -457,8 +439,8 @@ def summarize(df: pd.DataFrame) -> dict:
             law["mu0_within_u_when_speed"] = _frac(zl, 1.0)
             law["mu0_cases_when_speed"] = len(sp)
         else:
-            law["note"] = ("rollfric.fit.law absent: the Coulomb fit's mu against the truth's "
-                           "mu0 (family 'speed' and the speed-law cases of 'all')")
+            law["note"] = ("no friction-law verdicts in these cases' table: the Coulomb fit's mu "
+                           "against the truth's mu0")
         s["speed_law"] = law
     return s
 
@@ -542,11 +524,10 @@ def main(argv=None) -> int:
         df = pd.concat([pd.read_csv(Path(d) / "openloop.csv") for d in args.merge],
                        ignore_index=True)
         return _write(df, out)
-    law = _law_module()
     rows = []
     for i in range(args.cases):
         case = draw_openloop(args.seed + i, family_of(args.seed + i, args.families))
-        rows.append(run_case(case, law))
+        rows.append(run_case(case))
         if (i + 1) % 10 == 0:
             df = pd.DataFrame(rows)
             df.to_csv(out / "openloop.csv", index=False)

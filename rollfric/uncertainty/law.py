@@ -36,6 +36,8 @@ from scipy import optimize, stats
 from rollfric.fit import eom
 from rollfric.fit.air import coefficients_of
 from rollfric.fit.hac import hac_covariance
+from rollfric.fit.lsq import NOISE_FLOOR
+from rollfric.uncertainty import quality
 from rollfric.uncertainty.budget import _contour_centre_as_input
 from rollfric.uncertainty.reasons import Reason
 from rollfric.uncertainty.sensitivity import fitted_mask, moved, setup_inputs, why_not
@@ -184,7 +186,7 @@ def friction_law(meas, result, *, level: float = LEVEL) -> LawTest:
 
     >>> import numpy as np, rollfric
     >>> from rollfric.fit.eom import solve_reference
-    >>> from rollfric.fit.law import friction_law
+    >>> from rollfric.uncertainty.law import friction_law
     >>> setup = rollfric.thesis_setup("10mm")
     >>> t = np.arange(4000) / 1000.0
     >>> theta, _, _ = solve_reference(np.radians(20.0), 0.0, 0.008, t, mu1=0.0003,
@@ -225,13 +227,11 @@ def friction_law(meas, result, *, level: float = LEVEL) -> LawTest:
     def model(x, t, s):
         p = dict(zip(names, x, strict=True))
         off = p.get("offset", 0.0)
-        w = math.sqrt(eom.omega_squared(p["length"], s.gravity))
-        # the compiled integrator itself: eom.solve refuses mu1 < 0, the two-sided fit
-        # needs it (a resistance that falls with speed, within the noise)
-        th, _, _ = eom._solve_rk4(t, float(p["theta0"] - off), float(p["omega0"]),
-                                  float(p["mu"]), float(p["mu1"]), float(p["length"]),
-                                  float(s.gravity), 1.0 / (STEPS_PER_RADIAN * w),
-                                  coefficients_of(s))
+        # two-sided: a resistance that falls with speed (mu1 < 0) is within the noise too
+        th, _, _ = eom.solve(float(p["theta0"] - off), float(p["omega0"]), float(p["mu"]), t,
+                             track_radius=float(p["length"]), gravity=float(s.gravity),
+                             mu1=float(p["mu1"]), steps_per_radian=STEPS_PER_RADIAN,
+                             air=coefficients_of(s), signed_mu1=True)
         return th + off
 
     t, y = t_all[mask], th_all[mask]
@@ -335,9 +335,6 @@ def judged(meas, result, law: LawTest, *, model: str = "coulomb"):
     -------
     rollfric.fit.result.FitResult
     """
-    from rollfric.fit.lsq import NOISE_FLOOR
-    from rollfric.uncertainty import quality
-
     if law.selected != "speed" or model != "coulomb":
         return result
     reasons = list(result.quality_reasons)
