@@ -247,3 +247,48 @@ def test_a_row_that_is_no_uncertainty_is_refused(tmp_path, capsys, u_mu):
     assert main(["combine", a, str(tmp_path / "b.json")]) == 2
     err = capsys.readouterr().err
     assert "b.json" in err and "cylinder.radius_mm" in err and "Traceback" not in err
+
+
+def _law(mu1, u_stat, u_air, selected="coulomb"):
+    return {"selected": selected, "mu1": mu1, "mu1_u_statistical": u_stat,
+            "mu1_u_inputs": u_air, "mu1_u": math.hypot(u_stat, u_air),
+            "inputs": [{"source": "air drag law", "u_mu1": u_air}]}
+
+
+def test_the_friction_law_tested_on_the_releases_together(tmp_path):
+    # mu1 weighted by the statistical parts; the drag law's part is common: it does not
+    # average down, so the z of four releases is not twice one release's
+    mu1s, u_stat, u_air = (4e-6, 6e-6, 5e-6, 5e-6), 3e-6, 2e-6
+    paths = []
+    for i, m in enumerate(mu1s):
+        p = fit_json(tmp_path / f"f{i}.json", 0.01, 1e-5)
+        data = json.loads(open(p).read())
+        data["friction_law"] = _law(m, u_stat, u_air)
+        open(p, "w").write(json.dumps(data))
+        paths.append(p)
+    c, _ = combine_files(paths)
+    law = c.to_json()["friction_law"]
+    mean = sum(mu1s) / 4
+    chi = sum((m - mean) ** 2 for m in mu1s) / u_stat**2
+    u = math.hypot(max(1.0, math.sqrt(chi / 3)) * u_stat / 2, u_air)
+    assert law["mu1"] == pytest.approx(mean, rel=1e-12)
+    assert law["mu1_u"] == pytest.approx(u, rel=1e-12)
+    assert law["z"] == pytest.approx(mean / u, rel=1e-12)
+    assert law["selected"] == "speed" and law["n"] == 4  # z 2.0 > 1.645
+    assert "friction_law" in [r["code"] for r in c.quality_reasons]
+    # each alone says coulomb (z = 5e-6 / 3.6e-6 = 1.4): together they reject it
+
+
+def test_runs_suspect_only_for_their_law_are_kept_and_models_must_agree(tmp_path):
+    a = fit_json(tmp_path / "a.json", 0.01, 1e-5)
+    b = fit_json(tmp_path / "b.json", 0.01, 1e-5, quality="suspect")
+    data = json.loads(open(b).read())
+    data["quality_reasons"] = [{"code": "friction_law", "message": "speed"}]
+    open(b, "w").write(json.dumps(data))
+    c, _ = combine_files([a, b])
+    assert c.n == 2 and not c.left_out
+    assert c.to_json()["friction_law"]["selected"] is None  # no law test in these files
+    data["model"] = "speed"
+    open(b, "w").write(json.dumps(data))
+    with pytest.raises(InputError, match="different friction models"):
+        combine_files([a, b])

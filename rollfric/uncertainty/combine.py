@@ -44,6 +44,7 @@ import math
 from pathlib import Path
 
 from rollfric.errors import InputError
+from rollfric.uncertainty.law import combined_law
 from rollfric.uncertainty.runs import Run, check_one_setup, read_fit, run_from_fit, same_value
 
 log = logging.getLogger(__name__)
@@ -76,6 +77,7 @@ class Combined:
     birge_ratio_independent: float  # with the runs' independent parts alone
     left_out: tuple  # ({"path", "reason"}, ...)
     quality_reasons: tuple  # ({"code", "message"}, ...)
+    friction_law: dict = dataclasses.field(default_factory=dict)  # the releases' law test
 
     @property
     def n(self) -> int:
@@ -105,6 +107,7 @@ class Combined:
                 "chi2": self.chi2, "scale": self.scale,
                 "runs": [dict(r) for r in self.runs],
                 "left_out": [dict(r) for r in self.left_out],
+                "friction_law": dict(self.friction_law),
                 "quality": self.quality,
                 "quality_reasons": [dict(r) for r in self.quality_reasons]}
 
@@ -209,7 +212,14 @@ def combine(runs: list[Run], *, coverage_factor: float = COVERAGE_FACTOR,
             + ("" if any(UNLIKE_SOURCES[0] in r.shared for r in runs) else
                "; the runs' budgets are first order: made with --second-order they hold the "
                "setup inputs' interactions, which act differently on each release"))})
-    suspect = [r.path for r in runs if r.quality != "ok"]
+    law = combined_law([r.law for r in runs])
+    if law.get("selected") == "speed":
+        reasons.append({"code": "friction_law", "message": (
+            f"the {law['n']} releases together reject Coulomb friction (p = "
+            f"{law['p_value']:.2g}): mu1 = {law['mu1']:.3g} +- {law['mu1_u']:.2g} s/rad, a "
+            "resistance that grows with speed; mu is the Coulomb coefficient of each release "
+            "(measure them with --model speed for mu0)")})
+    suspect = [r.path for r in runs if _suspect(r)]
     if suspect:
         reasons.append({"code": "suspect_runs", "message": (
             f"{len(suspect)} run(s) whose own quality is suspect are included "
@@ -222,7 +232,14 @@ def combine(runs: list[Run], *, coverage_factor: float = COVERAGE_FACTOR,
                     u_shared=u_shared, shared_rows=tuple(rows), runs=run_rows,
                     birge_ratio=rb, birge_range=(lo, hi), chi2=chi2, scale=scale,
                     birge_ratio_independent=math.sqrt(chi2_independent / (n - 1)),
-                    left_out=tuple(left_out), quality_reasons=tuple(reasons))
+                    left_out=tuple(left_out), quality_reasons=tuple(reasons),
+                    friction_law=law)
+
+
+def _suspect(run: Run) -> bool:
+    """A run whose own quality is not ok, for a reason other than its friction law (a run
+    suspect for its law alone is kept: the releases test the law together)."""
+    return run.quality != "ok" and set(run.quality_codes) != {"friction_law"}
 
 
 def _chi2(mus, mean: float, w, cov, inv) -> tuple[float, float]:
@@ -285,15 +302,20 @@ def combine_files(paths, *, include_suspect: bool = False,
         warnings = check_one_setup(runs)
     else:
         warnings = []
+    models = {r.model for r in runs}
+    if len(models) > 1:
+        raise InputError("the runs were fitted with different friction models ("
+                         + "; ".join(f"{r.path}: {r.model}" for r in runs)
+                         + "): fit them all with one --model")
     left_out = []
     if not include_suspect:
         for r in runs:
-            if r.quality != "ok":
+            if _suspect(r):
                 why = ", ".join(r.quality_codes) or r.quality
                 left_out.append({"path": r.path, "reason": f"quality {r.quality} ({why})"})
                 warnings.append(f"{r.path}: left out, its quality is {r.quality} ({why}); "
                                 "--include-suspect keeps it")
-        runs = [r for r in runs if r.quality == "ok"]
+        runs = [r for r in runs if not _suspect(r)]
     for w in warnings:
         log.warning(w)
     return combine(runs, coverage_factor=coverage_factor, left_out=tuple(left_out)), warnings
@@ -326,6 +348,14 @@ def format_summary(c: Combined, out=None) -> str:
              + ("; below it: the runs agree better than their budgets expect"
                 if c.birge_ratio < c.birge_range[0] else "")
              + f"); with the independent parts alone {c.birge_ratio_independent:.3g}"]
+    law = c.friction_law
+    if law.get("selected"):
+        lines.append(f"  friction law, the releases together: {law['selected']} (p = "
+                     f"{law['p_value']:.2g}; mu1 = {law['mu1']:.3g} +- {law['mu1_u']:.2g} s/rad, "
+                     f"of which the setup's inputs {law['mu1_u_inputs']:.2g}, shared; "
+                     f"detectable mu1 >= {law['mu1_detectable']:.2g} s/rad)")
+    elif law:
+        lines.append(f"  friction law: not tested together ({law.get('why', '')})")
     for r in c.runs:
         lines.append(f"  {r['path']}: mu = {r['mu']:.6f} +- {r['u_independent']:.2g} "
                      f"(independent), weight {r['weight']:.3f}")

@@ -395,3 +395,78 @@ def verdict(meas, result, model: str = "coulomb"):
     if model != "coulomb" and result.method == "lsq":
         result = dataclasses.replace(result, extra={**result.extra, "model": "speed"})
     return result, law.to_json()
+
+
+def combined_law(laws, *, level: float = LEVEL) -> dict:
+    """The friction law tested on repeated releases together (``rollfric combine``).
+
+    Each release's speed-law fit (fit.json ``friction_law``) gives mu1 with a statistical
+    part of its u, independent between releases, and an inputs' part (the drag law, the
+    radius, ...), the same error on every release of one setup. mu1 is their mean weighted by
+    the statistical parts; its u is the mean's statistical part, scaled by the releases'
+    Birge ratio when above 1 (as :mod:`rollfric.uncertainty.combine` does for mu), combined
+    with each input's part as a common error (its u(mu1) in each release, weighted: it does not
+    average down). The test is the one-sided z = mu1 / u(mu1) of :func:`friction_law`.
+
+    Parameters
+    ----------
+    laws : sequence of dict
+        The releases' ``friction_law`` objects (fit.json); those not tested (``selected``
+        null) or without the two parts of u(mu1) are left out.
+    level : float
+        The test's level.
+
+    Returns
+    -------
+    dict
+        combined.json's ``friction_law``: ``selected`` ("coulomb" or "speed"), ``p_value``,
+        ``z``, ``mu1``, ``mu1_u`` with its ``mu1_u_statistical`` and ``mu1_u_inputs``,
+        ``mu1_detectable`` (80 % power), ``birge_ratio`` of the releases' mu1, ``n``; or
+        ``selected`` null with ``why`` when fewer than two releases were tested.
+
+    Examples
+    --------
+    Two releases whose mu1 agree within their statistical u; the drag law's part does not
+    average down:
+
+    >>> from rollfric.uncertainty.law import combined_law
+    >>> run = {"selected": "coulomb", "mu1": 2e-6, "mu1_u_statistical": 3e-6,
+    ...        "mu1_u_inputs": 4e-6, "inputs": [{"source": "air drag law", "u_mu1": 4e-6}]}
+    >>> c = combined_law([run, dict(run, mu1=1e-6)])
+    >>> c["selected"], f"{c['mu1_u_statistical']:.2g}", f"{c['mu1_u_inputs']:.2g}"
+    ('coulomb', '2.1e-06', '4e-06')
+    """
+    def usable(law):
+        return (isinstance(law, dict) and law.get("selected") is not None
+                and all(isinstance(law.get(k), (int, float)) and math.isfinite(law[k])
+                        for k in ("mu1", "mu1_u_statistical", "mu1_u_inputs"))
+                and law["mu1_u_statistical"] > 0)
+
+    tested = [law for law in laws if usable(law)]
+    if len(tested) < 2:
+        return {"selected": None, "n": len(tested), "level": level, "statistic": STATISTIC,
+                "why": f"{len(tested)} release(s) with a friction-law test: at least two needed"}
+    inv = np.array([law["mu1_u_statistical"] ** -2 for law in tested])
+    w = inv / inv.sum()
+    mu1s = np.array([law["mu1"] for law in tested])
+    mu1 = float(w @ mu1s)
+    u_stat = float(inv.sum() ** -0.5)
+    n = len(tested)
+    birge = math.sqrt(float(np.sum(inv * (mu1s - mu1) ** 2)) / (n - 1))
+    # each input a common error: its weighted u(mu1); a release without the per-input list
+    # carries its whole inputs' part as one common source
+    shared: dict = {}
+    for wi, law in zip(w, tested, strict=True):
+        rows = [(r.get("source"), r.get("u_mu1")) for r in law.get("inputs") or []
+                if isinstance(r, dict) and isinstance(r.get("u_mu1"), (int, float))]
+        for source, u in rows or [("inputs", law["mu1_u_inputs"])]:
+            shared[source] = shared.get(source, 0.0) + wi * float(u)
+    u_inputs = math.sqrt(sum(v * v for v in shared.values()))
+    u = math.hypot(max(1.0, birge) * u_stat, u_inputs)
+    z = mu1 / u if u > 0 else math.nan
+    p = float(stats.norm.sf(z)) if math.isfinite(z) else math.nan
+    return {"selected": "speed" if p < level else "coulomb", "p_value": p, "z": z,
+            "mu1": mu1, "mu1_u": u, "mu1_u_statistical": max(1.0, birge) * u_stat,
+            "mu1_u_inputs": u_inputs, "mu1_detectable": detectable(u), "detectable_power": POWER,
+            "birge_ratio": birge, "n": n, "level": level, "statistic": STATISTIC,
+            "units": {"mu1": "s/rad"}}

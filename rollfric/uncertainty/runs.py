@@ -22,7 +22,9 @@ FLOAT_REL = 1e-9  # setup values closer than this (relative) are the same value
 class Run:
     """One release: its mu, the independent part of its u and its shared rows.
 
-    ``shared`` maps a row's source to (signed u_mu, the input's recorded value or None).
+    ``shared`` maps a row's source to (signed u_mu, the input's recorded value or None);
+    ``law`` is fit.json's ``friction_law`` (None when it has none), ``model`` the fitted
+    friction model ("coulomb", or "speed": ``mu`` is then mu0).
     """
 
     path: str
@@ -33,6 +35,8 @@ class Run:
     quality: str
     quality_codes: tuple
     setup: dict | None
+    law: dict | None = None
+    model: str = "coulomb"
 
 
 
@@ -147,10 +151,13 @@ def run_from_fit(data: dict, path) -> Run:
     reasons = reasons if isinstance(reasons, list) else []
     codes = tuple(str(r.get("code", "?")) if isinstance(r, dict) else str(r) for r in reasons)
     setup = data.get("setup")
+    law = data.get("friction_law")
+    model = "speed" if data.get("model") in ("speed", "velocity") else "coulomb"
     return Run(path=str(path), mu=float(data["mu"]), u_independent=math.sqrt(u2),
                u_mu=float(data["u_mu"]), shared=shared,
                quality=str(data.get("quality", "ok")), quality_codes=codes,
-               setup=setup if isinstance(setup, dict) else None)
+               setup=setup if isinstance(setup, dict) else None,
+               law=law if isinstance(law, dict) else None, model=model)
 
 
 def _flatten(d: dict, prefix: str = "") -> dict:
