@@ -65,9 +65,12 @@ RESIDUAL_RATIO = 3.0
 RADIUS_TOL = 0.02
 RADIUS_SIGMAS = 8.0
 # occluded: a fitted share of the rim below OCCLUDED_RATIO x the median of the 3 frames just
-# before it or of the 3 just after it (an object entering or leaving the ball)
+# before it or of the 3 just after it (an object entering or leaving the ball), and below it
+# by more than OCCLUDED_SIGMAS robust sigmas of the track's own frame-to-frame scatter of that
+# share (a ball of a few px has few rim pixels: its share varies by ~0.07 from frame to frame)
 OCCLUDED_RATIO = 0.7
 OCCLUDED_WINDOW = 3
+OCCLUDED_SIGMAS = 5.0
 # off_path: the distance from the trough centre more than OFF_PATH_SIGMAS robust sigmas of the
 # track's own scatter about its fitted path, and more than OFF_PATH_FLOOR of the ball's radius
 # (the scatter of a clean track is the locator's, ~0.02 px: a lens or a pinhole bends the path
@@ -418,12 +421,17 @@ def _radius_outliers(radius, r_ref: float, r_rel_sigma: float | None) -> np.ndar
 def _occluded(inlier_frac, ok: np.ndarray) -> np.ndarray:
     """Frames with an abrupt loss of rim (``inlier_frac``) against the frames just before or
     just after them (a slow change, the ball rolling into a shadow or against the trough, is
-    no occlusion)."""
+    no occlusion), and by more than the track's own scatter of it (:data:`OCCLUDED_SIGMAS`)."""
     f = np.asarray(inlier_frac, dtype=float)
     before = _side_median(f, ok, -OCCLUDED_WINDOW)
     after = _side_median(f, ok, OCCLUDED_WINDOW)
     ref = np.fmax(before, after)
-    return np.isfinite(f) & np.isfinite(ref) & (f < OCCLUDED_RATIO * ref)
+    d = ref - f
+    fin = ok & np.isfinite(d)
+    # the drop's robust sigma (MAD about the median) over the track's frames
+    scatter = 1.4826 * float(np.median(np.abs(d[fin] - np.median(d[fin])))) if fin.any() else 0.0
+    return np.isfinite(f) & np.isfinite(ref) & (f < OCCLUDED_RATIO * ref) & \
+        (d > OCCLUDED_SIGMAS * scatter)
 
 
 def _repeated(x, y, found, ok: np.ndarray, same_pixels) -> np.ndarray:
