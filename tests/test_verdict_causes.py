@@ -4,9 +4,11 @@ drawn recordings of :mod:`validation.faults.recordings` or on a track with a kno
 import logging
 
 import numpy as np
+import pytest
 
 from rollfric.measurement import measure
 from rollfric.track import plausibility
+from validation.faults import camera as camera_faults
 from validation.faults.recordings import Family, clean, faulty
 
 logging.getLogger("rollfric").setLevel(logging.ERROR)
@@ -78,3 +80,22 @@ def test_a_held_start_is_still_found_with_the_tracks_own_acceleration():
     # still time of the release (10 ms) and stay in
     assert held[0] == 0 and 14 <= held[-1] <= 18
     assert abs(res.mu / rec.mu - 1) < 1e-3
+
+
+@pytest.mark.parametrize("fault, size", [("drift", 2.0), ("drift", 1.0), ("bump", 3.0)])
+def test_a_moved_camera_is_corrected_by_locating_the_ball_in_steadied_frames(fault, size):
+    # the centres moved back after locating the ball against the unmoved background: drift
+    # 2 px mu +0.50 % with quality ok; drift 1 px a camera_orientation or timing reason, bump
+    # 3 px a stale timing reason (steps at frames 221, 336, 355, not the bump's 200)
+    rec = faulty(fault, size, seed=0)
+    df, info, res = measure(rec.source, rec.setup, rec.background)
+    assert info.camera_motion["kind"] == fault
+    assert abs(res.mu / rec.mu - 1) < 5e-4
+    assert not [r.code for r in res.quality_reasons]
+    shift = np.asarray(rec.truth["shift_px"])
+    true = rec.centers - camera_faults.camera_shift(
+        len(df), **({"bump_at": rec.truth["bump_frame"], "bump_px": tuple(shift)}
+                    if fault == "bump" else {"drift_px": tuple(shift)}))
+    found = df["found"].to_numpy() == 1
+    err = np.hypot(df["x_px"] - true[:, 0], df["y_px"] - true[:, 1])[found]
+    assert np.median(err) < 0.05
