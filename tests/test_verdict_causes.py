@@ -110,3 +110,24 @@ def test_a_rest_half_way_with_the_median_background_is_not_refused():
     rest = np.flatnonzero(df["still"].to_numpy() == "rest")
     assert rest.size and abs(rest[0] - rec.truth["rest_from"]) <= 10 and rest[-1] == len(df) - 1
     assert abs(res.mu / rec.mu - 1) < 1e-3
+
+
+def test_lamp_flicker_that_alternates_the_frames_is_no_contrast_flag_but_a_flash_is():
+    # 10 % flicker of 100 Hz lamps at 200 frames/s: the frames' gain alternates 1.1, 0.9
+    x, y = _track()
+    found = np.ones(x.size, bool)
+    gain = 1.0 + 0.1 * np.where(np.arange(x.size) % 2 == 0, 1.0, -1.0)
+    assert not (plausibility.flag_frames(x, y, found, gain=gain) == "contrast").any()
+    gain[150] *= 1.3  # a flash of 30 % on a brighter frame
+    gain[251] *= 1.4  # and one of 40 % on a darker one (26 % above the frames' mean level)
+    flags = plausibility.flag_frames(x, y, found, gain=gain)
+    assert set(np.flatnonzero(flags == "contrast")) == {150, 251}
+
+
+def test_a_recording_with_10_percent_lamp_flicker_loses_no_frame():
+    # seed 1 of the fault study: every brighter frame (200 of 400) was a "contrast" outlier
+    rec = faulty("flicker", 0.10, seed=1)
+    df, info, res = measure(rec.source, rec.setup, rec.background)
+    assert info.flags.get("contrast", 0) == 0
+    assert not [r.code for r in res.quality_reasons]
+    assert abs(res.mu / rec.mu - 1) < 5e-4

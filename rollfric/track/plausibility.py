@@ -55,6 +55,10 @@ MAX_GAP = 12  # neighbours farther than this many frames away do not predict
 # contrast: lamp flicker moves the brightness by up to 10 % (measured in the flicker tests);
 # twice that is not the same exposure
 CONTRAST_TOL = 0.2
+# the neighbours within +-CONTRAST_WINDOW frames; the reference is the mean of the median of
+# those an odd number of frames away and of those an even number away (mains flicker sampled
+# at twice its rate alternates the frames: the median of all +-5 held 6 of the other kind and
+# 4 of the own, and 10 % flicker read as 22 % on every brighter frame)
 CONTRAST_WINDOW = 5
 # residual: the centre error is robust-z > RESIDUAL_SIGMAS above the track's median and more
 # than RESIDUAL_RATIO x it (a spoiled rim, not the rim's ordinary variation along the path)
@@ -136,12 +140,16 @@ def _nearest(ok: np.ndarray, i: np.ndarray, k: int, sides: tuple[int, ...] = (-1
     return j, use
 
 
-def _neighbour_median(v: np.ndarray, ok: np.ndarray, half: int) -> np.ndarray:
-    """For each frame, the median of ``v`` over the ok frames within +-half, itself left out."""
+def _neighbour_median(v: np.ndarray, ok: np.ndarray, half: int,
+                      parity: int | None = None) -> np.ndarray:
+    """For each frame, the median of ``v`` over the ok frames within +-half, itself left out
+    (with ``parity``, only those an odd (1) or even (0) number of frames away)."""
     n = v.size
     out = np.full(n, np.nan)
     i = np.flatnonzero(ok)
     off = np.r_[-half:0, 1:half + 1]
+    if parity is not None:
+        off = off[np.abs(off) % 2 == parity]
     j = i[:, None] + off
     inside = (j >= 0) & (j < n)
     j = np.clip(j, 0, n - 1)
@@ -397,7 +405,9 @@ def _contrast_outliers(gain, ok: np.ndarray) -> np.ndarray:
     """Frames whose contrast figure ``gain`` is off its neighbours' median by more than
     CONTRAST_TOL."""
     g = np.asarray(gain, dtype=float)
-    ref = _neighbour_median(g, ok, CONTRAST_WINDOW)
+    even, odd = (_neighbour_median(g, ok, CONTRAST_WINDOW, parity=p) for p in (0, 1))
+    ref = np.where(np.isfinite(even) & np.isfinite(odd), 0.5 * (even + odd),
+                   np.where(np.isfinite(even), even, odd))
     return np.isfinite(g) & np.isfinite(ref) & (np.abs(g / ref - 1) > CONTRAST_TOL)
 
 
