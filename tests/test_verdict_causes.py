@@ -2,6 +2,7 @@
 drawn recordings of :mod:`validation.faults.recordings` or on a track with a known truth."""
 
 import logging
+import math
 
 import numpy as np
 import pytest
@@ -131,3 +132,51 @@ def test_a_recording_with_10_percent_lamp_flicker_loses_no_frame():
     assert info.flags.get("contrast", 0) == 0
     assert not [r.code for r in res.quality_reasons]
     assert abs(res.mu / rec.mu - 1) < 5e-4
+
+
+def test_a_centre_off_across_the_path_is_no_irregular_timing_but_one_off_along_it_is():
+    # frames taken at another time are off along the ball's path; centres 0.5 px off across
+    # it from a frame on are not (a 3.5 px ball's centre located 0.5 px off across the path,
+    # its rim half fitted, made "timing" reasons)
+    from rollfric.track.dropped_frames import find_gaps
+    from tests.test_timing import camera_track
+
+    numbers = np.arange(1500, dtype=float)
+    x, y, th = camera_track(numbers)
+    k = 850  # mid-swing: the ball moves along x
+    vx, vy = x[k + 1] - x[k - 1], y[k + 1] - y[k - 1]
+    ux, uy = -vy / math.hypot(vx, vy), vx / math.hypot(vx, vy)  # across the path
+    xa, ya = x.copy(), y.copy()
+    xa[k:] += 0.5 * ux
+    ya[k:] += 0.5 * uy
+    assert find_gaps(xa, ya, np.ones(x.size, bool)).irregular == ()
+    numbers[k:] += 0.5  # every frame from k on half a period late
+    xl, yl, _ = camera_track(numbers)
+    assert [s for s, _ in find_gaps(xl, yl, np.ones(x.size, bool)).irregular] == [k - 1]
+
+
+def test_a_step_is_judged_against_its_frames_stated_errors():
+    # the track from frame k on 0.3 px further along the path (as a frame late by a sixth of
+    # a period would be), in a track whose step noise is 0.02 px: irregular; where the
+    # locator says frames k - 1 and k are 0.15 px uncertain, the step is within their errors
+    from rollfric.track.dropped_frames import find_gaps
+    from tests.test_timing import camera_track
+
+    x, y, _ = camera_track(np.arange(1500, dtype=float))
+    k = 850
+    vx, vy = x[k + 1] - x[k - 1], y[k + 1] - y[k - 1]
+    x[k:] += 0.3 * vx / math.hypot(vx, vy)
+    y[k:] += 0.3 * vy / math.hypot(vx, vy)
+    found = np.ones(x.size, bool)
+    assert find_gaps(x, y, found).irregular  # against the track's noise alone
+    sigma = np.full(x.size, 0.02)
+    sigma[k - 1:k + 1] = 0.15
+    assert find_gaps(x, y, found, sigma).irregular == ()
+
+
+@pytest.mark.parametrize("seed", [1006, 1007, 1013])
+def test_a_clean_3_mm_ball_raises_no_timing_or_located_frames_reason(seed):
+    # the fault study's clean 3 mm ball: located_frames in seeds 1006 and 1007, timing in 1013
+    rec = clean(Family(ball_mm=3.0), seed=seed)
+    df, info, res = measure(rec.source, rec.setup, rec.background)
+    assert not [r.code for r in res.quality_reasons]
