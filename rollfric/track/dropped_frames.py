@@ -17,8 +17,11 @@ beyond a gap predict in the right time), until nothing new is found. It is kept 
 it then matches m periods to within the noise and the steps before and after it are ordinary
 (a located frame that is off - a glitch, a repeated frame - spoils two steps, a gap only one).
 sigma is the track's own step noise (the median r / 1.1774: Rayleigh for Gaussian centre
+errors; a step whose two frames the locator states less certain is judged against their
 errors). A step far off its prediction with ordinary neighbours that is no whole number of
-periods is "irregular": the timing cannot be repaired there.
+periods, and off along the ball's path (a frame taken at another time is; one off across the
+path by more than the noise is a centre located off), is "irregular": the timing cannot be
+repaired there.
 
 A gap is seen only where the ball moves: at a turning point the step is below the noise and one
 more period there cannot be told (:attr:`Gaps.min_step_px`). ``DETECT_SIGMAS`` = 8: a good step
