@@ -180,3 +180,22 @@ def test_a_clean_3_mm_ball_raises_no_timing_or_located_frames_reason(seed):
     rec = clean(Family(ball_mm=3.0), seed=seed)
     df, info, res = measure(rec.source, rec.setup, rec.background)
     assert not [r.code for r in res.quality_reasons]
+
+
+def test_steadied_frames_are_the_unmoved_ones_and_a_region_reads_as_the_whole_frame():
+    from rollfric.track.steadied import SteadiedSource
+
+    moved = faulty("bump", 3.0, seed=0)  # 3 px right from frame 200 on
+    still = clean(Family(), seed=0)
+    shifts = np.zeros((len(moved.source), 2))
+    shifts[200:, 0] = 3.0
+    s = SteadiedSource(moved.source, shifts)
+    # an integer shift moves the pixels exactly: the unmoved frame but for the 3 columns at
+    # the right edge, which the moved frame no longer holds
+    np.testing.assert_array_equal(s[300][:, :-3], still.source[300][:, :-3])
+    np.testing.assert_array_equal(s[100], still.source[100])
+    shifts[:, 1] = np.linspace(0.0, -1.7, len(shifts))  # and fractional shifts
+    s = SteadiedSource(moved.source, shifts)
+    for i, roi in ((399, (0, 20, 0, 30)), (250, (100, 180, 200, 260)),
+                   (50, (260, 280, 450, 480))):
+        np.testing.assert_array_equal(s.read(i, roi), s[i][roi[0]:roi[1], roi[2]:roi[3]])

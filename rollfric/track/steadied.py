@@ -37,15 +37,31 @@ class SteadiedSource(BaseSource):
 
     def __getitem__(self, i):
         i = self._index(i)
-        frame = self.source[i]
+        return self._moved(self.source[i], *self.shifts[i], 0, 0)
+
+    def _read_roi(self, i, y0, y1, x0, x1):
+        # the region grown by the shift (and the interpolation's pixel) read and moved: the
+        # same bytes as the whole frame moved, cropped
         dx, dy = self.shifts[i]
+        pad = int(np.ceil(max(abs(dx), abs(dy)))) + 2
+        h, w = self.shape[1:]
+        ya, yb, xa, xb = max(0, y0 - pad), min(h, y1 + pad), max(0, x0 - pad), min(w, x1 + pad)
+        read = getattr(self.source, "read", None)
+        tile = read(i, (ya, yb, xa, xb)) if read is not None else \
+            self.source[i][ya:yb, xa:xb]
+        return self._moved(tile, dx, dy, xa, ya)[y0 - ya:y1 - ya, x0 - xa:x1 - xa]
+
+    @staticmethod
+    def _moved(img, dx: float, dy: float, xa: int, ya: int):
+        """``img`` (the frame's region from (xa, ya)) moved back by (dx, dy), the frame's
+        edge pixels repeated beyond it."""
         if dx == 0.0 and dy == 0.0:
-            return frame
-        h, w = frame.shape
+            return img
+        h, w = img.shape
         m = np.float32([[1.0, 0.0, -dx], [0.0, 1.0, -dy]])
-        moved = cv2.warpAffine(frame.astype(np.float32), m, (w, h), flags=cv2.INTER_LINEAR,
+        moved = cv2.warpAffine(img.astype(np.float32), m, (w, h), flags=cv2.INTER_LINEAR,
                                borderMode=cv2.BORDER_REPLICATE)
-        if np.issubdtype(frame.dtype, np.integer):
-            info = np.iinfo(frame.dtype)
-            return np.clip(np.rint(moved), info.min, info.max).astype(frame.dtype)
-        return moved.astype(frame.dtype)
+        if np.issubdtype(img.dtype, np.integer):
+            info = np.iinfo(img.dtype)
+            return np.clip(np.rint(moved), info.min, info.max).astype(img.dtype)
+        return moved.astype(img.dtype)
