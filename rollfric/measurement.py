@@ -41,6 +41,7 @@ from rollfric.track.setup_checks import (
     check_track_fits,
     setup_from_recording,
 )
+from rollfric.track.steadied import SteadiedSource
 from rollfric.track.still import mark_still, median_without_still
 from rollfric.track.timestamps import (
     TIMES_FPS,
@@ -177,7 +178,14 @@ def measure(recording, setup: Setup | str | None = None, background=None, *,
         df, info, still_notes, bg = _without_still(source, df, info, still_notes, bg, setup,
                                                    median_frames, camera.full_scale, track)
     if fit:  # the measurement's; without a fit the track as located
-        df, info = correct_for_motion(source, bg.image, df, info, setup, angle)
+        def steadied(shifts):  # tracked again with the frames moved back (a moved camera)
+            return functools.partial(_tracked, SteadiedSource(source, shifts), *track.args[1:],
+                                     **track.keywords)(bg.image)
+
+        df, info = correct_for_motion(source, bg.image, df, info, setup, angle,
+                                      retrack=steadied)
+        if (info.camera_motion or {}).get("kind") in ("bump", "drift"):
+            still_notes = mark_still(df, setup)
     n_found = int(df["found"].sum())  # what the track was measured with, into its TrackInfo
     info = dataclasses.replace(info, setup=setup, background=bg.desc, center_source=axis.source,
                                background_from="given" if background is not None else

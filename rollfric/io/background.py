@@ -142,9 +142,21 @@ def repaired_median(stack: np.ndarray, r_px: float, *,
     return repaired, notes, sources
 
 
+def only_about(cands_per_frame: list, x0: float, y0: float, r_px: float) -> int:
+    """Frames whose every candidate lies within r of (x0, y0) but none within r/2: the ball
+    resting there against a median that holds it, whose rim's faint change is neither the
+    backdrop revealed there nor a ball elsewhere (they count in no share of the place)."""
+    n = 0
+    for cs in cands_per_frame:
+        d = [math.hypot(c[0] - x0, c[1] - y0) for c in cs]
+        n += bool(d) and max(d) <= r_px and min(d) > 0.5 * r_px
+    return n
+
+
 def _holes(cands_per_frame: list, r_px: float) -> list:
     """Places (x, y, [frame numbers]) where a candidate sits within r/2 in at least HOLE_SHARE
-    of the frames."""
+    of the frames (those showing only a faint change about the place left out:
+    :func:`only_about`)."""
     n = len(cands_per_frame)
     points = [(c[0], c[1], k) for k, cs in enumerate(cands_per_frame) for c in cs]
     holes = []
@@ -153,7 +165,8 @@ def _holes(cands_per_frame: list, r_px: float) -> list:
             continue
         near = [(x, y, k) for x, y, k in points if math.hypot(x - x0, y - y0) <= 0.5 * r_px]
         frames_with = sorted({k for _, _, k in near})
-        if len(frames_with) >= max(MIN_FRAMES_SHOWING, HOLE_SHARE * n):
+        n_eff = n - only_about(cands_per_frame, x0, y0, r_px)
+        if len(frames_with) >= max(MIN_FRAMES_SHOWING, HOLE_SHARE * n_eff):
             xs = np.median([x for x, _, _ in near])
             ys = np.median([y for _, y, _ in near])
             holes.append((float(xs), float(ys), frames_with))

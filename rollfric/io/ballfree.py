@@ -24,7 +24,7 @@ import numpy as np
 
 from rollfric import locate
 from rollfric.errors import InputError
-from rollfric.io.background import HOLE_SHARE, MIN_FRAMES_SHOWING, median
+from rollfric.io.background import HOLE_SHARE, MIN_FRAMES_SHOWING, median, only_about
 
 # the backgrounds `rollfric measure --background-from` offers
 KINDS = ("median", "clip", "max")
@@ -179,7 +179,8 @@ def seen_places(stack: np.ndarray, background: np.ndarray, r_px: float, *,
             continue
         n = sum(1 for ps in seen if any(math.hypot(x - x0, y - y0) <= 0.5 * r_px
                                         for x, y in ps))
-        if n >= max(MIN_FRAMES_SHOWING, HOLE_SHARE * showing):
+        n_eff = showing - only_about(seen, x0, y0, r_px)
+        if n >= max(MIN_FRAMES_SHOWING, HOLE_SHARE * n_eff):
             holes.append((x0, y0))
     places = [[(x, y) for x, y in ps
                if all(math.hypot(x - hx, y - hy) > r_px for hx, hy in holes)] for ps in seen]

@@ -258,12 +258,14 @@ def find_motion(source, background, centres, r_px: float, *, samples: int = SAMP
     return CameraMotion("drift", idx, s, size_px=(float(rel[-1, 0]), float(rel[-1, 1])))
 
 
-def correct_for_motion(source, bg, df, info, setup, angle):
+def correct_for_motion(source, bg, df, info, setup, angle, *, retrack=None):
     """The camera's motion from the static scene (:func:`find_motion`) taken out of a track.
 
-    The centres in ``df`` are moved back into the background's frame and the angles taken
-    again; the steps the motion made are no timing's (left out of ``timing_irregular`` and
-    ``located_irregular``).
+    With ``retrack``, the recording is tracked again with its frames moved back
+    (``retrack(shifts)``, shifts (T, 2) px: see :mod:`rollfric.track.steadied`), the ball
+    located against a background that matches every frame. Without it, the centres in ``df``
+    are moved back into the background's frame and the angles taken again; the steps the
+    motion made are no timing's (left out of ``timing_irregular`` and ``located_irregular``).
 
     Parameters
     ----------
@@ -279,6 +281,9 @@ def correct_for_motion(source, bg, df, info, setup, angle):
         The setup (the path's radius for the arcsin angle).
     angle : str
         The angle formula (:func:`rollfric.geometry.theta.angles`).
+    retrack : callable, optional
+        ``retrack(shifts) -> (df, info)``: the recording tracked again with each frame moved
+        back by its shift.
 
     Returns
     -------
@@ -304,6 +309,13 @@ def correct_for_motion(source, bg, df, info, setup, angle):
                         "ball is too plain")
         return df, dataclasses.replace(info, camera_motion=motion.to_dict())
     per = motion.per_frame(len(df))
+    if retrack is not None:
+        df, again = retrack(per)
+        msg = (f"{motion.message()}: the frames were moved back into the background's frame "
+               "and the ball located again")
+        logger.warning(msg)
+        return df, dataclasses.replace(again, camera_motion=motion.to_dict(),
+                                       warnings=again.warnings + (msg,))
     cols = [("x_px", "y_px")] + ([("xu_px", "yu_px")] if "xu_px" in df.columns else [])
     for cx, cy in cols:
         df[cx] = df[cx].to_numpy(float) - per[:, 0]

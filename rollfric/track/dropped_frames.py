@@ -17,8 +17,11 @@ beyond a gap predict in the right time), until nothing new is found. It is kept 
 it then matches m periods to within the noise and the steps before and after it are ordinary
 (a located frame that is off - a glitch, a repeated frame - spoils two steps, a gap only one).
 sigma is the track's own step noise (the median r / 1.1774: Rayleigh for Gaussian centre
+errors; a step whose two frames the locator states less certain is judged against their
 errors). A step far off its prediction with ordinary neighbours that is no whole number of
-periods is "irregular": the timing cannot be repaired there.
+periods, and off along the ball's path (a frame taken at another time is; one off across the
+path by more than the noise is a centre located off), is "irregular": the timing cannot be
+repaired there.
 
 A gap is seen only where the ball moves: at a turning point the step is below the noise and one
 more period there cannot be told (:attr:`Gaps.min_step_px`). ``DETECT_SIGMAS`` = 8: a good step
@@ -122,7 +125,7 @@ def _expected(coef: np.ndarray, m: np.ndarray) -> np.ndarray:
     return m[:, None] * v
 
 
-def find_gaps(x, y, found) -> Gaps:
+def find_gaps(x, y, found, sigma_px=None) -> Gaps:
     """Find dropped frames (and irregular steps) in a track of ball centres.
 
     Parameters
@@ -131,6 +134,10 @@ def find_gaps(x, y, found) -> Gaps:
         (T,) the ball's centre in each recorded frame (px), NaN where not found.
     found : array_like of bool
         (T,) frames where the ball was located.
+    sigma_px : array_like, optional
+        (T,) the locator's stated centre error of each frame (px, one axis): a step is judged
+        against its two frames' errors where they exceed the track's step noise (a ball of a
+        few px whose rim half fits: 0.1 px stated, where the track's median is 0.05).
 
     Returns
     -------
@@ -157,6 +164,11 @@ def find_gaps(x, y, found) -> Gaps:
     # periods, the periods are counted in (later frames that much later) and the predictions
     # made again, until no new step is left out
     changed = None  # the steps whose neighbourhood changed since the last pass (None: all)
+    # each step's own noise floor: its two frames' stated errors (0 where none)
+    stated = np.zeros(n - 1)
+    if sigma_px is not None:
+        sp = np.nan_to_num(np.asarray(sigma_px, dtype=float), nan=0.0, posinf=0.0)
+        stated = np.hypot(sp[:-1], sp[1:])
     for _ in range(PASSES):
         periods = 1.0 + gaps
         pos = np.r_[0.0, np.cumsum(periods)]
@@ -167,7 +179,7 @@ def find_gaps(x, y, found) -> Gaps:
         if good.sum() < 10:
             return empty
         sigma = max(float(np.median(r[good & use])) / 1.1774, SIGMA_FLOOR_PX)
-        rr = np.where(good, r, 0.0)
+        rr = np.where(good, r / np.maximum(sigma, stated), 0.0) * sigma
         peak = rr >= maximum_filter1d(rr, 2 * HALF_WINDOW + 1, mode="constant")
         bad = good & (rr > DETECT_SIGMAS * sigma) & peak & use
         if not bad.any():
@@ -182,7 +194,7 @@ def find_gaps(x, y, found) -> Gaps:
         # same)
         changed = maximum_filter1d(bad.astype(np.uint8), 2 * HALF_WINDOW + 3) > 0
     checked = ok & np.isfinite(r)
-    z = np.where(checked, r / sigma, 0.0)
+    z = np.where(checked, r / np.maximum(sigma, stated), 0.0)
     dropped, irregular = [], []
     for k in np.nonzero((gaps > 0) | (z > DETECT_SIGMAS))[0]:
         nbr = [j for j in (k - 1, k + 1) if 0 <= j < n - 1]
@@ -196,6 +208,12 @@ def find_gaps(x, y, found) -> Gaps:
         if isolated and z[k] > DETECT_SIGMAS:
             v = coef[k, 0]
             vv = float(v @ v)
+            # a step taken at another time than its period is off along the ball's path;
+            # one off across it by more than the noise allows is a centre located off
+            e = d[k] - v
+            across = abs(float(e[0] * v[1] - e[1] * v[0])) / math.sqrt(vv) if vv > 0 else 0.0
+            if across > FIT_SIGMAS * max(sigma, stated[k]):
+                continue
             irregular.append((int(k), float(d[k] @ v) / vv if vv > 0 else math.nan))
     pos = np.r_[0.0, np.cumsum(1.0 + gaps)]
     return Gaps(pos=pos, dropped=tuple(dropped), irregular=tuple(irregular), sigma_px=sigma,
@@ -234,7 +252,7 @@ def split_irregular(irregular, distrusted) -> tuple[tuple, tuple]:
     return tuple(timing), tuple(located)
 
 
-def confirm_irregular(x, y, found, rejected, repeated, irregular) -> tuple:
+def confirm_irregular(x, y, found, rejected, repeated, irregular, sigma_px=None) -> tuple:
     """The irregular steps found again without the frames the plausibility checks rejected.
 
     :func:`find_gaps` judges every located centre. A glitched frame (repeated, swapped, a
@@ -259,6 +277,8 @@ def confirm_irregular(x, y, found, rejected, repeated, irregular) -> tuple:
         (T,) frames rejected as repeats of the frame before.
     irregular : sequence of (int, float)
         (k, ratio) of :attr:`Gaps.irregular` over every located frame.
+    sigma_px : array_like, optional
+        (T,) the locator's stated centre errors (:func:`find_gaps`).
 
     Returns
     -------
@@ -270,7 +290,7 @@ def confirm_irregular(x, y, found, rejected, repeated, irregular) -> tuple:
     keep = found & ~np.asarray(rejected, dtype=bool)
     for k, _ in irregular:
         keep[k:k + 2] = found[k:k + 2] & ~repeated[k:k + 2]
-    again = irregular if np.array_equal(keep, found) else find_gaps(x, y, keep).irregular
+    again = irregular if np.array_equal(keep, found) else find_gaps(x, y, keep, sigma_px).irregular
     return tuple((int(k), float(r)) for k, r in again
                  if not (repeated[k] or repeated[min(k + 1, len(repeated) - 1)]))
 

@@ -55,6 +55,10 @@ MAX_GAP = 12  # neighbours farther than this many frames away do not predict
 # contrast: lamp flicker moves the brightness by up to 10 % (measured in the flicker tests);
 # twice that is not the same exposure
 CONTRAST_TOL = 0.2
+# the neighbours within +-CONTRAST_WINDOW frames; the reference is the mean of the median of
+# those an odd number of frames away and of those an even number away (mains flicker sampled
+# at twice its rate alternates the frames: the median of all +-5 held 6 of the other kind and
+# 4 of the own, and 10 % flicker read as 22 % on every brighter frame)
 CONTRAST_WINDOW = 5
 # residual: the centre error is robust-z > RESIDUAL_SIGMAS above the track's median and more
 # than RESIDUAL_RATIO x it (a spoiled rim, not the rim's ordinary variation along the path)
@@ -65,9 +69,12 @@ RESIDUAL_RATIO = 3.0
 RADIUS_TOL = 0.02
 RADIUS_SIGMAS = 8.0
 # occluded: a fitted share of the rim below OCCLUDED_RATIO x the median of the 3 frames just
-# before it or of the 3 just after it (an object entering or leaving the ball)
+# before it or of the 3 just after it (an object entering or leaving the ball), and below it
+# by more than OCCLUDED_SIGMAS robust sigmas of the track's own frame-to-frame scatter of that
+# share (a ball of a few px has few rim pixels: its share varies by ~0.07 from frame to frame)
 OCCLUDED_RATIO = 0.7
 OCCLUDED_WINDOW = 3
+OCCLUDED_SIGMAS = 5.0
 # off_path: the distance from the trough centre more than OFF_PATH_SIGMAS robust sigmas of the
 # track's own scatter about its fitted path, and more than OFF_PATH_FLOOR of the ball's radius
 # (the scatter of a clean track is the locator's, ~0.02 px: a lens or a pinhole bends the path
@@ -133,12 +140,16 @@ def _nearest(ok: np.ndarray, i: np.ndarray, k: int, sides: tuple[int, ...] = (-1
     return j, use
 
 
-def _neighbour_median(v: np.ndarray, ok: np.ndarray, half: int) -> np.ndarray:
-    """For each frame, the median of ``v`` over the ok frames within +-half, itself left out."""
+def _neighbour_median(v: np.ndarray, ok: np.ndarray, half: int,
+                      parity: int | None = None) -> np.ndarray:
+    """For each frame, the median of ``v`` over the ok frames within +-half, itself left out
+    (with ``parity``, only those an odd (1) or even (0) number of frames away)."""
     n = v.size
     out = np.full(n, np.nan)
     i = np.flatnonzero(ok)
     off = np.r_[-half:0, 1:half + 1]
+    if parity is not None:
+        off = off[np.abs(off) % 2 == parity]
     j = i[:, None] + off
     inside = (j >= 0) & (j < n)
     j = np.clip(j, 0, n - 1)
@@ -394,7 +405,9 @@ def _contrast_outliers(gain, ok: np.ndarray) -> np.ndarray:
     """Frames whose contrast figure ``gain`` is off its neighbours' median by more than
     CONTRAST_TOL."""
     g = np.asarray(gain, dtype=float)
-    ref = _neighbour_median(g, ok, CONTRAST_WINDOW)
+    even, odd = (_neighbour_median(g, ok, CONTRAST_WINDOW, parity=p) for p in (0, 1))
+    ref = np.where(np.isfinite(even) & np.isfinite(odd), 0.5 * (even + odd),
+                   np.where(np.isfinite(even), even, odd))
     return np.isfinite(g) & np.isfinite(ref) & (np.abs(g / ref - 1) > CONTRAST_TOL)
 
 
@@ -418,12 +431,17 @@ def _radius_outliers(radius, r_ref: float, r_rel_sigma: float | None) -> np.ndar
 def _occluded(inlier_frac, ok: np.ndarray) -> np.ndarray:
     """Frames with an abrupt loss of rim (``inlier_frac``) against the frames just before or
     just after them (a slow change, the ball rolling into a shadow or against the trough, is
-    no occlusion)."""
+    no occlusion), and by more than the track's own scatter of it (:data:`OCCLUDED_SIGMAS`)."""
     f = np.asarray(inlier_frac, dtype=float)
     before = _side_median(f, ok, -OCCLUDED_WINDOW)
     after = _side_median(f, ok, OCCLUDED_WINDOW)
     ref = np.fmax(before, after)
-    return np.isfinite(f) & np.isfinite(ref) & (f < OCCLUDED_RATIO * ref)
+    d = ref - f
+    fin = ok & np.isfinite(d)
+    # the drop's robust sigma (MAD about the median) over the track's frames
+    scatter = 1.4826 * float(np.median(np.abs(d[fin] - np.median(d[fin])))) if fin.any() else 0.0
+    return np.isfinite(f) & np.isfinite(ref) & (f < OCCLUDED_RATIO * ref) & \
+        (d > OCCLUDED_SIGMAS * scatter)
 
 
 def _repeated(x, y, found, ok: np.ndarray, same_pixels) -> np.ndarray:

@@ -31,6 +31,11 @@ STILL_SIGMAS = 6.0
 STILL_FLOOR_RAD = 1e-5
 # the still place: the median of this many frames at the spell's end of the track
 PLACE_FRAMES = 3
+# the ball's acceleration leaving the place, as the track shows it: a quadratic through at
+# least ACCEL_MIN_FRAMES frames within ACCEL_SPAN_RAD of the place (where sin(theta), and so
+# the acceleration, changes by less than a fifth from 0.3 rad)
+ACCEL_SPAN_RAD = 0.05
+ACCEL_MIN_FRAMES = 6
 
 
 def angle_noise(theta: np.ndarray) -> float:
@@ -40,6 +45,18 @@ def angle_noise(theta: np.ndarray) -> float:
         return math.nan
     d2 = np.diff(th, 2)
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+
+
+def _acceleration_seen(t, theta, place: float) -> float | None:
+    """|theta''| (rad/s^2) of the track leaving its still ``place``: a quadratic in time
+    through the frames (from the last still one) within ACCEL_SPAN_RAD of it; None with fewer
+    than ACCEL_MIN_FRAMES of them."""
+    near = np.abs(theta - place) <= ACCEL_SPAN_RAD
+    k = int(np.argmin(near)) if not near.all() else near.size
+    if k < ACCEL_MIN_FRAMES:
+        return None
+    tt = t[:k] - t[:k].mean()
+    return 2.0 * abs(float(np.polyfit(tt, theta[:k], 2)[0]))
 
 
 def _spell(t, theta, ok, setup, delta):
@@ -57,6 +74,11 @@ def _spell(t, theta, ok, setup, delta):
     if j < PLACE_FRAMES:
         return None
     a = 5.0 / 7.0 * setup.gravity * abs(math.sin(place)) / setup.track_radius
+    # the acceleration the track itself shows leaving the place, where smaller: a setup's g
+    # or L that is off (g 98.1 for 9.81) makes a turning ball's stillness look like a hold
+    a_seen = _acceleration_seen(t[idx[j - 1:]], th[j - 1:], place)
+    if a_seen is not None:
+        a = min(a, a_seen)
     if a <= 0:
         return None
     t_nat = math.sqrt(2.0 * delta / a)

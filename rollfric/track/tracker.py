@@ -433,7 +433,7 @@ class Tracker:
         if times is not None:
             pos = np.asarray(times, dtype=float) * self.setup.fps
         elif drops:
-            gaps = timing.find_gaps(rows[:, 0], rows[:, 1], found)
+            gaps = timing.find_gaps(rows[:, 0], rows[:, 1], found, rows[:, 3])
             pos = gaps.pos
             if gaps.dropped:
                 msg = dropped_message(gaps)
@@ -451,6 +451,7 @@ class Tracker:
             center=self.center, r_ball=r_cal if r_cal is not None else self.r_px)
         flags[~found] = np.where(self.lost[~found], "off_track", "not_found")
         located = (rows[:, 0].copy(), rows[:, 1].copy(), found.copy())  # before any rejected
+        sigma = rows[:, 3].copy()
         rejected = found & (flags != "")
         rows[rejected, :5] = np.nan
         rows[rejected, 5] = 0.0
@@ -462,7 +463,7 @@ class Tracker:
             # away spoils the prediction of a clean step where the ball turns: judged again
             # without them
             again = timing.confirm_irregular(*located, flags != "", flags == "duplicate",
-                                             gaps.irregular)
+                                             gaps.irregular, sigma)
             irregular, located_irregular = timing.split_irregular(
                 again, np.isin(flags, LOCATOR_FLAGS))
             for msg in ([irregular_message(irregular)] if irregular else []) + (
