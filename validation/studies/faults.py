@@ -268,7 +268,6 @@ def run_study(*, seeds: int = 3, clean_seeds: int = 15, faults=None, families=No
         ``faults`` and ``clean`` (summaries), ``fault_rows``, ``clean_rows``, ``setup``
         (what was measured).
     """
-    logging.getLogger("rollfric").setLevel(logging.ERROR)
     fault_rows, clean_rows = [], []
     sizes = {**SIZES, **(sizes or {})}
     for label in (faults or list(SIZES) + list(VARIANTS)):
@@ -325,6 +324,7 @@ def main(argv=None) -> int:
     if a.out is not None and a.out.exists() and not a.overwrite:
         print(f"{a.out} exists: give --overwrite to replace it", file=sys.stderr)
         return 2
+    logging.getLogger("rollfric").setLevel(logging.ERROR)  # the tables say what was found
     study = run_study(seeds=a.seeds, clean_seeds=a.clean_seeds, faults=a.faults,
                       families=a.families)
     print(format_tables(study))
