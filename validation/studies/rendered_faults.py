@@ -104,7 +104,8 @@ VARIANTS = {
 
 @dataclasses.dataclass(frozen=True)
 class Case:
-    """One clean rendered recording: its family, seed, motion, ball, lighting and sensor."""
+    """One clean rendered recording: its family, seed, motion, ball, lighting, sensor and
+    frame."""
 
     family: str
     seed: int
@@ -114,6 +115,7 @@ class Case:
     lighting: str = "thesis"
     noise: str = "realistic"
     seconds: float = SECONDS
+    margin: int = MARGIN_PX  # px of the frame around the ball's path
 
 
 def draw_case(family: str, i: int, *, seed: int = 0, seconds: float = SECONDS) -> Case:
@@ -200,7 +202,7 @@ def rendered(case: Case):
                             ball_diameter=d, ball_mass=m, pixel_size=PIXEL_SIZE,
                             seed=case.seed)
     traj = sim.simulate(scenario)
-    w, h, c = frame_geometry(d, case.theta0, scenario.cylinder_radius)
+    w, h, c = frame_geometry(d, case.theta0, scenario.cylinder_radius, margin=case.margin)
     cam = synth.CameraModel(width=w, height=h, pixel_size=PIXEL_SIZE, center_px=c)
     scene = synth.SceneConfig(camera=cam, lighting=synth.lighting_preset(case.lighting))
     with tempfile.TemporaryDirectory(prefix="rollfric-rendered-faults-") as tmp:
