@@ -47,16 +47,23 @@ def _row(family, err_U, reasons=(), findings=()):
             "reasons": list(reasons), "findings": list(findings)}
 
 
+def test_rest_from_finds_the_ball_at_rest():
+    th = np.concatenate([np.cos(np.arange(50) / 5.0), np.full(30, math.cos(49 / 5.0))])
+    assert rf.rest_from(th) == 49
+    assert rf.rest_from(np.cos(np.arange(80) / 5.0)) is None
+
+
 def test_reason_and_error_tables_count_cases():
     rows = [_row("a", 0.5, ["ball_radius"]), _row("a", -2.0, ["ball_radius", "timing"]),
-            _row("b", 0.1, [], ["still:rest"]), _row("b", None), _row("b", -0.3, ["timing"])]
+            _row("b", 0.1, [], ["still:rest"]), _row("b", None), _row("b", -0.3, ["timing"]),
+            {**_row("b", 0.2, [], ["still:rest"]), "truth_rest_from": 900}]
     t = rf.reason_table(rows)
     assert t == {"ball_radius": {"a": 2, "all": 2}, "still:rest": {"b": 1, "all": 1},
                  "timing": {"a": 1, "b": 1, "all": 2}}
     e = rf.error_table(rows)
     assert e["a"] == {"n": 2, "median": -0.75, "max_abs": 2.0, "off_by_U": 1}
-    assert e["b"]["n"] == 2 and e["b"]["median"] == pytest.approx(-0.1)
-    assert e["all"]["n"] == 4 and e["all"]["off_by_U"] == 1
+    assert e["b"]["n"] == 3 and e["b"]["median"] == pytest.approx(0.1)
+    assert e["all"]["n"] == 5 and e["all"]["off_by_U"] == 1
     study = {"clean": {"a": {"n": 2}, "b": {"n": 3}, "all": {"n": 5}}, "reasons": t,
              "errors": e}
     md = rf.format_reasons(study).splitlines()

@@ -288,9 +288,18 @@ def rendered_fault(base: Base, fault: str, magnitude: float, *, seed: int = 0,
                           magnitude=float(magnitude), truth=truth)
 
 
+def rest_from(theta, tol: float = 1e-9) -> int | None:
+    """The frame from which the true angle ``theta`` no longer changes (the ball came to
+    rest: tan theta <= mu at a turning point), None if it moves to the end."""
+    moving = np.flatnonzero(np.abs(np.diff(np.asarray(theta, dtype=float))) > tol)
+    k = 0 if not moving.size else int(moving[-1]) + 1
+    return k if k < len(theta) - 2 else None
+
+
 def reason_table(clean_rows) -> dict:
     """Each reason or finding that came up on a clean recording: family -> count, with the
-    total over the families under "all".
+    total over the families under "all". A ``still:rest`` where the ball really comes to rest
+    (the row's ``truth_rest_from``) is a true finding, not counted.
 
     Parameters
     ----------
@@ -305,6 +314,8 @@ def reason_table(clean_rows) -> dict:
     out: dict = {}
     for r in clean_rows:
         for c in set(r["reasons"]) | set(r["findings"]):
+            if c == "still:rest" and r.get("truth_rest_from") is not None:
+                continue
             d = out.setdefault(c, {})
             d[r["family"]] = d.get(r["family"], 0) + 1
             d["all"] = d.get("all", 0) + 1
@@ -347,7 +358,8 @@ def run_study(*, cases: int = CASES_PER_FAMILY, fault_bases: int = 2, families=N
             with rendered(case) as base:
                 t_render = time.perf_counter() - t
                 row = run_one(base.recording())
-                row.update(family=fam, render_s=round(t_render, 2), **_describe(case))
+                row.update(family=fam, render_s=round(t_render, 2),
+                           truth_rest_from=rest_from(base.theta), **_describe(case))
                 clean_rows.append(row)
                 log(f"[{fam} {i}] " + _line(row) + f"  ({_what(case)}; render {t_render:.1f} s)")
                 if i >= fault_bases:
