@@ -16,6 +16,9 @@ CAL_MIN_INLIER = 0.9  # fraction of the rim a calibration frame must fit
 CAL_MAX_SIGMA = 0.1  # px: centre sigma of a calibration frame
 CAL_MIN_FRAMES = 5  # calibration frames before the calibrated radius is used
 CAL_WARN_DEV = 0.03  # warn when the apparent radius differs from the setup's by more
+# ... and by more than this (px): a rendered steel ball's outline lies 0.09-0.18 px outside
+# its geometric radius whatever its size (3 to 20 px), 3 % of a ball under 6 px
+CAL_WARN_PX = 0.25
 
 
 class RadiusCalibration:
@@ -108,7 +111,8 @@ class RadiusCalibration:
         return out
 
     def warning(self) -> str | None:
-        """A warning when the apparent radius differs from the setup's by more than 3 %.
+        """A warning when the apparent radius differs from the setup's by more than 3 % and
+        more than 0.25 px (the outline's own offset from the geometric radius).
 
         Returns
         -------
@@ -116,7 +120,8 @@ class RadiusCalibration:
             The message (naming ``ball.diameter_mm`` and ``camera.pixel_size_mm``), or None.
         """
         v = self.value
-        if v is None or abs(v / self.r_setup - 1.0) <= CAL_WARN_DEV:
+        if v is None or abs(v / self.r_setup - 1.0) <= CAL_WARN_DEV \
+                or abs(v - self.r_setup) <= CAL_WARN_PX:
             return None
         return (f"the ball's outline measures {v:.2f} px in radius in {len(self.radii)} "
                 f"full-rim frames, the setup says {self.r_setup:.2f} px "

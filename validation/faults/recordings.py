@@ -225,15 +225,7 @@ def faulty(fault: str, magnitude: float, *, seed: int = 0,
     rec = clean(fam, seed=seed)
     n = fam.n
     if fault in ("bump", "drift"):
-        if fault == "bump":
-            k, px = n // 2, (float(magnitude), 0.0)
-            shift = camera_faults.camera_shift(n, bump_at=k, bump_px=px)
-            truth = dict(bump_frame=k, shift_px=list(px))
-        else:
-            px = (float(magnitude), 0.5 * float(magnitude))
-            shift = camera_faults.camera_shift(n, drift_px=px)
-            truth = dict(shift_px=list(px))
-        frames = camera_faults.moved_frames(rec.source.frames, shift)
+        frames, shift, truth = moved(rec.source.frames, fault, magnitude)
         rec = dataclasses.replace(rec, source=ArraySource(frames), centers=rec.centers + shift)
         return _with(rec, fault, magnitude, **truth)
     if fault in ("yaw", "pitch"):
@@ -245,36 +237,96 @@ def faulty(fault: str, magnitude: float, *, seed: int = 0,
                                   background=None if rec.background is None else bg)
         return _with(rec, fault, magnitude, **kw)
     if fault == "flicker":
-        phase = float(rng.uniform(0, 2 * math.pi))
-        gain = 1.0 + magnitude * np.sin(2 * math.pi * MAINS_FLICKER_HZ * np.arange(n) / fam.fps
-                                        + phase)
-        full = np.iinfo(rec.source.dtype).max
-        frames = [np.clip(np.rint(f.astype(float) * g), 0, full).astype(f.dtype)
-                  for f, g in zip(rec.source.frames, gain, strict=True)]
+        frames, gain, phase = flickered(rec.source.frames, magnitude, fam.fps, rng)
         rec = dataclasses.replace(rec, source=ArraySource(frames))
         return _with(rec, fault, magnitude, gain=gain.tolist(), phase=phase)
     if fault in ("timestamps_ms", "timestamps_us"):
         unit = fault.split("_")[1]
-        scale = {"ms": 1e3, "us": 1e6}[unit]
-        stamps = scale * (float(magnitude) + np.arange(n) / fam.fps)
+        stamps = stamped(n, fam.fps, magnitude, unit)
         rec = dataclasses.replace(rec, source=ArraySource(rec.source.frames, timestamps=stamps))
         return _with(rec, fault, magnitude, unit=unit)
     if fault in ("fps", "radius", "gravity"):
-        if not magnitude > 0:
-            raise ValueError(f"a setup's {fault} must be positive")
-        s = rec.setup
-        wrong = {"fps": dict(fps=s.fps * magnitude),
-                 "radius": dict(cylinder_radius=s.cylinder_radius * magnitude),
-                 "gravity": dict(gravity=float(magnitude))}[fault]
-        rec = dataclasses.replace(rec, setup=s.replace(**wrong))
-        return _with(rec, fault, magnitude, true_setup=s, **{k: float(v)
-                                                              for k, v in wrong.items()})
+        setup, truth = wrong_setup(rec.setup, fault, magnitude)
+        rec = dataclasses.replace(rec, setup=setup)
+        return _with(rec, fault, magnitude, **truth)
     # glitches
 
     frames, glitches = glitch_frames(np.stack(rec.source.frames), seed=seed, rate=magnitude,
                                      centers=rec.centers, r_px=rec.scene.r_px)
     rec = dataclasses.replace(rec, source=ArraySource(list(frames)))
     return _with(rec, fault, magnitude, glitched=[(g.frame, g.kind) for g in glitches])
+
+
+def moved(frames, fault: str, magnitude: float):
+    """``frames`` (a list of images) seen by a camera that moved: a ``bump`` of ``magnitude``
+    px right from frame ``n // 2`` on, or a ``drift`` to ``magnitude`` px right and half that
+    down by the last frame.
+
+    Returns
+    -------
+    frames : list of numpy.ndarray
+    shift : numpy.ndarray
+        (T, 2): the camera's shift in each frame (px).
+    truth : dict
+        ``shift_px`` (and ``bump_frame``).
+    """
+    n = len(frames)
+    if fault == "bump":
+        k, px = n // 2, (float(magnitude), 0.0)
+        shift = camera_faults.camera_shift(n, bump_at=k, bump_px=px)
+        truth = dict(bump_frame=k, shift_px=list(px))
+    elif fault == "drift":
+        px = (float(magnitude), 0.5 * float(magnitude))
+        shift = camera_faults.camera_shift(n, drift_px=px)
+        truth = dict(shift_px=list(px))
+    else:
+        raise ValueError(f"a camera moves by a bump or a drift, not {fault!r}")
+    return camera_faults.moved_frames(frames, shift), shift, truth
+
+
+def flickered(frames, magnitude: float, fps: float, rng):
+    """``frames`` under the lamps' mains flicker: frame i's gain 1 + ``magnitude``
+    sin(2 pi 100 Hz i / ``fps`` + phase), the phase drawn from ``rng``.
+
+    Returns
+    -------
+    frames : list of numpy.ndarray
+    gain : numpy.ndarray
+    phase : float
+    """
+    phase = float(rng.uniform(0, 2 * math.pi))
+    gain = 1.0 + magnitude * np.sin(2 * math.pi * MAINS_FLICKER_HZ * np.arange(len(frames))
+                                    / fps + phase)
+    full = np.iinfo(np.asarray(frames[0]).dtype).max
+    out = [np.clip(np.rint(f.astype(float) * g), 0, full).astype(f.dtype)
+           for f, g in zip(frames, gain, strict=True)]
+    return out, gain, phase
+
+
+def stamped(n: int, fps: float, start_s: float, unit: str) -> np.ndarray:
+    """Per-frame timestamps of ``n`` frames at ``fps`` from ``start_s`` seconds, written in
+    ``unit`` ("ms" or "us") as a camera that logs them so does."""
+    scale = {"ms": 1e3, "us": 1e6}[unit]
+    return scale * (float(start_s) + np.arange(n) / fps)
+
+
+def wrong_setup(setup: Setup, fault: str, magnitude: float):
+    """``setup`` with one key wrong: ``fps`` or ``radius`` (the cylinder's) ``magnitude`` times
+    the true, or ``gravity`` = ``magnitude`` m/s^2.
+
+    Returns
+    -------
+    setup : Setup
+    truth : dict
+        ``true_setup`` and the wrong value by its Setup field name.
+    """
+    if not magnitude > 0:
+        raise ValueError(f"a setup's {fault} must be positive")
+    wrong = {"fps": dict(fps=setup.fps * magnitude),
+             "radius": dict(cylinder_radius=setup.cylinder_radius * magnitude),
+             "gravity": dict(gravity=float(magnitude))}[fault]
+    return setup.replace(**wrong), dict(true_setup=setup,
+                                        **{k: float(v) for k, v in wrong.items()})
 
 
 def _with(rec: Recording, fault: str, magnitude: float, **truth) -> Recording:
