@@ -39,6 +39,13 @@ SIGNIFICANT_CHI2 = float(stats.chi2.ppf(stats.norm.cdf(3.0) * 2 - 1, 2))
 # uncertainties and disagrees with the other by more
 SEPARATE = 3.0
 MIN_POINTS = 20
+# the locator's smooth error across the path (px), as a standard uncertainty: a centre error
+# that changes slowly with the angle (the lamp's shading, the highlight's drift over the
+# ball) bends a short arc like an ellipse. Rendered 10 mm balls put their centres 0.008-0.011
+# px farther from the axis near the bottom than at +-0.2 rad, which read as a camera tilted
+# 2.4 deg and "corrected" mu by +0.085 % (17 U); the path's anisotropy must now stand out
+# from an error of that size as from its noise
+LOCATOR_SMOOTH_PX = 0.01
 
 
 @dataclasses.dataclass(frozen=True)
@@ -190,9 +197,31 @@ def fit_path(x, y, center, center_u=None) -> PathEllipse:
                 moved = fit_path(x, y, (center[0] + d[0], center[1] + d[1]))
                 g = np.asarray(moved.q) - np.asarray(sol.x)  # q's change over one u
                 cov = cov + np.outer(g, g)
+    cov = cov + _smooth_error_cov(u, v, a, q0)
     return PathEllipse(q=tuple(float(v) for v in sol.x), cov=cov,
                        center=(float(center[0]), float(center[1])),
                        rms_px=float(np.sqrt(np.mean(sol.fun ** 2))), n_points=int(u.size))
+
+
+def _smooth_error_cov(u, v, a, q0) -> np.ndarray:
+    """The covariance of q that a smooth radial error of the locator, LOCATOR_SMOOTH_PX in
+    size, can make: the conic's change when the centres move along their radius by a bulge
+    (s^2 less its mean) and by a slope (s) across the arc, s the angle scaled to [-1, 1]
+    (each as one systematic error: outer product of the change)."""
+    phi = np.arctan2(u, v)
+    half = 0.5 * float(np.ptp(phi))
+    if not half > 0:
+        return np.zeros((3, 3))
+    s = (phi - 0.5 * (phi.max() + phi.min())) / half
+    r = np.hypot(u, v)
+    cov = np.zeros((3, 3))
+    for f in (s * s - np.mean(s * s), s):
+        k = 1.0 + LOCATOR_SMOOTH_PX * f / r  # each centre moved along its radius
+        uu, vv = u * k, v * k
+        am = np.column_stack([uu * uu, 2 * uu * vv, vv * vv])
+        qm, *_ = np.linalg.lstsq(am, np.ones_like(u), rcond=None)
+        cov += np.outer(qm - q0, qm - q0)
+    return cov
 
 
 def mapped_centres(x, y, center, matrix):
