@@ -331,3 +331,34 @@ def test_a_bore_the_period_singles_out_is_covered_and_a_corrected_camera_keeps_i
     assert 0 < row.u_mu < correction / math.sqrt(pathshape.SIGNIFICANT_CHI2)
     assert row.u_mu == pytest.approx(correction / math.sqrt(pe["chi2"]), rel=0.01)
     assert abs(b.mu - MU) < b.U_mu
+
+
+def test_the_tilted_motion_integrates_where_the_axial_drift_stops():
+    # a heavy ball with much friction over 4 s: the axial drift stops at the turning points,
+    # where the resistance's direction flipped sign at every step (the budget hung there)
+    from rollfric.uncertainty.asbuilt import tilted_motion
+
+    t = np.arange(4000) / 1000.0
+    th, w = tilted_motion(math.radians(18.4), 0.0, 0.0147, t, track_radius=0.079,
+                          gravity=9.81, tilt=math.radians(0.05))
+    level, _ = tilted_motion(math.radians(18.4), 0.0, 0.0147, t, track_radius=0.079,
+                             gravity=9.81, tilt=0.0)
+    assert np.all(np.isfinite(th)) and np.max(np.abs(th - level)) < 1e-3
+    assert np.all(w >= -1e-9) and w.max() < 0.01  # towards the lower end, mm/s at most
+
+
+@pytest.mark.parametrize("room_air", [False, True])
+def test_a_hair_of_tilt_is_the_level_trough(room_air):
+    # the tilted trough's own integrator (its resistance's direction regularised below
+    # V_EPS = 1e-4 m/s) at a tilt of 1e-6 rad against eom's exact motion: the same swing
+    setup = thesis_setup("10mm", air_density=1.2 if room_air else 0.0)
+    air = coefficients_of(setup)
+    t = np.arange(1500) / 1000.0
+    ref, _, _ = eom.solve_reference(math.radians(20.0), 0.0, 0.0079, t,
+                                    track_radius=setup.track_radius, air=air)
+    th, w = asbuilt.tilted_motion(math.radians(20.0), 0.0, 0.0079, t,
+                                  track_radius=setup.track_radius, gravity=G, tilt=1e-6,
+                                  air=air)
+    # the regularised resistance is weaker only while |v| < V_EPS near each turning point:
+    # about 1e-6 rad over the 1.5 s (3e-6 of the swing's amplitude)
+    assert np.max(np.abs(th - ref)) < 5e-6

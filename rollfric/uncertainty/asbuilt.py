@@ -36,6 +36,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from rollfric.fit import eom
 from rollfric.fit.air import coefficients_of
 from rollfric.fit.eom import drag_accel
 from rollfric.geometry import ellipse as ell
@@ -55,6 +56,12 @@ SOURCES = (TILT, OVALITY, YAW, PITCH, PATH, CONTOUR)
 TILT_NOTE = ("the ball also rolls along the tilted axis (from rest at the record's start); "
              "mu biased low, as tilt^2 and the record's length: not corrected, u(mu) the bias "
              "at |tilt| + u")
+
+
+# speed (m/s) below which the resistance grows linearly with the speed instead of keeping its
+# full size: a thousandth of the swing's speeds, a fraction of a millisecond near each turning
+# point
+V_EPS = 1e-4
 
 
 def tilted_motion(theta0: float, omega0: float, mu: float, t, *, track_radius: float,
@@ -102,6 +109,10 @@ def tilted_motion(theta0: float, omega0: float, mu: float, t, *, track_radius: f
         If the integrator fails.
     """
     t = np.asarray(t, dtype=float)
+    if tilt == 0.0:  # the level trough: the fit's own motion, exact at its turning points
+        theta, _, _ = eom.solve_reference(theta0, omega0, mu, t, track_radius=track_radius,
+                                          gravity=gravity, mu1=mu1, air=air)
+        return theta, np.zeros_like(theta)
     a = np.zeros(6) if air is None else np.asarray(air, dtype=float)
     L, g = float(track_radius), float(gravity)
     gb = g * (1.0 - a[0])  # buoyancy
@@ -114,7 +125,11 @@ def tilted_motion(theta0: float, omega0: float, mu: float, t, *, track_radius: f
         v = math.hypot(v_th, w)
         n = gb * ct * math.cos(th) + (1.0 + a[1]) * L * om * om
         loss = (mu + mu1 * v / L) * n + drag_accel(v, a[2], a[3], a[4], a[5])
-        s_th, s_z = (v_th / v, w / v) if v > 0.0 else (0.0, 0.0)
+        # the resistance's direction, regularised below V_EPS: a Coulomb law's sign flips
+        # where the axial drift stops at a turning point, or where the ball comes to rest,
+        # made the integrator's steps vanish
+        vr = max(v, V_EPS)
+        s_th, s_z = v_th / vr, w / vr
         return [om, (-gb * ct * math.sin(th) - loss * s_th) / (inertia * L),
                 (gb * st - loss * s_z) / inertia]
 
