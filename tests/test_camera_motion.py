@@ -96,3 +96,27 @@ def test_frame_shift_measures_a_known_shift(thesis):
     for shift in ((0.37, -1.21), (3.0, 0.0)):
         moved = moved_frames([frame], [shift])[0]
         assert cm.frame_shift(moved, bg, p, r) == pytest.approx(shift, abs=0.01)
+
+
+@pytest.mark.parametrize("drift_px", [0.0, 1.0])
+def test_a_drift_must_stand_out_from_the_shifts_own_noise(monkeypatch, drift_px):
+    """Shifts measured with 0.06 px of noise (a dim rendered scene: a still camera's samples
+    spread 0.15 px, beyond MOTION_MIN_PX, and were "corrected" as a drift, mu 7 U off): still;
+    a 1 px drift under the same noise is a drift."""
+    n = 400
+    rng = np.random.default_rng(1)
+    noise = rng.normal(0.0, 0.06, (n, 2))
+
+    def fake_shift(frame, background, ball=None, r_px=0.0, window=None, *, level=0):
+        i = int(frame[0, 0])
+        return tuple(noise[i] + drift_px * i / (n - 1) * np.array([1.0, 0.0]))
+
+    monkeypatch.setattr(cm, "frame_shift", fake_shift)
+    frames = [np.full((8, 8), i, dtype=np.float32) for i in range(n)]
+    m = cm.find_motion(MemorySource(frames), np.zeros((8, 8)), np.full((n, 2), np.nan), 3.0)
+    spread = np.max(np.hypot(*(m.shifts - m.shifts[0]).T))  # what MOTION_MIN_PX judged
+    if drift_px:
+        assert m.kind == "drift" and m.size_px[0] == pytest.approx(1.0, abs=0.2)
+    else:
+        assert spread > cm.MOTION_MIN_PX  # the noise alone passed the old test
+        assert m.kind == "still"

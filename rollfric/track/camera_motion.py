@@ -31,6 +31,9 @@ SAMPLES = 12  # frames compared with the background over the recording (a bump: 
 MOTION_MIN_PX = 0.1
 # a bump: the samples before and after it agree within this (px); otherwise a drift
 STEP_SCATTER_PX = 0.05
+# a drift: its samples spread about their median by more than this many times the shifts'
+# own noise (the largest of 12 normal deviates is rarely beyond 3 standard deviations)
+DRIFT_NOISE_FACTOR = 4.0
 BALL_MARGIN = 2.0  # the ball's disc and its shadow: this many ball radii masked
 ECC_STEPS = 30  # iterations of the ECC refinement at most
 # the quick look: images halved this many times; a camera whose samples there stay within
@@ -255,6 +258,17 @@ def find_motion(source, background, centres, r_px: float, *, samples: int = SAMP
         size = after - before
         return CameraMotion("bump", idx, s, frame=hi, size_px=(float(size[0]), float(size[1])),
                             before_px=(float(before[0]), float(before[1])))
+    # a drift must stand out from the shifts' own noise: each sample measured again on its
+    # neighbouring frame (the camera does not move between two frames), the pairs'
+    # differences giving that noise (a dim scene's shifts scatter 0.15 px with the camera
+    # still, which a drift of MOTION_MIN_PX took for motion and "corrected")
+    pair = np.array([shift(i + 1 if i + 1 < n else i - 1) for i in idx])
+    d = (pair - s)[np.isfinite(pair).all(axis=1)]
+    if len(d) >= 3:
+        noise = 1.4826 * float(np.median(np.abs(d - np.median(d, axis=0)))) / math.sqrt(2.0)
+        spread = float(np.max(np.hypot(*(s - np.median(s, axis=0)).T)))
+        if spread < DRIFT_NOISE_FACTOR * noise:
+            return CameraMotion("still", idx, s)
     return CameraMotion("drift", idx, s, size_px=(float(rel[-1, 0]), float(rel[-1, 1])))
 
 
