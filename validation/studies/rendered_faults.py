@@ -347,7 +347,6 @@ def run_study(*, cases: int = CASES_PER_FAMILY, fault_bases: int = 2, families=N
         ``faults`` and ``clean`` (the drawn study's summaries), ``reasons`` (:func:`reason_table`),
         ``errors`` (:func:`error_table`), ``fault_rows``, ``clean_rows``, ``what``.
     """
-    logging.getLogger("rollfric").setLevel(logging.ERROR)
     fault_rows, clean_rows = [], []
     labels = list(faults or list(SIZES) + list(VARIANTS))
     t0 = time.perf_counter()
@@ -451,6 +450,7 @@ def main(argv=None) -> int:
     if out.exists() and not a.overwrite:
         print(f"{out} exists: give --overwrite to replace it", file=sys.stderr)
         return 2
+    logging.getLogger("rollfric").setLevel(logging.ERROR)  # the tables say what was found
     study = run_study(cases=a.cases, fault_bases=a.fault_bases, families=a.families,
                       faults=a.faults, seconds=a.seconds, seed=a.seed)
     print(format_tables(study))
