@@ -185,3 +185,22 @@ def test_the_shipped_study_meets_its_targets_and_draws_the_page_figure(tmp_path)
     spec.loader.exec_module(module)
     module.figure(data, tmp_path / "f.png")
     assert (tmp_path / "f.png").stat().st_size > 20000
+
+
+def test_a_trough_tilted_within_its_stated_u_is_not_taken_for_a_speed_law():
+    # the axial drift of a trough tilted 0.1 deg along its length takes a share of the
+    # resistance that grows where the swing is slow: without the tilt's u the test reads it
+    # as a resistance growing with speed; with the lab's tilt_deg_u it does not
+    from rollfric.uncertainty.asbuilt import tilted_motion
+
+    level = room_air()
+    th, _ = tilted_motion(math.radians(20.0), 0.0, MU0, T4, track_radius=level.track_radius,
+                          gravity=level.gravity, tilt=math.radians(0.1),
+                          air=air.coefficients_of(level))
+    th = th + np.random.default_rng(1).normal(0.0, 2e-5, T4.size)
+    assert law_of(level, th)[2].selected == "speed"
+    stated = level.replace(uncertainty=level.uncertainty + (("cylinder_tilt",
+                                                             math.radians(0.1)),))
+    law = law_of(stated, th)[2]
+    assert law.selected == "coulomb"
+    assert "cylinder.tilt_deg" in [s for s, _ in law.inputs]
