@@ -98,14 +98,15 @@ def test_frame_shift_measures_a_known_shift(thesis):
         assert cm.frame_shift(moved, bg, p, r) == pytest.approx(shift, abs=0.01)
 
 
-@pytest.mark.parametrize("drift_px", [0.0, 1.0])
-def test_a_drift_must_stand_out_from_the_shifts_own_noise(monkeypatch, drift_px):
+@pytest.mark.parametrize("drift_px, sigma", [(0.0, 0.06), (1.0, 0.06), (0.0, 0.3)])
+def test_a_drift_must_stand_out_from_the_shifts_own_noise(monkeypatch, drift_px, sigma):
     """Shifts measured with 0.06 px of noise (a dim rendered scene: a still camera's samples
     spread 0.15 px, beyond MOTION_MIN_PX, and were "corrected" as a drift, mu 7 U off): still;
-    a 1 px drift under the same noise is a drift."""
+    a 1 px drift under the same noise is a drift; shifts with 0.3 px of noise cannot tell a
+    still camera from a moving one: unknown (nothing corrected)."""
     n = 400
     rng = np.random.default_rng(1)
-    noise = rng.normal(0.0, 0.06, (n, 2))
+    noise = rng.normal(0.0, sigma, (n, 2))
 
     def fake_shift(frame, background, ball=None, r_px=0.0, window=None, *, level=0):
         i = int(frame[0, 0])
@@ -117,6 +118,9 @@ def test_a_drift_must_stand_out_from_the_shifts_own_noise(monkeypatch, drift_px)
     spread = np.max(np.hypot(*(m.shifts - m.shifts[0]).T))  # what MOTION_MIN_PX judged
     if drift_px:
         assert m.kind == "drift" and m.size_px[0] == pytest.approx(1.0, abs=0.2)
+    elif sigma > cm.MOTION_MIN_PX:
+        assert m.kind == "unknown" and not m.per_frame(n).any()
     else:
         assert spread > cm.MOTION_MIN_PX  # the noise alone passed the old test
         assert m.kind == "still"
+

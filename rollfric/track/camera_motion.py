@@ -267,6 +267,8 @@ def find_motion(source, background, centres, r_px: float, *, samples: int = SAMP
     if len(d) >= 3:
         noise = 1.4826 * float(np.median(np.abs(d - np.median(d, axis=0)))) / math.sqrt(2.0)
         spread = float(np.max(np.hypot(*(s - np.median(s, axis=0)).T)))
+        if noise > MOTION_MIN_PX:  # shifts too noisy to tell a still camera from a moving one
+            return CameraMotion("unknown", idx, s)
         if spread < DRIFT_NOISE_FACTOR * noise:
             return CameraMotion("still", idx, s)
     return CameraMotion("drift", idx, s, size_px=(float(rel[-1, 0]), float(rel[-1, 1])))
