@@ -362,3 +362,15 @@ def test_a_hair_of_tilt_is_the_level_trough(room_air):
     # the regularised resistance is weaker only while |v| < V_EPS near each turning point:
     # about 1e-6 rad over the 1.5 s (3e-6 of the swing's amplitude)
     assert np.max(np.abs(th - ref)) < 5e-6
+
+
+def test_a_reading_that_could_not_be_made_is_no_traceback():
+    # an undecided path whose bore reading failed (NaN, None in fit.json): the budget's row
+    # crashed formatting it (rendered clean recordings); now the camera's reading alone
+    meas = Measurement(setup=thesis_setup("10mm"), as_built={"path_ellipse": {
+        "verdict": "undecided", "mu_as_measured": 0.01, "mu_if_camera": 0.0101,
+        "mu_if_trough": None}})
+    source, _, u, _, u_mu, note = asbuilt._seen_rows(meas, 0.01)
+    assert source == asbuilt.PATH and u_mu == pytest.approx(asbuilt.two_readings_u(
+        0.01, [0.0101]))
+    assert "? (not made)" in note

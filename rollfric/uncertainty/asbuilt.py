@@ -308,6 +308,15 @@ def _stated(setup: Setup, field: str) -> tuple[float, float, float]:
     return value, u, abs(value) + u
 
 
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and math.isfinite(v)
+
+
+def _text(v) -> str:
+    """A reading of mu as text, "?" where it could not be made."""
+    return f"{v:.6g}" if _finite(v) else "? (not made)"
+
+
 def _seen_rows(meas: Measurement, mu: float):
     """The row of an ellipse the measurement saw (path first, then contour), or None."""
     seen = meas.as_built or {}
@@ -316,6 +325,7 @@ def _seen_rows(meas: Measurement, mu: float):
         m0, cam, tr = pe.get("mu_as_measured"), pe.get("mu_if_camera"), pe.get("mu_if_trough")
         if not m0:
             return None
+        readings = [v for v in (cam, tr) if _finite(v)]
         if pe["verdict"] == "camera":
             # corrected: mu is the camera's reading; the correction scales with the path's
             # anisotropy, which the conic fit knows to 1 / sqrt(chi2) of itself
@@ -323,16 +333,18 @@ def _seen_rows(meas: Measurement, mu: float):
             note = (f"camera yawed/pitched by {pe['tilt_deg_if_camera']:.2g} deg, singled out "
                     "by the period and corrected; u: the correction over sqrt(chi2) of the "
                     "path's anisotropy")
-        elif pe["verdict"] == "trough":
+        elif pe["verdict"] == "trough" and _finite(tr):
             u = two_readings_u(m0, [tr]) * mu / m0
             note = ("the bore is out of round (the period agrees with the path's bottom "
                     f"curvature): mu left as measured, the bore's reading {tr:.6g}; u: the "
                     "whole difference")
-        else:
-            u = two_readings_u(m0, [cam, tr]) * mu / m0
-            note = (f"both readings: {cam:.6g} if the camera is yawed/pitched, {tr:.6g} if "
-                    "the bore is out of round (the period cannot tell which), equally "
+        elif readings:  # undecided, or a bore whose own reading could not be made
+            u = two_readings_u(m0, readings) * mu / m0
+            note = (f"both readings: {_text(cam)} if the camera is yawed/pitched, {_text(tr)} "
+                    "if the bore is out of round (the period cannot tell which), equally "
                     "likely; u: the rms of mu's differences from them")
+        else:
+            return None
         return (PATH, None, u, None, u, note)
     ce = seen.get("contour_ellipse")
     if ce is not None and ce.get("significant"):
