@@ -204,3 +204,14 @@ def test_a_trough_tilted_within_its_stated_u_is_not_taken_for_a_speed_law():
     law = law_of(stated, th)[2]
     assert law.selected == "coulomb"
     assert "cylinder.tilt_deg" in [s for s, _ in law.inputs]
+
+
+def test_a_rendered_coulomb_recording_in_room_air_is_coulomb(tmp_path):
+    # the rendered part of the study, one case: synth's frames of Coulomb friction with the
+    # fitter's drag law, measured by rollfric.measure; the test keeps Coulomb
+    from validation.studies import friction_law as study
+
+    case = study.rendered_cases(0.025)[0]
+    row = study.run_rendered(case)
+    assert "error" not in row, row.get("error")
+    assert row["selected"] == "coulomb" and abs(row["mu_coulomb"] / row["mu0"] - 1) < 0.01

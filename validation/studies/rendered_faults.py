@@ -107,6 +107,7 @@ class Case:
     noise: str = "realistic"
     seconds: float = SECONDS
     margin: int = MARGIN_PX  # px of the frame around the ball's path
+    air_density: float = 0.0  # kg/m^3 of the truth's air (the fitter's law, sim's "law")
 
 
 def draw_case(family: str, i: int, *, seed: int = 0, seconds: float = SECONDS) -> Case:
@@ -191,7 +192,8 @@ def rendered(case: Case):
     d, m = BALLS[case.ball]
     scenario = sim.Scenario(mu=case.mu, theta0=case.theta0, duration=case.seconds, fps=FPS,
                             ball_diameter=d, ball_mass=m, pixel_size=PIXEL_SIZE,
-                            seed=case.seed)
+                            seed=case.seed, air_density=case.air_density,
+                            air_drag="law" if case.air_density else "constant")
     traj = sim.simulate(scenario)
     w, h, c = frame_geometry(d, case.theta0, scenario.cylinder_radius, margin=case.margin)
     cam = synth.CameraModel(width=w, height=h, pixel_size=PIXEL_SIZE, center_px=c)
