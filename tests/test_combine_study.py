@@ -31,3 +31,16 @@ def test_summary_fractions_and_birge_tail():
     assert s["birge_above_range"] == pytest.approx(2 / 20)
     assert s["birge_below_range"] == 0.0
     assert s["median_shared_fraction"] == pytest.approx(0.9)
+
+
+@pytest.mark.slow
+def test_rendered_releases_combine():
+    # two releases rendered by synth and measured by rollfric.measure, combined: the
+    # renderer's exact setup leaves the independent part alone
+    from validation.studies.combine import run_study
+
+    df, s = run_study(1, 2, rendered=True)
+    row = df.iloc[0]
+    assert "error" not in row or not isinstance(row["error"], str), row.get("error")
+    assert row["n"] == 2 and row["ball"] == "1.58mm"
+    assert row["u_shared"] == 0.0 and abs(row["z"]) < 4

@@ -115,6 +115,31 @@ def release_fit(case: dict, k: int, order: int = 1) -> dict:
             "setup": lab.to_toml_dict()}
 
 
+def rendered_release_fit(case: dict, k: int, order: int = 1) -> dict:
+    """:func:`release_fit` of a release rendered by synth and measured by ``rollfric.measure``
+    (:mod:`validation.studies.rendered_faults`' small frames, 2 s, the renderer's exact setup:
+    the budget is the statistical part, the combination's independent part alone)."""
+    from rollfric.measurement import measure
+    from rollfric.uncertainty.measured import measurement_from_track
+    from validation.faults.recordings import ArraySource
+    from validation.studies.rendered_faults import Case, rendered
+
+    release = Case(family="combine", seed=case["seed"] * RELEASE_SEEDS + k, mu=case["mu"],
+                   theta0=math.radians(abs(case["theta0_deg"][k])), ball=case["ball"],
+                   seconds=2.0)
+    with rendered(release) as base:
+        df, info, res = measure(ArraySource(base.frames), base.setup, base.background)
+        b = budget(measurement_from_track(df, info), res, order=order)
+        setup = base.setup
+    return {"mu": b.mu, "method": res.method, "n_samples": res.n_samples, "u_mu": b.u_mu,
+            "uncertainty_budget": [r.to_dict() for r in b.rows], "quality": res.quality,
+            "quality_reasons": [{"code": r.code} for r in res.quality_reasons],
+            "setup": setup.to_toml_dict()}
+
+
+RENDERED_BALLS = ("1.58mm", "10mm")  # the rendered frames' balls (0.25 mm/px)
+
+
 def run_setup(case: dict, order: int = 1) -> dict:
     """Measure every release of a drawn setup and combine them; one row of the study.
 
@@ -133,7 +158,8 @@ def run_setup(case: dict, order: int = 1) -> dict:
         releases were left.
     """
     start = time.perf_counter()
-    fits = [release_fit(case, k, order) for k in range(case["releases"])]
+    fit = rendered_release_fit if case.get("rendered") else release_fit
+    fits = [fit(case, k, order) for k in range(case["releases"])]
     runs = [run_from_fit(f, f"release {k}") for k, f in enumerate(fits)]
     ok = [r for r in runs if r.quality == "ok"]
     out = {k: v for k, v in case.items() if not isinstance(v, (tuple, list))}
@@ -242,7 +268,7 @@ def plot(df: pd.DataFrame, path: Path) -> None:
 
 def run_study(setups: int, releases: int, out: Path | None = None, seed: int = 0,
               progress: bool = False, order: int = 1,
-              exact: bool = False) -> tuple[pd.DataFrame, dict]:
+              exact: bool = False, rendered: bool = False) -> tuple[pd.DataFrame, dict]:
     """Run the study: ``setups`` drawn setups of ``releases`` releases each.
 
     Parameters
@@ -262,6 +288,10 @@ def run_study(setups: int, releases: int, out: Path | None = None, seed: int = 0
     exact : bool
         The lab knows its as-built setup exactly: no shared part; checks the weighting, the
         independent parts and the Birge ratio alone.
+    rendered : bool
+        Each release rendered by synth and measured by ``rollfric.measure``
+        (:func:`rendered_release_fit`: the renderer's exact setup, so the independent part
+        alone, as ``exact``); the 1.58 and 10 mm balls.
 
     Returns
     -------
@@ -272,7 +302,11 @@ def run_study(setups: int, releases: int, out: Path | None = None, seed: int = 0
     """
     rows = []
     for i in range(setups):
-        rows.append(run_setup({**draw_setup(seed + i, releases), "exact": exact}, order))
+        case = {**draw_setup(seed + i, releases), "exact": exact or rendered,
+                "rendered": rendered}
+        if rendered:
+            case["ball"] = RENDERED_BALLS[i % len(RENDERED_BALLS)]
+        rows.append(run_setup(case, order))
         if progress and (i + 1) % 10 == 0:
             print(f"{i + 1} setups: {json.dumps(summarize(pd.DataFrame(rows)))}", flush=True)
             if out is not None:  # the table so far, kept if the run is stopped
@@ -299,12 +333,16 @@ def main(argv=None) -> int:
                    help="the releases' budgets with their second-order row (--second-order)")
     p.add_argument("--exact-setup", action="store_true",
                    help="the lab knows the as-built setup exactly (no shared part)")
+    p.add_argument("--rendered", action="store_true",
+                   help="each release rendered by synth and measured by rollfric.measure "
+                        "(the renderer's exact setup: the independent part alone)")
     p.add_argument("--out", required=True, help="output folder")
     args = p.parse_args(argv)
     if args.releases < 2:
         p.error("--releases must be at least 2")
     _, s = run_study(args.setups, args.releases, Path(args.out), args.seed, progress=True,
-                     order=2 if args.second_order else 1, exact=args.exact_setup)
+                     order=2 if args.second_order else 1, exact=args.exact_setup,
+                     rendered=args.rendered)
     print(json.dumps(s, indent=2))
     return 0
 
