@@ -33,18 +33,23 @@ AS_BUILT = {asbuilt.TILT, asbuilt.OVALITY, asbuilt.YAW, asbuilt.PITCH}
 # -- the tilted trough's motion ----------------------------------------------------------
 
 @pytest.mark.parametrize("room_air", [False, True])
-def test_a_level_trough_is_the_fits_own_motion(room_air):
-    """tilt 0: the swing of rollfric.fit.eom (DOP853 with turning-point events), air or not."""
+@pytest.mark.parametrize("tilt, within", [(0.0, 1e-8), (1e-6, 5e-6)])
+def test_a_level_trough_is_the_fits_own_motion(room_air, tilt, within):
+    """tilt 0: the swing of rollfric.fit.eom (DOP853 with turning-point events), air or not.
+    A hair of tilt (1e-6 rad): the tilted trough's own integrator, whose resistance's
+    direction is regularised below V_EPS = 1e-4 m/s, weaker only while |v| < V_EPS near each
+    turning point: about 1e-6 rad over the 1.5 s (3e-6 of the swing's amplitude)."""
     setup = thesis_setup("10mm", air_density=1.2 if room_air else 0.0)
     air = coefficients_of(setup)
     t = np.arange(1500) / 1000.0
     ref, _, _ = eom.solve_reference(math.radians(20.0), 0.0, 0.0079, t,
                                     track_radius=setup.track_radius, air=air)
     th, w = asbuilt.tilted_motion(math.radians(20.0), 0.0, 0.0079, t,
-                                  track_radius=setup.track_radius, gravity=G, tilt=0.0,
+                                  track_radius=setup.track_radius, gravity=G, tilt=tilt,
                                   air=air)
-    assert np.max(np.abs(th - ref)) < 1e-8
-    assert not np.any(w)
+    assert np.max(np.abs(th - ref)) < within
+    if tilt == 0.0:
+        assert not np.any(w)
 
 
 def test_a_ball_at_rest_in_a_tilted_frictionless_trough_rolls_down_the_incline():
@@ -346,22 +351,6 @@ def test_the_tilted_motion_integrates_where_the_axial_drift_stops():
     assert np.all(np.isfinite(th)) and np.max(np.abs(th - level)) < 1e-3
     assert np.all(w >= -1e-9) and w.max() < 0.01  # towards the lower end, mm/s at most
 
-
-@pytest.mark.parametrize("room_air", [False, True])
-def test_a_hair_of_tilt_is_the_level_trough(room_air):
-    # the tilted trough's own integrator (its resistance's direction regularised below
-    # V_EPS = 1e-4 m/s) at a tilt of 1e-6 rad against eom's exact motion: the same swing
-    setup = thesis_setup("10mm", air_density=1.2 if room_air else 0.0)
-    air = coefficients_of(setup)
-    t = np.arange(1500) / 1000.0
-    ref, _, _ = eom.solve_reference(math.radians(20.0), 0.0, 0.0079, t,
-                                    track_radius=setup.track_radius, air=air)
-    th, w = asbuilt.tilted_motion(math.radians(20.0), 0.0, 0.0079, t,
-                                  track_radius=setup.track_radius, gravity=G, tilt=1e-6,
-                                  air=air)
-    # the regularised resistance is weaker only while |v| < V_EPS near each turning point:
-    # about 1e-6 rad over the 1.5 s (3e-6 of the swing's amplitude)
-    assert np.max(np.abs(th - ref)) < 5e-6
 
 
 def test_a_reading_that_could_not_be_made_is_no_traceback():
