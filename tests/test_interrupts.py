@@ -23,6 +23,15 @@ from rollfric.setup.model import save_setup
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def _parser(command, work):
+    """A build_parser for main() with one command that runs ``work``."""
+    def parser():
+        p = argparse.ArgumentParser(prog="rollfric")
+        p.add_subparsers(dest="command").add_parser(command).set_defaults(func=work)
+        return p
+    return parser
+
+
 def _kernel():
     """A nogil kernel that sends ``sig`` to its own process from inside, then works on: the
     signal's handler runs as the dispatcher returns, deterministically inside the kernel."""
@@ -62,13 +71,7 @@ def test_a_signal_inside_a_numba_kernel_exits_with_its_status(monkeypatch, capsy
         finally:
             cleaned.append(True)
 
-    def parser():
-        p = argparse.ArgumentParser(prog="rollfric")
-        sub = p.add_subparsers(dest="command")
-        sub.add_parser("kernel").set_defaults(func=work)
-        return p
-
-    monkeypatch.setattr(cli, "build_parser", parser)
+    monkeypatch.setattr(cli, "build_parser", _parser("kernel", work))
     before = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]
     assert cli.main(["kernel"]) == status
     assert cleaned == [True]
@@ -101,13 +104,7 @@ def test_a_signal_inside_a_finalizer_still_ends_the_command(monkeypatch, capsys,
             ran_on.append(True)
         return 0
 
-    def parser():
-        p = argparse.ArgumentParser(prog="rollfric")
-        sub = p.add_subparsers(dest="command")
-        sub.add_parser("freeing").set_defaults(func=work)
-        return p
-
-    monkeypatch.setattr(cli, "build_parser", parser)
+    monkeypatch.setattr(cli, "build_parser", _parser("freeing", work))
     hook = sys.unraisablehook
     assert cli.main(["freeing"]) == status
     assert len(ran_on) < 200  # interrupted, not run to the end
@@ -128,13 +125,7 @@ def test_a_signal_in_a_finalizer_as_the_command_ends_is_still_reported(monkeypat
         Finalized()
         return 0
 
-    def parser():
-        p = argparse.ArgumentParser(prog="rollfric")
-        sub = p.add_subparsers(dest="command")
-        sub.add_parser("quick").set_defaults(func=work)
-        return p
-
-    monkeypatch.setattr(cli, "build_parser", parser)
+    monkeypatch.setattr(cli, "build_parser", _parser("quick", work))
     assert cli.main(["quick"]) == 130
     assert capsys.readouterr().err == "rollfric quick: interrupted\n"
     assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
@@ -147,13 +138,7 @@ def test_an_error_that_is_no_interruption_is_not_taken_for_one(monkeypatch):
     def work(args):
         raise SystemError("a real bug")
 
-    def parser():
-        p = argparse.ArgumentParser(prog="rollfric")
-        sub = p.add_subparsers(dest="command")
-        sub.add_parser("bug").set_defaults(func=work)
-        return p
-
-    monkeypatch.setattr(cli, "build_parser", parser)
+    monkeypatch.setattr(cli, "build_parser", _parser("bug", work))
     with pytest.raises(SystemError, match="a real bug"):
         cli.main(["bug"])
 
