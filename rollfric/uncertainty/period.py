@@ -17,6 +17,12 @@ from rollfric.uncertainty.reasons import Reason
 # (a frame in a half-period of ~0.35 s: 0.3 %, averaged over the swings); the period goes as
 # sqrt(L), so 3 % is a 6 % error in L = R - r (5 mm on the thesis trough) or in the fps
 PERIOD_TOL = 0.03
+# where the fit's residuals already say the model does not follow the data, a period off by
+# more than this (or by more than PERIOD_FRAMES frame periods over the swings measured) is
+# named as their cause: the turning points time the swings to a frame or two (a 2 % radius or
+# g 9.6 for 9.81 puts the period 1 % off and the fit's residual at 50 x its noise)
+PERIOD_TOL_MISFIT = 0.005
+PERIOD_FRAMES = 3.0
 # gravity: where labs are, g is 9.78 (equator) .. 9.83 m/s^2 (poles); a setup's g outside
 # GRAVITY_SANE is itself a suspect, and the period names it when the swings fit a local g
 GRAVITY_LOCAL = (9.78, 9.83)
@@ -61,10 +67,13 @@ def round_rate(fps: float) -> bool:
                                                    7.5, 8, 10))
 
 
-def period_reason(tp_t, tp_y, setup, unit_fps: float, t_data=None) -> Reason | None:
+def period_reason(tp_t, tp_y, setup, unit_fps: float, t_data=None, *,
+                  misfit: bool = False) -> Reason | None:
     """Compare the half-periods between turning points with L = R - r's; with ``t_data``
     (the times of the samples) only the half-swings the samples cover without a gap of a
-    quarter of the small-angle half-period: turning points inside a gap are not seen."""
+    quarter of the small-angle half-period: turning points inside a gap are not seen.
+    ``misfit``: the fit's residuals say the model does not follow the data; the period is
+    then held to PERIOD_TOL_MISFIT (what the turning points can tell) instead of PERIOD_TOL."""
     if len(tp_t) < 3:
         return None
     keep = np.ones(len(tp_t) - 1, bool)
@@ -81,7 +90,9 @@ def period_reason(tp_t, tp_y, setup, unit_fps: float, t_data=None) -> Reason | N
     L, g = setup.track_radius, setup.gravity
     expected = sum(half_period_frictionless(a, L, g) for a in amps)
     rho = measured / expected
-    if abs(rho - 1) <= PERIOD_TOL and not _gravity_explains(rho, setup.gravity):
+    tol = max(PERIOD_TOL_MISFIT, PERIOD_FRAMES / (unit_fps * measured)) if misfit \
+        else PERIOD_TOL
+    if abs(rho - 1) <= tol and not _gravity_explains(rho, setup.gravity):
         return None
     in_deg = sum(half_period_frictionless(math.radians(a), L, g) for a in amps)
     rho_deg = measured / in_deg
@@ -131,7 +142,9 @@ def period_cause(rho: float, rho_deg: float, setup, unit_fps: float,
     L, g = setup.track_radius, setup.gravity
     L_fit, g_fit, fps_fit = L * rho * rho, g / (rho * rho), unit_fps * rho
     lo, hi = GRAVITY_LOCAL
-    if abs(rho_deg - 1) <= PERIOD_TOL / 3 < abs(rho - 1):
+    # degrees: the radians' period beyond the tolerance, the degrees' well within it (at a
+    # small amplitude both read near 1, and a period 1 % off is no unit's)
+    if abs(rho_deg - 1) <= PERIOD_TOL / 3 and abs(rho - 1) > PERIOD_TOL:
         return ("; the angles look like degrees (read as degrees, the swings fit within "
                 f"{100 * abs(rho_deg - 1):.1f} %): give theta in radians")
     g_odd = not GRAVITY_SANE[0] <= g <= GRAVITY_SANE[1]

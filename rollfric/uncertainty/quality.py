@@ -182,7 +182,9 @@ def check_fit(t, theta, result, setup, *, offset: bool = False, model: str = "co
         reasons.append(Reason("outliers", f"{n_outliers} of {n_fit} samples lay far off the "
                               "model and were left out of the fit"))
     if guess is not None:
-        reasons += _swing_reasons(t[good], guess, setup, offset=offset, model=model)
+        misfit = any(r.code in ("residual_noise", "residual_structure") for r in reasons)
+        reasons += _swing_reasons(t[good], guess, setup, offset=offset, model=model,
+                                  misfit=misfit)
     return reasons
 
 
@@ -250,10 +252,12 @@ def _residual_reasons(t, theta, good, used, result, setup, noise_floor: float) -
     return reasons
 
 
-def _swing_reasons(t_good, guess: dict, setup, *, offset: bool, model: str) -> list[Reason]:
+def _swing_reasons(t_good, guess: dict, setup, *, offset: bool, model: str,
+                   misfit: bool = False) -> list[Reason]:
     """``half_swings`` and ``period``: the swings the self-start ``guess`` found before the
-    rest, their number against the parameters fitted and their period against L = R - r;
-    ``t_good``: the times of the located samples."""
+    rest, their number against the parameters fitted and their period against L = R - r
+    (held closer where the residuals say the model ``misfit``s); ``t_good``: the times of
+    the located samples."""
     reasons = []
     t_end = guess["t_rest"] - 0.25 * guess["period"]
     tp_t = np.asarray(guess["turning_points_s"])
@@ -267,7 +271,7 @@ def _swing_reasons(t_good, guess: dict, setup, *, offset: bool, model: str) -> l
                               f" {need} are needed to tell {what} apart (without a turning "
                               "point the friction shifts the swing's centre just as an "
                               "offset does): record longer"))
-    period = period_reason(tp_t, tp_y, setup, setup.fps, t_data=t_good)
+    period = period_reason(tp_t, tp_y, setup, setup.fps, t_data=t_good, misfit=misfit)
     if period is not None:
         reasons.append(period)
     return reasons
