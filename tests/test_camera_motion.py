@@ -2,6 +2,8 @@
 (rollfric.track.camera_motion), named, and the centres moved back (drawn recordings whose frames
 are shifted from a frame on, or steadily: validation.faults.camera)."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -124,3 +126,108 @@ def test_a_drift_must_stand_out_from_the_shifts_own_noise(monkeypatch, drift_px,
         assert spread > cm.MOTION_MIN_PX  # the noise alone passed the old test
         assert m.kind == "still"
 
+
+
+def _small():
+    # a 160 x 66 px frame around the trough's bottom, a ball of 20 px radius: its masked
+    # square (2 radii + 2 px a side) is a third of the frame, as on the rendered fault study's
+    # 182 x 66 px frames
+    return make_recording(N, noise=2.0, with_center=True, mu=MU, theta0=0.2,
+                          center=(80.0, -144.0), width=160, height=66, ball_mm=17.0)
+
+
+@pytest.mark.parametrize("bump_px, drift_px", [((3.0, 0.0), None), ((1.0, 0.0), None),
+                                               (None, (2.0, 1.0))])
+def test_a_moved_camera_is_found_where_the_balls_square_is_much_of_a_small_frame(bump_px,
+                                                                                drift_px):
+    """Before: the phase correlation of the frame, its ball's square filled in from the
+    background, peaked at no shift (the filled square is the same in both): a 3 px or 1 px
+    bump was "still" (exit 3 by 'outliers' and 'center'), a drift "unknown" (mu -0.75 %). Now
+    the square is left out of a masked correlation: found, sized and corrected."""
+    rec = _small()
+    shift = camera_shift(N, bump_at=250 if bump_px else None, bump_px=bump_px or (0.0, 0.0),
+                         drift_px=drift_px or (0.0, 0.0))
+    frames = moved_frames(rec.frames, shift)
+    df, info, res = measure(MemorySource(frames), rec.setup, rec.background)
+    m = info.camera_motion
+    assert m["kind"] == ("bump" if bump_px else "drift")
+    assert m["size_px"] == pytest.approx(bump_px or drift_px, abs=0.05)
+    if bump_px:
+        assert m["frame"] == 250
+    assert res.mu == pytest.approx(MU, rel=5e-4)
+
+
+def test_a_drift_is_the_theil_sen_line_through_its_samples():
+    """Samples on a steady drift, two of them 0.3 px off (the ball hid most of the scene
+    there): the line the correction uses stays within 0.01 px of the drift."""
+    frames = np.linspace(0, 399, 12).round()
+    true = np.column_stack([frames / 399 * 2.0, frames / 399 * 1.0])
+    s = true.copy()
+    s[3] += (0.3, -0.3)
+    s[7] += (-0.3, 0.3)
+    m = cm.CameraMotion("drift", frames, s, size_px=tuple(s[-1] - s[0]))
+    per = m.per_frame(400)
+    assert np.abs(per - np.column_stack([np.arange(400) / 399 * 2.0,
+                                         np.arange(400) / 399 * 1.0])).max() < 0.01
+
+
+def test_a_plain_backdrop_cannot_tell_a_shift():
+    """A backdrop with a linear shading and noise: a shift along the shading is an offset the
+    correlation leaves free, so the shift's standard error is beyond SHIFT_MAX_SE_PX (NaN),
+    where the trough's edge in view gives one of a few thousandths of a pixel."""
+    rng = np.random.default_rng(0)
+    yy, xx = np.mgrid[:120, :200]
+    plain = 100.0 + 0.3 * xx + 0.2 * yy
+    bg = plain + rng.normal(0, 2.0, plain.shape)
+    frame = np.roll(plain, 2, axis=1) + rng.normal(0, 2.0, plain.shape)
+    assert np.isnan(cm.frame_shift(frame, bg)).all()
+    rec = _rec()
+    f = moved_frames([rec.frames[10]], [(2.0, 0.0)])[0]
+    assert cm.frame_shift(f, rec.background, rec.centers[10] + (2.0, 0.0),
+                          rec.scene.r_px) == pytest.approx((2.0, 0.0), abs=0.01)
+
+
+def test_the_correction_of_a_drift_or_bump_is_a_budget_row():
+    """The samples' scatter about the drift's line (or a bump's two levels) is the
+    correction's uncertainty: x and y, offset and slope (level and step), each one standard
+    uncertainty, of the size a straight-line fit (a difference of means) gives it."""
+    from rollfric.uncertainty.motion import patterns
+
+    k = 12
+    frames = np.linspace(0, 1100, k).round()
+    wiggle = np.where(np.arange(k) % 2 == 0, 0.1, -0.1)
+    shifts = np.column_stack([frames / 1100 * 2.0 + wiggle, frames / 1100 * 1.0])
+    at = np.array([0.0, 550.0, 1100.0])
+    got = dict(patterns({"kind": "drift", "frames": frames, "shifts_px": shifts}, at))
+    sigma = 0.1 * math.sqrt(k / (k - 2))
+    sxx = float(np.sum((frames - frames.mean()) ** 2))
+    assert got["x offset"][:, 0] == pytest.approx(sigma / math.sqrt(k), rel=0.05)
+    assert got["x slope"][:, 0] == pytest.approx(sigma * (at - frames.mean()) / math.sqrt(sxx),
+                                                 rel=0.05, abs=1e-9)
+    assert not got["y slope"].any() and not got["x slope"][:, 1].any()
+    bump = {"kind": "bump", "frame": 600, "frames": frames,
+            "shifts_px": np.column_stack([np.where(frames >= 600, 3.0, 0.0) + wiggle,
+                                          np.zeros(k)])}
+    got = dict(patterns(bump, at))
+    assert got["x step"][:, 0] == pytest.approx([0.0, 0.0, sigma * math.sqrt(1 / 6 + 1 / 6)],
+                                                rel=0.05)
+    assert patterns({"kind": "still", "frames": frames, "shifts_px": shifts}, at) == []
+
+
+def test_a_corrected_drift_on_a_small_frame_is_within_its_budget():
+    """The drift of the small frame corrected: the budget holds the correction's row, and mu
+    is within its U; the still camera's budget has no such row."""
+    from rollfric.uncertainty.budget import budget
+    from rollfric.uncertainty.measured import measurement_from_track
+    from rollfric.uncertainty.motion import SOURCE
+
+    rec = _small()
+    for drift, row in (((2.0, 1.0), True), ((0.0, 0.0), False)):
+        frames = moved_frames(rec.frames, camera_shift(N, drift_px=drift))
+        df, info, res = measure(MemorySource(frames), rec.setup, rec.background)
+        b = budget(measurement_from_track(df, info), res)
+        rows = [r for r in b.rows if r.source == SOURCE]
+        assert bool(rows) == row
+        if row:
+            assert rows[0].u_mu > 0 and "drift" in rows[0].note
+        assert abs(b.mu - MU) < b.U_mu

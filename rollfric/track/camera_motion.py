@@ -1,9 +1,12 @@
 """A camera that moved during the recording, found from the static scene around the ball.
 
 The trough and the backdrop do not move; a bumped or drifting camera moves all of them in the
-image. Frames sampled over the recording are compared with the background by phase
-correlation (``cv2.phaseCorrelate``, sub-pixel), the ball's disc (and a margin) replaced by
-the background's pixels so that only the static scene counts. A step between two samples is
+image. Frames sampled over the recording are compared with the background over the static
+scene (the ball's square and its shadow left out): a masked normalised cross-correlation on
+reduced images finds the shift to a pixel, the enhanced correlation coefficient refines it to
+a hundredth, and the shift's standard error says whether the scene can tell it at all (a
+plain backdrop cannot). A shift that stands out from the shifts' own noise is a motion; a
+step between two samples is
 narrowed down to its frame by bisection. The located centres are then moved back into the
 background's frame (a step from the bump's frame on, or the drift interpolated between the
 samples), so the angles are taken about the same trough axis throughout
@@ -18,6 +21,8 @@ import math
 
 import cv2
 import numpy as np
+from scipy import stats
+from skimage.registration import phase_cross_correlation
 
 from rollfric.geometry.theta import angles
 from rollfric.io.source import RecordingError
@@ -29,8 +34,10 @@ SAMPLES = 12  # frames compared with the background over the recording (a bump: 
 # a shift below this is not acted on: 0.1 px on the 200-600 px path radius of a lab's camera
 # moves the angles by 2e-4 to 5e-4 rad, below the locators' own systematic errors
 MOTION_MIN_PX = 0.1
-# a bump: the samples before and after it agree within this (px); otherwise a drift
+# a bump: the samples before and after it agree within this (px), or STEP_NOISE_FACTOR
+# times the shifts' own noise where that is more; otherwise a drift
 STEP_SCATTER_PX = 0.05
+STEP_NOISE_FACTOR = 3.0
 # a drift: its samples spread about their median by more than this many times the shifts'
 # own noise (the largest of 12 normal deviates is rarely beyond 3 standard deviations)
 DRIFT_NOISE_FACTOR = 4.0
@@ -40,12 +47,11 @@ ECC_STEPS = 30  # iterations of the ECC refinement at most
 # QUICK_STILL_PX of each other is still (a quarter-size shift is good to ~0.01 px here)
 QUICK_LEVEL = 2
 QUICK_STILL_PX = 0.05
-# the phase correlation's sub-pixel bias is a few tenths of a pixel; an ECC result farther
-# from it than this has wandered off in a scene with too little structure
-PHASE_AGREE_PX = 0.5
-# the phase correlation's peak: 0.9-1.0 on drawn scenes with the trough in view, 0.2-0.3 on
-# a plain backdrop with noise, where no shift can be measured
-PHASE_MIN_RESPONSE = 0.5
+# a shift is measured where its standard error (shift_precision) is at most this: 0.001-0.005
+# px on drawn scenes with the trough's walls in view, 0.02-0.06 px on small rendered frames,
+# 0.23 px on the dim lighting's (its trough edge barely above the noise), none on a plain
+# or evenly shaded backdrop with noise
+SHIFT_MAX_SE_PX = 0.3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,9 +91,10 @@ class CameraMotion:
             s = np.tile(np.asarray(self.before_px, dtype=float), (n, 1))
             s[self.frame:] += self.size_px
             return s
-        idx = np.arange(n)
-        return np.column_stack([np.interp(idx, self.frames, self.shifts[:, k])
-                                for k in range(2)])
+        # a steady drift: the line through the samples (each sample's error depends on where
+        # the ball hides the scene, up to a quarter of a pixel on a small frame; the line
+        # averages it, where joining the samples would copy it)
+        return drift_line(self.frames, self.shifts)(np.arange(n))
 
     def message(self) -> str:
         """What was found, for a warning or a reason."""
@@ -106,21 +113,28 @@ class CameraMotion:
                 "shifts_px": [[float(a), float(b)] for a, b in self.shifts]}
 
 
-def _window(shape):
-    return cv2.createHanningWindow((shape[1], shape[0]), cv2.CV_64F)
+def drift_line(frames, shifts):
+    """The steady drift through the samples ``shifts`` ((K, 2) px at ``frames``): the
+    Theil-Sen line of each axis (``scipy.stats.theilslopes``: a sample or two far off, where
+    the ball hid most of the scene, do not tilt it), through the median of the samples less
+    it. Returns a function of the frame numbers
+    giving (T, 2) px."""
+    f = np.asarray(frames, dtype=float)
+    s = np.asarray(shifts, dtype=float).reshape(-1, 2)
+    lines = []
+    for k in range(2):
+        slope = stats.theilslopes(s[:, k], f)[0]
+        lines.append((slope, float(np.median(s[:, k] - slope * f))))  # the residuals' median
+
+    def at(frame):
+        frame = np.asarray(frame, dtype=float)
+        return np.column_stack([b + a * frame for a, b in lines])
+    return at
 
 
-def frame_shift(frame, background, ball=None, r_px: float = 0.0, window=None, *,
-                level: int = 0):
-    """The scene's shift (dx, dy) px in ``frame`` against ``background``, the ball at
-    ``ball`` = (x, y) px masked (NaN when the phase correlation's peak is below
-    PHASE_MIN_RESPONSE or the two estimates below disagree by more than PHASE_AGREE_PX: a
-    scene without the structure to measure it): phase correlation
-    (``cv2.phaseCorrelate``, whose sub-pixel peak is biased by a few tenths of a pixel),
-    refined by the enhanced correlation coefficient's translation (``cv2.findTransformECC``)
-    over the pixels outside the ball. ``level``: both images halved that many times first
-    (``cv2.pyrDown``; the shift is given in the full images' pixels), for a quick look;
-    ``window``: a Hanning window of the (halved) images' shape, or None."""
+def _scene(frame, background, ball, r_px: float):
+    """The frame and background as float32 greyscale and the static scene's mask (uint8, 1
+    outside the ball's square of half-width BALL_MARGIN radii + 2 px)."""
     f = np.asarray(frame, dtype=np.float32)
     b = np.asarray(background, dtype=np.float32)
     if f.ndim == 3:
@@ -133,32 +147,134 @@ def frame_shift(frame, background, ball=None, r_px: float = 0.0, window=None, *,
         rad = BALL_MARGIN * r_px + 2
         y0, y1 = max(0, int(ball[1] - rad)), min(h, int(ball[1] + rad) + 1)
         x0, x1 = max(0, int(ball[0] - rad)), min(w, int(ball[0] + rad) + 1)
-        f = f.copy()
-        f[y0:y1, x0:x1] = b[y0:y1, x0:x1]
         mask[y0:y1, x0:x1] = 0
-    for _ in range(level):
-        f, b = cv2.pyrDown(f), cv2.pyrDown(b)
-        mask = (cv2.resize(mask, (f.shape[1], f.shape[0]), interpolation=cv2.INTER_AREA)
-                > 0).astype(np.uint8)
-    if window is None or window.shape != f.shape:
-        window = _window(f.shape)
-    scale = float(2 ** level)
-    # copies: cv2.phaseCorrelate applies its window to its inputs in place
-    (dx, dy), response = cv2.phaseCorrelate(b.astype(np.float64), f.astype(np.float64), window)
-    if not response >= PHASE_MIN_RESPONSE:
-        return math.nan, math.nan
-    warp = np.array([[1, 0, dx], [0, 1, dy]], dtype=np.float32)
-    # the rho increment ends it: from the phase estimate it is small at once, so a tiny one
-    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, ECC_STEPS, 1e-7)
+    return f, b, mask
+
+
+def _halved(f, b, mask):
+    f, b = cv2.pyrDown(f), cv2.pyrDown(b)
+    # a halved pixel is static only where all it was made of is
+    mask = (cv2.resize(mask.astype(np.float32), (f.shape[1], f.shape[0]),
+                       interpolation=cv2.INTER_AREA) > 0.999).astype(np.uint8)
+    return f, b, mask
+
+
+def _inside(mask, warp):
+    """``mask`` less the frame's border that a shift by ``warp`` moves in (and a pixel)."""
+    bx, by = (math.ceil(abs(float(v))) + 1 for v in warp[:, 2])
+    out = mask.copy()
+    out[:by] = out[out.shape[0] - by:] = 0
+    out[:, :bx] = out[:, out.shape[1] - bx:] = 0
+    return out
+
+
+def search_level(shape) -> int:
+    """How many times a frame of ``shape`` is halved for the whole-scene search (and the
+    quick look): up to QUICK_LEVEL, the halved frame at least 64 px on its short side."""
+    level = 0
+    while level < QUICK_LEVEL and min(shape[:2]) >= 64 * 2 ** (level + 1):
+        level += 1
+    return level
+
+
+def shift_precision(f, b, mask, warp) -> float:
+    """The standard error (px) of the shift ``warp`` found between ``b`` and ``f`` over
+    ``mask``: the frame moved back by it regressed on the background (gain and offset, as
+    the ECC leaves free) and the background's gradients (the shift's linear effect), the
+    larger of the two gradients' standard errors. The gradients' energy that the background's
+    own noise makes (its level from neighbouring pixels' differences) is no structure and is
+    taken out. A scene whose only structure is a gain or an offset (a plain or evenly shaded
+    backdrop: a shift along a linear shading is an offset) has an infinite one."""
+    h, w = f.shape
+    back = cv2.warpAffine(f, warp, (w, h), flags=cv2.INTER_LINEAR + cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_REPLICATE)
+    inside = cv2.warpAffine(mask, warp, (w, h), flags=cv2.INTER_NEAREST + cv2.WARP_INVERSE_MAP,
+                            borderValue=0)
+    m = (mask > 0) & (inside > 0)
+    m[:2] = m[-2:] = False
+    m[:, :2] = m[:, -2:] = False
+    n = int(m.sum())
+    if n < 16:
+        return math.inf
+    gx, gy = (_gradient(b, dx, dy) for dx, dy in ((1, 0), (0, 1)))
+    x = np.column_stack([b[m], np.ones(n), gx[m], gy[m]]).astype(float)
+    y = back[m].astype(float)
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    res = y - x @ coef
+    s2 = float(res @ res) / max(1, n - 4)
+    # white noise of the background's level puts n sigma^2 sum(k^2) into each gradient's sum
+    # of squares (k: the gradient filter's coefficients)
+    sigma_b = _noise(b)
+    delta = np.zeros((7, 7), dtype=np.float32)
+    delta[3, 3] = 1.0
+    xtx = x.T @ x
+    for k, (dx, dy) in ((2, (1, 0)), (3, (0, 1))):
+        xtx[k, k] -= n * sigma_b ** 2 * float(np.sum(_gradient(delta, dx, dy) ** 2))
     try:
-        _, warp = cv2.findTransformECC(b, f, warp, cv2.MOTION_TRANSLATION, crit, mask, 1)
-    except cv2.error as exc:  # a featureless scene
-        logger.debug(f"ECC failed: {exc}")
+        cov = s2 * np.linalg.inv(xtx)
+    except np.linalg.LinAlgError:
+        return math.inf
+    var = max(cov[2, 2], cov[3, 3])
+    return math.sqrt(var) if var > 0 and np.all(np.linalg.eigvalsh(xtx) > 0) else math.inf
+
+
+def _noise(img) -> float:
+    """The image's pixel noise: the rms of neighbouring pixels' differences over root 2,
+    the differences beyond 4 robust sigmas (an edge) left out (a MAD alone reads 8-bit data
+    of 0.7 counts as 1.05: its differences are whole counts)."""
+    d = np.diff(np.asarray(img, dtype=np.float64), axis=1).ravel()
+    s0 = 1.4826 * float(np.median(np.abs(d)))
+    d = d[np.abs(d) <= max(4.0 * s0, 2.0)]
+    return math.sqrt(float(np.mean(d * d)) / 2.0) if d.size else 0.0
+
+
+def _gradient(img, dx: int, dy: int):
+    """The image's gradient along x (dx 1) or y (dy 1), per px, smoothed by a pixel."""
+    return cv2.Sobel(cv2.GaussianBlur(img, (0, 0), 1.0), cv2.CV_32F, dx, dy, ksize=3) / 8.0
+
+
+def frame_shift(frame, background, ball=None, r_px: float = 0.0, *, level: int = 0):
+    """The scene's shift (dx, dy) px in ``frame`` against ``background``, the ball at
+    ``ball`` = (x, y) px masked (NaN where the scene cannot tell it: a standard error above
+    SHIFT_MAX_SE_PX, :func:`shift_precision`).
+
+    A whole-scene search on the images halved :func:`search_level` times (the masked
+    normalised cross-correlation, ``skimage.registration.phase_cross_correlation`` with
+    masks: the ball's square is left out of the frame's correlation, not filled in, which
+    would pull the peak to no shift where the square is much of a small frame), refined by
+    the enhanced correlation coefficient's translation (``cv2.findTransformECC``) over the
+    static scene at each level down to ``level`` (0: full size; more, a quick look, the shift
+    still given in the full images' pixels).
+    """
+    pyramid = [_scene(frame, background, ball, r_px)]
+    top = max(level, search_level(pyramid[0][0].shape))
+    while len(pyramid) <= top:
+        pyramid.append(_halved(*pyramid[-1]))
+    f, b, mask = pyramid[top]
+    if mask.sum() < 16:
         return math.nan, math.nan
-    ex, ey = float(warp[0, 2]), float(warp[1, 2])
-    if abs(ex - dx) > PHASE_AGREE_PX or abs(ey - dy) > PHASE_AGREE_PX:
-        return math.nan, math.nan  # the two disagree: a scene without the structure to tell
-    return ex * scale, ey * scale
+    # the shift that moves the frame onto the background: the scene's shift, negated
+    found = phase_cross_correlation(b, f, reference_mask=np.ones(b.shape, dtype=bool),
+                                    moving_mask=mask > 0)
+    dy, dx = -np.asarray(found[0] if isinstance(found, tuple) else found, dtype=float)
+    warp = np.array([[1, 0, dx], [0, 1, dy]], dtype=np.float32)
+    # the rho increment ends it: from the search's pixel it is small at once, so a tiny one
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, ECC_STEPS, 1e-7)
+    for lv in range(top, level - 1, -1):
+        f, b, mask = pyramid[lv]
+        if lv < top:
+            warp[:, 2] *= 2.0
+        # where the frame's edge moved in, it holds no scene of the background's
+        mask = _inside(mask, warp)
+        try:
+            _, warp = cv2.findTransformECC(b, f, warp, cv2.MOTION_TRANSLATION, crit, mask, 1)
+        except cv2.error as exc:  # a featureless scene
+            logger.debug(f"ECC failed: {exc}")
+            return math.nan, math.nan
+    scale = float(2 ** level)
+    if not shift_precision(f, b, mask, warp) * scale <= SHIFT_MAX_SE_PX:
+        return math.nan, math.nan
+    return float(warp[0, 2]) * scale, float(warp[1, 2]) * scale
 
 
 def find_motion(source, background, centres, r_px: float, *, samples: int = SAMPLES,
@@ -186,92 +302,150 @@ def find_motion(source, background, centres, r_px: float, *, samples: int = SAMP
     CameraMotion
     """
     n = len(source)
-    bg_shape = np.asarray(background).shape[:2]
-    # a quick look at a quarter of the size tells a still camera (the usual case) within
+    # a quick look at reduced size tells a still camera (the usual case) within
     # MOTION_MIN_PX; a moving one is measured again at full size
-    level = QUICK_LEVEL if min(bg_shape) >= 64 * 2 ** QUICK_LEVEL else 0
-    cache: dict[int, np.ndarray] = {}
-
-    def shift(i):  # the frames are read again for the full size: a few, and rarely
-        if i not in cache:
-            try:
-                frame = source[i]
-            except (RecordingError, OSError, ValueError):  # a corrupt frame: no sample
-                cache[i] = np.full(2, np.nan)
-            else:
-                cache[i] = np.array(frame_shift(frame, background, centres[i], r_px,
-                                                level=level))
-        return cache[i]
-
+    shift = _Shifts(source, background, centres, r_px,
+                    search_level(np.asarray(background).shape))
     pool = np.flatnonzero(usable) if usable is not None else np.arange(n)
     if pool.size < 3:
         pool = np.arange(n)
     idx = np.unique(pool[np.linspace(0, pool.size - 1, min(samples, pool.size)).round()
                          .astype(int)])
     s = np.array([shift(i) for i in idx])
-    ok = np.isfinite(s).all(axis=1)
-    # a sample off both its neighbours (a glitched frame the checks missed) is no motion
-    for k in range(1, len(idx) - 1):
-        if ok[k - 1] and ok[k + 1] and min(np.hypot(*(s[k] - s[k - 1])),
-                                           np.hypot(*(s[k] - s[k + 1]))) > MOTION_MIN_PX \
-                and np.hypot(*(s[k - 1] - s[k + 1])) < MOTION_MIN_PX:
-            ok[k] = False
+    ok = np.isfinite(s).all(axis=1) & ~_off_both_neighbours(s)
     if ok.sum() < max(3, 0.5 * len(idx)):
         return CameraMotion("unknown", idx, s)
     idx, s = idx[ok], s[ok]
-    rel = s - s[0]
-    if np.max(np.hypot(rel[:, 0], rel[:, 1])) < QUICK_STILL_PX or (
-            level == 0 and np.max(np.hypot(rel[:, 0], rel[:, 1])) < MOTION_MIN_PX):
+    if _largest(s - s[0]) < (QUICK_STILL_PX if shift.level else MOTION_MIN_PX):
         return CameraMotion("still", idx, s)
-    if level:  # it moved, or may have: every sample again at full size
-        level = 0
-        cache.clear()
+    if shift.level:  # it moved, or may have: every sample again at full size
+        shift.full_size()
         s = np.array([shift(i) for i in idx])
         keep = np.isfinite(s).all(axis=1)
         if keep.sum() < 3:
             return CameraMotion("unknown", idx, s)
         idx, s = idx[keep], s[keep]
-        rel = s - s[0]
-        if np.max(np.hypot(rel[:, 0], rel[:, 1])) < MOTION_MIN_PX:
+        if _largest(s - s[0]) < MOTION_MIN_PX:
             return CameraMotion("still", idx, s)
-    # one step: the split that leaves the least scatter on both sides
-    best = None
-    for j in range(1, len(idx)):
-        left, right = s[:j], s[j:]
-        sc = max(np.max(np.abs(left - np.median(left, axis=0))),
-                 np.max(np.abs(right - np.median(right, axis=0))))
-        if best is None or sc < best[0]:
-            best = (sc, j)
-    sc, j = best
-    if sc <= STEP_SCATTER_PX:
-        before, after = np.median(s[:j], axis=0), np.median(s[j:], axis=0)
-        lo, hi = int(idx[j - 1]), int(idx[j])  # lo like before, hi like after
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            d = shift(mid)
-            if not np.isfinite(d).all():
-                break
-            if np.hypot(*(d - before)) < np.hypot(*(d - after)):
-                lo = mid
-            else:
-                hi = mid
-        size = after - before
-        return CameraMotion("bump", idx, s, frame=hi, size_px=(float(size[0]), float(size[1])),
-                            before_px=(float(before[0]), float(before[1])))
-    # a drift must stand out from the shifts' own noise: each sample measured again on its
+    # a motion must stand out from the shifts' own noise: each sample measured again on its
     # neighbouring frame (the camera does not move between two frames), the pairs'
     # differences giving that noise (a dim scene's shifts scatter 0.15 px with the camera
     # still, which a drift of MOTION_MIN_PX took for motion and "corrected")
     pair = np.array([shift(i + 1 if i + 1 < n else i - 1) for i in idx])
     d = (pair - s)[np.isfinite(pair).all(axis=1)]
-    if len(d) >= 3:
-        noise = 1.4826 * float(np.median(np.abs(d - np.median(d, axis=0)))) / math.sqrt(2.0)
-        spread = float(np.max(np.hypot(*(s - np.median(s, axis=0)).T)))
-        if noise > MOTION_MIN_PX:  # shifts too noisy to tell a still camera from a moving one
-            return CameraMotion("unknown", idx, s)
-        if spread < DRIFT_NOISE_FACTOR * noise:
-            return CameraMotion("still", idx, s)
-    return CameraMotion("drift", idx, s, size_px=(float(rel[-1, 0]), float(rel[-1, 1])))
+    noise = _robust_sd(d) / math.sqrt(2.0) if len(d) >= 3 else 0.0
+    if noise > MOTION_MIN_PX:  # shifts too noisy to tell a still camera from a moving one
+        return CameraMotion("unknown", idx, s)
+    # and from what the ball hides of the scene, which differs from sample to sample (the
+    # successive samples' differences, a drift's steady part and a bump's one step aside:
+    # 0.1 px on a small dark frame, where a still camera "drifted" by it)
+    noise = max(noise, _robust_sd(np.diff(s, axis=0)) / math.sqrt(2.0))
+    if _largest(s - np.median(s, axis=0)) < DRIFT_NOISE_FACTOR * noise:
+        return CameraMotion("still", idx, s)
+    bump = _step(shift, idx, s, max(STEP_SCATTER_PX, STEP_NOISE_FACTOR * noise))
+    if bump is not None:
+        return bump
+    # a drift: the line through the samples must rise above its own standard error
+    line = drift_line(idx, s)
+    total = line(idx[-1:])[0] - line(idx[:1])[0]
+    dev = s - line(idx)
+    span = float(idx[-1] - idx[0])
+    se = math.sqrt(float(np.sum(dev ** 2)) / max(1, 2 * (len(idx) - 2))) * span / math.sqrt(
+        float(np.sum((idx - idx.mean()) ** 2)))
+    if math.hypot(*total) < DRIFT_NOISE_FACTOR * se:
+        return CameraMotion("still", idx, s)
+    return CameraMotion("drift", idx, s, size_px=(float(total[0]), float(total[1])))
+
+
+def _robust_sd(d) -> float:
+    """The robust standard deviation of the rows of ``d`` about their median (the larger of
+    x and y's): 1.4826 x the median absolute deviation."""
+    d = np.asarray(d, dtype=float).reshape(-1, 2)
+    if len(d) < 3:
+        return 0.0
+    return 1.4826 * float(np.max(np.median(np.abs(d - np.median(d, axis=0)), axis=0)))
+
+
+class _Shifts:
+    """:func:`frame_shift` of frame i of a recording at a level, remembered (the frames are
+    read again for the full size: a few, and rarely)."""
+
+    def __init__(self, source, background, centres, r_px, level):
+        self.source, self.background, self.r_px = source, background, r_px
+        # a frame whose ball the checks rejected (a jump at the bump's frame) still shows it:
+        # masked where its neighbours put it
+        c = np.array(centres, dtype=float).reshape(-1, 2)
+        ok = np.isfinite(c).all(axis=1)
+        if ok.any() and not ok.all():
+            idx = np.arange(len(c))
+            c[~ok] = np.column_stack([np.interp(idx[~ok], idx[ok], c[ok, k]) for k in range(2)])
+        self.centres = c
+        self.level = level
+        self.cache: dict[int, np.ndarray] = {}
+
+    def full_size(self):
+        self.level = 0
+        self.cache.clear()
+
+    def __call__(self, i: int) -> np.ndarray:
+        if i not in self.cache:
+            try:
+                frame = self.source[i]
+            except (RecordingError, OSError, ValueError):  # a corrupt frame: no sample
+                self.cache[i] = np.full(2, np.nan)
+            else:
+                self.cache[i] = np.array(frame_shift(frame, self.background, self.centres[i],
+                                                     self.r_px, level=self.level))
+        return self.cache[i]
+
+
+def _largest(v) -> float:
+    return float(np.max(np.hypot(v[:, 0], v[:, 1])))
+
+
+def _off_both_neighbours(s) -> np.ndarray:
+    """The samples off both their neighbours, which agree (a glitched frame the checks
+    missed: no motion)."""
+    off = np.zeros(len(s), dtype=bool)
+    for k in range(1, len(s) - 1):
+        off[k] = (min(np.hypot(*(s[k] - s[k - 1])), np.hypot(*(s[k] - s[k + 1])))
+                  > MOTION_MIN_PX and np.hypot(*(s[k - 1] - s[k + 1])) < MOTION_MIN_PX)
+    return off
+
+
+def _step(shift, idx, s, tol: float) -> CameraMotion | None:
+    """A bump: the split of the samples that leaves the least scatter on both sides (one
+    sample aside), if that is within ``tol`` px, its frame narrowed down by bisection; None
+    otherwise."""
+    best = None
+    for j in range(1, len(idx)):
+        left, right = s[:j], s[j:]
+        dev = np.concatenate([np.abs(left - np.median(left, axis=0)).max(axis=1),
+                              np.abs(right - np.median(right, axis=0)).max(axis=1)])
+        # one sample may be off (where the ball hid most of the scene: 0.5 px on a dim one),
+        # by less than half the step (else it is on the other side of it)
+        step = float(np.abs(np.median(right, axis=0) - np.median(left, axis=0)).max())
+        top = np.sort(dev)
+        sc = float(top[-2]) if len(dev) >= 6 and top[-1] < 0.5 * step else float(top[-1])
+        if best is None or sc < best[0]:
+            best = (sc, j)
+    sc, j = best
+    if sc > tol:
+        return None
+    before, after = np.median(s[:j], axis=0), np.median(s[j:], axis=0)
+    lo, hi = int(idx[j - 1]), int(idx[j])  # lo like before, hi like after
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        d = shift(mid)
+        if not np.isfinite(d).all():
+            break
+        if np.hypot(*(d - before)) < np.hypot(*(d - after)):
+            lo = mid
+        else:
+            hi = mid
+    size = after - before
+    return CameraMotion("bump", idx, s, frame=hi, size_px=(float(size[0]), float(size[1])),
+                        before_px=(float(before[0]), float(before[1])))
 
 
 def correct_for_motion(source, bg, df, info, setup, angle, *, retrack=None):

@@ -60,6 +60,7 @@ from rollfric.uncertainty import propagation
 from rollfric.uncertainty.anglemap import METHOD, method_row
 from rollfric.uncertainty.asbuilt import as_built_rows
 from rollfric.uncertainty.measured import Measurement
+from rollfric.uncertainty.motion import motion_row
 from rollfric.uncertainty.propagation import SECOND_ORDER
 from rollfric.uncertainty.sensitivity import Refitter, moved, setup_inputs, why_not
 
@@ -275,6 +276,9 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     built = as_built_rows(meas, result, refit, setup, params, fit_length=fit_length)
     rows += [Row(*r) for r in built.rows]
     exact += list(built.exact)
+    motion, n_motion = motion_row(meas, result, setup, mu, fit_length=fit_length)
+    if motion is not None:
+        rows.append(Row(*motion))
     if order == 2 and active:
         u_2, note = propagation.second_order_row(refit, setup, active)
         rows.append(Row(SECOND_ORDER, None, u_2, 1.0, u_2, note))
@@ -287,8 +291,8 @@ def budget(meas: Measurement, result, *, fit_length: bool = False, monte_carlo: 
     return Budget(mu=mu, u_mu=u_mu, U_mu=coverage_factor * u_mu,
                   coverage_factor=coverage_factor, rows=tuple(rows), statistical=statistical,
                   exact=tuple(exact), length=length, monte_carlo=mc,
-                  seconds=time.perf_counter() - start, n_refits=refit.count + built.n_refits,
-                  order=order)
+                  seconds=time.perf_counter() - start,
+                  n_refits=refit.count + built.n_refits + n_motion, order=order)
 
 
 def _statistical(refit: Refitter, setup: Setup):

@@ -50,6 +50,9 @@ class Measurement:
         The trough's contour and the ball's path as ellipses (fit.json's
         ``contour_ellipse``, ``path_ellipse``): their readings are budget rows
         (:mod:`rollfric.uncertainty.asbuilt`).
+    camera_motion : dict, optional
+        The camera's motion the measurement corrected (fit.json's ``camera_motion``): its
+        correction's uncertainty is a budget row (:mod:`rollfric.uncertainty.motion`).
 
     Examples
     --------
@@ -83,6 +86,9 @@ class Measurement:
     # the ellipses the measurement saw, as in fit.json: {"contour_ellipse": ...,
     # "path_ellipse": ...} (rollfric.uncertainty.asbuilt reads them); None: none
     as_built: dict | None = None
+    # the camera's motion the measurement corrected, as in fit.json's camera_motion
+    # (rollfric.uncertainty.motion makes its row); None: none
+    camera_motion: dict | None = None
 
     @property
     def from_centres(self) -> bool:
@@ -172,4 +178,5 @@ def measurement_from_track(track, info) -> Measurement:
                        distorted=bool(info.undistorted),
                        angle_map=getattr(info, "angle_map", None),
                        as_built={"contour_ellipse": getattr(info, "contour_ellipse", None),
-                                 "path_ellipse": getattr(info, "path_ellipse", None)})
+                                 "path_ellipse": getattr(info, "path_ellipse", None)},
+                       camera_motion=getattr(info, "camera_motion", None))
