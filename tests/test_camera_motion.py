@@ -231,3 +231,17 @@ def test_a_corrected_drift_on_a_small_frame_is_within_its_budget():
         if row:
             assert rows[0].u_mu > 0 and "drift" in rows[0].note
         assert abs(b.mu - MU) < b.U_mu
+
+
+def test_what_the_first_pass_over_a_bumped_camera_warned_of_is_withdrawn(caplog):
+    """The first pass over a 3 px bump reads the step as 3 dropped frames and says so while
+    tracking; the camera's warning says that no longer holds."""
+    rec = _rec()
+    frames = moved_frames(rec.frames, camera_shift(N, bump_at=250, bump_px=(3.0, 0.0)))
+    with caplog.at_level("WARNING", logger="rollfric"):
+        df, info, res = measure(MemorySource(frames), rec.setup, rec.background)
+    said = [r.getMessage() for r in caplog.records]
+    assert any(m.startswith("3 dropped frame(s)") for m in said)
+    (moved,) = [w for w in info.warnings if "the camera moved" in w]
+    assert "no longer holds: 3 dropped frame(s) found" in moved
+    assert not any("dropped" in w for w in info.warnings if w != moved)

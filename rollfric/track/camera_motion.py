@@ -503,6 +503,10 @@ def correct_for_motion(source, bg, df, info, setup, angle, *, retrack=None):
         df, again = retrack(per)
         msg = (f"{motion.message()}: the frames were moved back into the background's frame "
                "and the ball located again")
+        stale = [w for w in info.warnings if w not in again.warnings]
+        if stale:  # said while tracking the moved frames (a bump read as dropped frames)
+            msg += ("; what the first pass over the moved frames warned of no longer holds: "
+                    + " | ".join(w.split(":")[0] for w in stale))
         logger.warning(msg)
         return df, dataclasses.replace(again, camera_motion=motion.to_dict(),
                                        warnings=again.warnings + (msg,))
