@@ -1,16 +1,14 @@
 """A camera that moved during the recording, found from the static scene around the ball.
 
-The trough and the backdrop do not move; a bumped or drifting camera moves all of them in the
-image. Frames sampled over the recording are compared with the background over the static
-scene (the ball's square and its shadow left out): a masked normalised cross-correlation on
-reduced images finds the shift to a pixel, the enhanced correlation coefficient refines it to
-a hundredth, and the shift's standard error says whether the scene can tell it at all (a
-plain backdrop cannot). A shift that stands out from the shifts' own noise is a motion; a
-step between two samples is
-narrowed down to its frame by bisection. The located centres are then moved back into the
-background's frame (a step from the bump's frame on, or the drift interpolated between the
-samples), so the angles are taken about the same trough axis throughout
-(:func:`correct_for_motion`, a step of :func:`rollfric.measurement.measure`).
+Frames sampled over the recording are compared with the background over the static scene
+(:func:`rollfric.track.scene_shift.frame_shift`). A shift that stands out from the samples'
+own noise (each measured again on its neighbouring frame) and from what the ball hides of the
+scene (their scatter from sample to sample) is a motion: a step between two samples, narrowed
+down to its frame by bisection (a bump), or a steady drift (the Theil-Sen line through the
+samples, :func:`drift_line`). The recording is then tracked again with its frames moved back
+into the background's frame (:func:`correct_for_motion`, a step of
+:func:`rollfric.measurement.measure`); the correction's own uncertainty is a row of the
+budget (:mod:`rollfric.uncertainty.motion`).
 """
 
 from __future__ import annotations
@@ -19,13 +17,12 @@ import dataclasses
 import logging
 import math
 
-import cv2
 import numpy as np
 from scipy import stats
-from skimage.registration import phase_cross_correlation
 
 from rollfric.geometry.theta import angles
 from rollfric.io.source import RecordingError
+from rollfric.track.scene_shift import frame_shift, search_level
 from rollfric.track.timestamps import irregular_message, located_irregular_message
 
 logger = logging.getLogger(__name__)
@@ -41,18 +38,9 @@ STEP_NOISE_FACTOR = 3.0
 # a drift: its samples spread about their median by more than this many times the shifts'
 # own noise (the largest of 12 normal deviates is rarely beyond 3 standard deviations)
 DRIFT_NOISE_FACTOR = 4.0
-BALL_MARGIN = 2.0  # the ball's disc and its shadow: this many ball radii masked
-ECC_STEPS = 30  # iterations of the ECC refinement at most
-# the quick look: images halved this many times; a camera whose samples there stay within
-# QUICK_STILL_PX of each other is still (a quarter-size shift is good to ~0.01 px here)
-QUICK_LEVEL = 2
+# the quick look: a camera whose samples at reduced size stay within QUICK_STILL_PX of each
+# other is still (a quarter-size shift is good to ~0.01 px there)
 QUICK_STILL_PX = 0.05
-# a shift is measured where its standard error (shift_precision) is at most this: 0.001-0.005
-# px on drawn scenes with the trough's walls in view, 0.02-0.06 px on small rendered frames,
-# 0.23 px on the dim lighting's (its trough edge barely above the noise), none on a plain
-# or evenly shaded backdrop with noise
-SHIFT_MAX_SE_PX = 0.3
-
 
 @dataclasses.dataclass(frozen=True)
 class CameraMotion:
@@ -130,151 +118,6 @@ def drift_line(frames, shifts):
         frame = np.asarray(frame, dtype=float)
         return np.column_stack([b + a * frame for a, b in lines])
     return at
-
-
-def _scene(frame, background, ball, r_px: float):
-    """The frame and background as float32 greyscale and the static scene's mask (uint8, 1
-    outside the ball's square of half-width BALL_MARGIN radii + 2 px)."""
-    f = np.asarray(frame, dtype=np.float32)
-    b = np.asarray(background, dtype=np.float32)
-    if f.ndim == 3:
-        f = f.mean(axis=2)
-    if b.ndim == 3:
-        b = b.mean(axis=2)
-    mask = np.ones(f.shape, dtype=np.uint8)
-    if ball is not None and np.all(np.isfinite(ball)):
-        h, w = f.shape
-        rad = BALL_MARGIN * r_px + 2
-        y0, y1 = max(0, int(ball[1] - rad)), min(h, int(ball[1] + rad) + 1)
-        x0, x1 = max(0, int(ball[0] - rad)), min(w, int(ball[0] + rad) + 1)
-        mask[y0:y1, x0:x1] = 0
-    return f, b, mask
-
-
-def _halved(f, b, mask):
-    f, b = cv2.pyrDown(f), cv2.pyrDown(b)
-    # a halved pixel is static only where all it was made of is
-    mask = (cv2.resize(mask.astype(np.float32), (f.shape[1], f.shape[0]),
-                       interpolation=cv2.INTER_AREA) > 0.999).astype(np.uint8)
-    return f, b, mask
-
-
-def _inside(mask, warp):
-    """``mask`` less the frame's border that a shift by ``warp`` moves in (and a pixel)."""
-    bx, by = (math.ceil(abs(float(v))) + 1 for v in warp[:, 2])
-    out = mask.copy()
-    out[:by] = out[out.shape[0] - by:] = 0
-    out[:, :bx] = out[:, out.shape[1] - bx:] = 0
-    return out
-
-
-def search_level(shape) -> int:
-    """How many times a frame of ``shape`` is halved for the whole-scene search (and the
-    quick look): up to QUICK_LEVEL, the halved frame at least 64 px on its short side."""
-    level = 0
-    while level < QUICK_LEVEL and min(shape[:2]) >= 64 * 2 ** (level + 1):
-        level += 1
-    return level
-
-
-def shift_precision(f, b, mask, warp) -> float:
-    """The standard error (px) of the shift ``warp`` found between ``b`` and ``f`` over
-    ``mask``: the frame moved back by it regressed on the background (gain and offset, as
-    the ECC leaves free) and the background's gradients (the shift's linear effect), the
-    larger of the two gradients' standard errors. The gradients' energy that the background's
-    own noise makes (its level from neighbouring pixels' differences) is no structure and is
-    taken out. A scene whose only structure is a gain or an offset (a plain or evenly shaded
-    backdrop: a shift along a linear shading is an offset) has an infinite one."""
-    h, w = f.shape
-    back = cv2.warpAffine(f, warp, (w, h), flags=cv2.INTER_LINEAR + cv2.WARP_INVERSE_MAP,
-                          borderMode=cv2.BORDER_REPLICATE)
-    inside = cv2.warpAffine(mask, warp, (w, h), flags=cv2.INTER_NEAREST + cv2.WARP_INVERSE_MAP,
-                            borderValue=0)
-    m = (mask > 0) & (inside > 0)
-    m[:2] = m[-2:] = False
-    m[:, :2] = m[:, -2:] = False
-    n = int(m.sum())
-    if n < 16:
-        return math.inf
-    gx, gy = (_gradient(b, dx, dy) for dx, dy in ((1, 0), (0, 1)))
-    x = np.column_stack([b[m], np.ones(n), gx[m], gy[m]]).astype(float)
-    y = back[m].astype(float)
-    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-    res = y - x @ coef
-    s2 = float(res @ res) / max(1, n - 4)
-    # white noise of the background's level puts n sigma^2 sum(k^2) into each gradient's sum
-    # of squares (k: the gradient filter's coefficients)
-    sigma_b = _noise(b)
-    delta = np.zeros((7, 7), dtype=np.float32)
-    delta[3, 3] = 1.0
-    xtx = x.T @ x
-    for k, (dx, dy) in ((2, (1, 0)), (3, (0, 1))):
-        xtx[k, k] -= n * sigma_b ** 2 * float(np.sum(_gradient(delta, dx, dy) ** 2))
-    try:
-        cov = s2 * np.linalg.inv(xtx)
-    except np.linalg.LinAlgError:
-        return math.inf
-    var = max(cov[2, 2], cov[3, 3])
-    return math.sqrt(var) if var > 0 and np.all(np.linalg.eigvalsh(xtx) > 0) else math.inf
-
-
-def _noise(img) -> float:
-    """The image's pixel noise: the rms of neighbouring pixels' differences over root 2,
-    the differences beyond 4 robust sigmas (an edge) left out (a MAD alone reads 8-bit data
-    of 0.7 counts as 1.05: its differences are whole counts)."""
-    d = np.diff(np.asarray(img, dtype=np.float64), axis=1).ravel()
-    s0 = 1.4826 * float(np.median(np.abs(d)))
-    d = d[np.abs(d) <= max(4.0 * s0, 2.0)]
-    return math.sqrt(float(np.mean(d * d)) / 2.0) if d.size else 0.0
-
-
-def _gradient(img, dx: int, dy: int):
-    """The image's gradient along x (dx 1) or y (dy 1), per px, smoothed by a pixel."""
-    return cv2.Sobel(cv2.GaussianBlur(img, (0, 0), 1.0), cv2.CV_32F, dx, dy, ksize=3) / 8.0
-
-
-def frame_shift(frame, background, ball=None, r_px: float = 0.0, *, level: int = 0):
-    """The scene's shift (dx, dy) px in ``frame`` against ``background``, the ball at
-    ``ball`` = (x, y) px masked (NaN where the scene cannot tell it: a standard error above
-    SHIFT_MAX_SE_PX, :func:`shift_precision`).
-
-    A whole-scene search on the images halved :func:`search_level` times (the masked
-    normalised cross-correlation, ``skimage.registration.phase_cross_correlation`` with
-    masks: the ball's square is left out of the frame's correlation, not filled in, which
-    would pull the peak to no shift where the square is much of a small frame), refined by
-    the enhanced correlation coefficient's translation (``cv2.findTransformECC``) over the
-    static scene at each level down to ``level`` (0: full size; more, a quick look, the shift
-    still given in the full images' pixels).
-    """
-    pyramid = [_scene(frame, background, ball, r_px)]
-    top = max(level, search_level(pyramid[0][0].shape))
-    while len(pyramid) <= top:
-        pyramid.append(_halved(*pyramid[-1]))
-    f, b, mask = pyramid[top]
-    if mask.sum() < 16:
-        return math.nan, math.nan
-    # the shift that moves the frame onto the background: the scene's shift, negated
-    found = phase_cross_correlation(b, f, reference_mask=np.ones(b.shape, dtype=bool),
-                                    moving_mask=mask > 0)
-    dy, dx = -np.asarray(found[0] if isinstance(found, tuple) else found, dtype=float)
-    warp = np.array([[1, 0, dx], [0, 1, dy]], dtype=np.float32)
-    # the rho increment ends it: from the search's pixel it is small at once, so a tiny one
-    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, ECC_STEPS, 1e-7)
-    for lv in range(top, level - 1, -1):
-        f, b, mask = pyramid[lv]
-        if lv < top:
-            warp[:, 2] *= 2.0
-        # where the frame's edge moved in, it holds no scene of the background's
-        mask = _inside(mask, warp)
-        try:
-            _, warp = cv2.findTransformECC(b, f, warp, cv2.MOTION_TRANSLATION, crit, mask, 1)
-        except cv2.error as exc:  # a featureless scene
-            logger.debug(f"ECC failed: {exc}")
-            return math.nan, math.nan
-    scale = float(2 ** level)
-    if not shift_precision(f, b, mask, warp) * scale <= SHIFT_MAX_SE_PX:
-        return math.nan, math.nan
-    return float(warp[0, 2]) * scale, float(warp[1, 2]) * scale
 
 
 def find_motion(source, background, centres, r_px: float, *, samples: int = SAMPLES,
