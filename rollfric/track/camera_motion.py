@@ -22,7 +22,7 @@ from scipy import stats
 
 from rollfric.geometry.theta import angles
 from rollfric.io.source import RecordingError
-from rollfric.track.scene_shift import frame_shift, search_level
+from rollfric.track.scene_shift import frame_shift, reference, search_level
 from rollfric.track.timestamps import irregular_message, located_irregular_message
 
 logger = logging.getLogger(__name__)
@@ -214,7 +214,9 @@ class _Shifts:
     read again for the full size: a few, and rarely)."""
 
     def __init__(self, source, background, centres, r_px, level):
-        self.source, self.background, self.r_px = source, background, r_px
+        self.source, self.r_px = source, r_px
+        # the background's sizes, gradients and noise, made once for all samples
+        self.background = reference(background, search_level(np.asarray(background).shape))
         # a frame whose ball the checks rejected (a jump at the bump's frame) still shows it:
         # masked where its neighbours put it
         c = np.array(centres, dtype=float).reshape(-1, 2)

@@ -11,6 +11,7 @@ camera's motion over a recording of it.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 
@@ -29,33 +30,64 @@ QUICK_LEVEL = 2
 # 0.23 px on the dim lighting's (its trough edge barely above the noise), none on a plain
 # or evenly shaded backdrop with noise
 SHIFT_MAX_SE_PX = 0.3
+# the ball's square filled in from the background is searched by the phase correlation while
+# it is at most this share of the image (the thesis camera's 10 mm ball: 2 %; a small
+# rendered frame's: 30-40 %, where the filled square held the peak at no shift)
+SQUARE_SHARE_MAX = 0.05
 
 
-def _scene(frame, background, ball, r_px: float):
-    """The frame and background as float32 greyscale and the static scene's mask (uint8, 1
-    outside the ball's square of half-width BALL_MARGIN radii + 2 px)."""
-    f = np.asarray(frame, dtype=np.float32)
+@dataclasses.dataclass(frozen=True)
+class Reference:
+    """The background prepared for :func:`frame_shift` (once for all of a recording's samples):
+    its greyscale image halved 0, 1, ... times, and at each size its gradients
+    (:func:`_gradient`) and the energy per pixel its own noise puts into each of them."""
+
+    images: tuple
+    gradients: tuple
+    noise_energy: tuple
+
+
+def reference(background, levels: int) -> Reference:
+    """``background`` prepared for :func:`frame_shift` at sizes halved up to ``levels``
+    times."""
     b = np.asarray(background, dtype=np.float32)
-    if f.ndim == 3:
-        f = f.mean(axis=2)
     if b.ndim == 3:
         b = b.mean(axis=2)
-    mask = np.ones(f.shape, dtype=np.uint8)
+    images = [b]
+    for _ in range(levels):
+        images.append(cv2.pyrDown(images[-1]))
+    delta = np.zeros((7, 7), dtype=np.float32)
+    delta[3, 3] = 1.0
+    # white noise of the image's level puts sigma^2 sum(k^2) per pixel into a gradient's
+    # square (k: the gradient filter's coefficients)
+    k2 = [float(np.sum(_gradient(delta, dx, dy) ** 2)) for dx, dy in ((1, 0), (0, 1))]
+    return Reference(tuple(images),
+                     tuple((_gradient(im, 1, 0), _gradient(im, 0, 1)) for im in images),
+                     tuple(tuple(_noise(im) ** 2 * k for k in k2) for im in images))
+
+
+def _scene(frame, shape, ball, r_px: float):
+    """The frame as float32 greyscale and the static scene's mask (uint8, 1 outside the
+    ball's square of half-width BALL_MARGIN radii + 2 px)."""
+    f = np.asarray(frame, dtype=np.float32)
+    if f.ndim == 3:
+        f = f.mean(axis=2)
+    mask = np.ones(shape, dtype=np.uint8)
     if ball is not None and np.all(np.isfinite(ball)):
-        h, w = f.shape
+        h, w = shape
         rad = BALL_MARGIN * r_px + 2
         y0, y1 = max(0, int(ball[1] - rad)), min(h, int(ball[1] + rad) + 1)
         x0, x1 = max(0, int(ball[0] - rad)), min(w, int(ball[0] + rad) + 1)
         mask[y0:y1, x0:x1] = 0
-    return f, b, mask
+    return f, mask
 
 
-def _halved(f, b, mask):
-    f, b = cv2.pyrDown(f), cv2.pyrDown(b)
+def _halved(f, mask):
+    f = cv2.pyrDown(f)
     # a halved pixel is static only where all it was made of is
     mask = (cv2.resize(mask.astype(np.float32), (f.shape[1], f.shape[0]),
                        interpolation=cv2.INTER_AREA) > 0.999).astype(np.uint8)
-    return f, b, mask
+    return f, mask
 
 
 def _inside(mask, warp):
@@ -76,14 +108,16 @@ def search_level(shape) -> int:
     return level
 
 
-def shift_precision(f, b, mask, warp) -> float:
+def shift_precision(f, b, mask, warp, *, gradients=None, noise_energy=None) -> float:
     """The standard error (px) of the shift ``warp`` found between ``b`` and ``f`` over
     ``mask``: the frame moved back by it regressed on the background (gain and offset, as
     the ECC leaves free) and the background's gradients (the shift's linear effect), the
     larger of the two gradients' standard errors. The gradients' energy that the background's
     own noise makes (its level from neighbouring pixels' differences) is no structure and is
     taken out. A scene whose only structure is a gain or an offset (a plain or evenly shaded
-    backdrop: a shift along a linear shading is an offset) has an infinite one."""
+    backdrop: a shift along a linear shading is an offset) has an infinite one.
+    ``gradients``, ``noise_energy``: the background's (:class:`Reference`), made here when
+    not given."""
     h, w = f.shape
     back = cv2.warpAffine(f, warp, (w, h), flags=cv2.INTER_LINEAR + cv2.WARP_INVERSE_MAP,
                           borderMode=cv2.BORDER_REPLICATE)
@@ -95,26 +129,25 @@ def shift_precision(f, b, mask, warp) -> float:
     n = int(m.sum())
     if n < 16:
         return math.inf
-    gx, gy = (_gradient(b, dx, dy) for dx, dy in ((1, 0), (0, 1)))
-    x = np.column_stack([b[m], np.ones(n), gx[m], gy[m]]).astype(float)
+    if gradients is None:
+        gradients = (_gradient(b, 1, 0), _gradient(b, 0, 1))
+    if noise_energy is None:
+        noise_energy = reference(b, 0).noise_energy[0]
+    x = np.column_stack([b[m], np.ones(n), gradients[0][m], gradients[1][m]]).astype(float)
     y = back[m].astype(float)
-    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-    res = y - x @ coef
-    s2 = float(res @ res) / max(1, n - 4)
-    # white noise of the background's level puts n sigma^2 sum(k^2) into each gradient's sum
-    # of squares (k: the gradient filter's coefficients)
-    sigma_b = _noise(b)
-    delta = np.zeros((7, 7), dtype=np.float32)
-    delta[3, 3] = 1.0
     xtx = x.T @ x
-    for k, (dx, dy) in ((2, (1, 0)), (3, (0, 1))):
-        xtx[k, k] -= n * sigma_b ** 2 * float(np.sum(_gradient(delta, dx, dy) ** 2))
     try:
-        cov = s2 * np.linalg.inv(xtx)
+        coef = np.linalg.solve(xtx, x.T @ y)
     except np.linalg.LinAlgError:
         return math.inf
-    var = max(cov[2, 2], cov[3, 3])
-    return math.sqrt(var) if var > 0 and np.all(np.linalg.eigvalsh(xtx) > 0) else math.inf
+    res = y - x @ coef
+    s2 = float(res @ res) / max(1, n - 4)
+    xtx[2, 2] -= n * noise_energy[0]
+    xtx[3, 3] -= n * noise_energy[1]
+    if not np.all(np.linalg.eigvalsh(xtx) > 0):
+        return math.inf
+    cov = s2 * np.linalg.inv(xtx)
+    return math.sqrt(max(cov[2, 2], cov[3, 3]))
 
 
 def _noise(img) -> float:
@@ -132,35 +165,54 @@ def _gradient(img, dx: int, dy: int):
     return cv2.Sobel(cv2.GaussianBlur(img, (0, 0), 1.0), cv2.CV_32F, dx, dy, ksize=3) / 8.0
 
 
+def _search(f, b, mask) -> tuple[float, float]:
+    """The scene's shift in ``f`` against ``b`` over the whole image, to about a pixel:
+    where the ball's square is a small share of the image, the phase correlation
+    (``cv2.phaseCorrelate``) of the frame with the square filled in from the background;
+    where it is more, the masked normalised cross-correlation
+    (``skimage.registration.phase_cross_correlation`` with masks), which leaves the square
+    out (filled in, it is the same in both images and pulls the peak to no shift) at ten
+    times the cost."""
+    if np.mean(mask == 0) <= SQUARE_SHARE_MAX:
+        filled = np.where(mask > 0, f, b).astype(np.float64)
+        window = cv2.createHanningWindow((f.shape[1], f.shape[0]), cv2.CV_64F)
+        (dx, dy), _ = cv2.phaseCorrelate(b.astype(np.float64), filled, window)
+        return float(dx), float(dy)
+    # the shift that moves the frame onto the background: the scene's shift, negated
+    found = phase_cross_correlation(b, f, reference_mask=np.ones(b.shape, dtype=bool),
+                                    moving_mask=mask > 0)
+    dy, dx = -np.asarray(found[0] if isinstance(found, tuple) else found, dtype=float)
+    return float(dx), float(dy)
+
+
 def frame_shift(frame, background, ball=None, r_px: float = 0.0, *, level: int = 0):
     """The scene's shift (dx, dy) px in ``frame`` against ``background``, the ball at
     ``ball`` = (x, y) px masked (NaN where the scene cannot tell it: a standard error above
     SHIFT_MAX_SE_PX, :func:`shift_precision`).
 
-    A whole-scene search on the images halved :func:`search_level` times (the masked
-    normalised cross-correlation, ``skimage.registration.phase_cross_correlation`` with
-    masks: the ball's square is left out of the frame's correlation, not filled in, which
-    would pull the peak to no shift where the square is much of a small frame), refined by
-    the enhanced correlation coefficient's translation (``cv2.findTransformECC``) over the
-    static scene at each level down to ``level`` (0: full size; more, a quick look, the shift
-    still given in the full images' pixels).
+    A whole-scene search on the images halved :func:`search_level` times (:func:`_search`),
+    refined by the enhanced correlation coefficient's translation (``cv2.findTransformECC``)
+    over the static scene at each level down to ``level`` (0: full size; more, a quick look,
+    the shift still given in the full images' pixels). ``background``: an image, or a
+    :class:`Reference` made of it once for many frames.
     """
-    pyramid = [_scene(frame, background, ball, r_px)]
-    top = max(level, search_level(pyramid[0][0].shape))
+    ref = background if isinstance(background, Reference) else None
+    shape = (ref.images[0] if ref is not None else np.asarray(background)).shape[:2]
+    top = max(level, search_level(shape))
+    if ref is None or len(ref.images) <= top:
+        ref = reference(ref.images[0] if ref is not None else background, top)
+    pyramid = [_scene(frame, shape, ball, r_px)]
     while len(pyramid) <= top:
         pyramid.append(_halved(*pyramid[-1]))
-    f, b, mask = pyramid[top]
+    (f, mask), b = pyramid[top], ref.images[top]
     if mask.sum() < 16:
         return math.nan, math.nan
-    # the shift that moves the frame onto the background: the scene's shift, negated
-    found = phase_cross_correlation(b, f, reference_mask=np.ones(b.shape, dtype=bool),
-                                    moving_mask=mask > 0)
-    dy, dx = -np.asarray(found[0] if isinstance(found, tuple) else found, dtype=float)
+    dx, dy = _search(f, b, mask)
     warp = np.array([[1, 0, dx], [0, 1, dy]], dtype=np.float32)
     # the rho increment ends it: from the search's pixel it is small at once, so a tiny one
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, ECC_STEPS, 1e-7)
     for lv in range(top, level - 1, -1):
-        f, b, mask = pyramid[lv]
+        (f, mask), b = pyramid[lv], ref.images[lv]
         if lv < top:
             warp[:, 2] *= 2.0
         # where the frame's edge moved in, it holds no scene of the background's
@@ -171,6 +223,7 @@ def frame_shift(frame, background, ball=None, r_px: float = 0.0, *, level: int =
             logger.debug(f"ECC failed: {exc}")
             return math.nan, math.nan
     scale = float(2 ** level)
-    if not shift_precision(f, b, mask, warp) * scale <= SHIFT_MAX_SE_PX:
+    if not shift_precision(f, b, mask, warp, gradients=ref.gradients[level],
+                           noise_energy=ref.noise_energy[level]) * scale <= SHIFT_MAX_SE_PX:
         return math.nan, math.nan
     return float(warp[0, 2]) * scale, float(warp[1, 2]) * scale
