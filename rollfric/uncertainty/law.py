@@ -245,35 +245,9 @@ def friction_law(meas, result, *, level: float = LEVEL) -> LawTest:
     var_stat = np.maximum(np.diag(ordinary), np.diag(hac))
     if not np.all(np.isfinite(var_stat)):
         return LawTest(None, why="the speed law's fit is singular (mu0 and mu1 not apart)")
-    # each uncertain input moved by u: the change of the residuals at the fitted parameters
-    # (the model's where the input acts on it, the angles' or times' where on the data; L is
-    # fitted, so the track radius acts on neither), and the fit's Gauss-Newton shift
-    model_key = (coefficients_of(setup).tobytes(), setup.gravity)
-    changes, inputs = [], []
-    for source, field, comp, _, u, factor in setup_inputs(setup):
-        if u == 0.0 or why_not(meas, field, False):
-            continue
-        s = moved(setup, field, comp, u, factor)
-        tm, thm = meas.series(s)
-        tm, thm = tm[mask], thm[mask]
-        if np.array_equal(tm, t) and (coefficients_of(s).tobytes(), s.gravity) == model_key:
-            r = res + y - thm  # the model as it was, the angles moved
-        else:
-            r = model(sol.x, tm, s) - thm
-        if np.array_equal(r, res):
-            continue
-        changes.append(r - res)
-        inputs.append(source)
-    tilt = _tilt_change(setup, result, t)
-    if tilt is not None:
-        changes.append(tilt)
-        inputs.append(TILT)
     i0, i1 = names.index("mu"), names.index("mu1")
-    var_inputs = np.zeros(len(names))
-    if changes:
-        dx = -np.linalg.lstsq(jac, np.stack(changes, axis=1), rcond=None)[0]
-        var_inputs = np.sum(dx**2, axis=1)
-        inputs = [(s, abs(float(d))) for s, d in zip(inputs, dx[i1], strict=True)]
+    var_inputs, inputs = _inputs_variance(meas, result, model, sol.x, (t, y, mask),
+                                          res, jac, i1)
     mu0, mu1 = float(sol.x[i0]), float(sol.x[i1])
     u0 = math.sqrt(var_stat[i0] + var_inputs[i0])
     u1 = math.sqrt(var_stat[i1] + var_inputs[i1])
@@ -290,6 +264,66 @@ def friction_law(meas, result, *, level: float = LEVEL) -> LawTest:
                    mu1_detectable=detectable(u1, level), level=level,
                    rms_residual=float(np.sqrt(np.mean(res**2))), n_samples=int(res.size),
                    seconds=time.perf_counter() - start, inputs=tuple(inputs), curve=curve)
+
+
+def _inputs_variance(meas, result, model, x, samples, res, jac, i1):
+    """The setup's uncertain inputs through the speed law's fit.
+
+    Parameters
+    ----------
+    meas : rollfric.uncertainty.measured.Measurement
+        The measurement (its setup's ``K_u`` are the inputs).
+    result : rollfric.fit.result.FitResult
+        The Coulomb fit (the tilt's row remakes its motion).
+    model : callable
+        ``model(x, t, setup)``: the speed law's angles at the parameters ``x``.
+    x : numpy.ndarray
+        The speed law's fitted parameters.
+    samples : tuple
+        ``(t, y, mask)``: the fitted times, their angles and which samples of the series.
+    res, jac : numpy.ndarray
+        The fit's residuals and Jacobian at ``x``.
+    i1 : int
+        mu1's index in ``x``.
+
+    Returns
+    -------
+    var_inputs : numpy.ndarray
+        Each parameter's variance from the inputs.
+    inputs : list
+        ``(source, |shift of mu1|)`` of each input that moves the fit.
+    """
+    setup = meas.setup
+    t, y, mask = samples
+    # each uncertain input moved by u: the change of the residuals at the fitted parameters
+    # (the model's where the input acts on it, the angles' or times' where on the data; L is
+    # fitted, so the track radius acts on neither), and the fit's Gauss-Newton shift
+    model_key = (coefficients_of(setup).tobytes(), setup.gravity)
+    changes, inputs = [], []
+    for source, field, comp, _, u, factor in setup_inputs(setup):
+        if u == 0.0 or why_not(meas, field, False):
+            continue
+        s = moved(setup, field, comp, u, factor)
+        tm, thm = meas.series(s)
+        tm, thm = tm[mask], thm[mask]
+        if np.array_equal(tm, t) and (coefficients_of(s).tobytes(), s.gravity) == model_key:
+            r = res + y - thm  # the model as it was, the angles moved
+        else:
+            r = model(x, tm, s) - thm
+        if np.array_equal(r, res):
+            continue
+        changes.append(r - res)
+        inputs.append(source)
+    tilt = _tilt_change(setup, result, t)
+    if tilt is not None:
+        changes.append(tilt)
+        inputs.append(TILT)
+    var_inputs = np.zeros(len(x))
+    if changes:
+        dx = -np.linalg.lstsq(jac, np.stack(changes, axis=1), rcond=None)[0]
+        var_inputs = np.sum(dx**2, axis=1)
+        inputs = [(s, abs(float(d))) for s, d in zip(inputs, dx[i1], strict=True)]
+    return var_inputs, inputs
 
 
 def _tilt_change(setup, result, t):
