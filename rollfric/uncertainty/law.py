@@ -40,12 +40,10 @@ from rollfric.fit.lsq import NOISE_FLOOR
 from rollfric.uncertainty import quality
 from rollfric.uncertainty.asbuilt import TILT, tilted_motion
 from rollfric.uncertainty.budget import _contour_centre_as_input
+from rollfric.uncertainty.law_outcome import LEVEL, POWER, STATISTIC, LawTest, detectable
 from rollfric.uncertainty.reasons import Reason
 from rollfric.uncertainty.sensitivity import fitted_mask, moved, setup_inputs, why_not
 
-LEVEL = 0.05
-POWER = 0.8  # of mu1_detectable
-STATISTIC = "one-sided Wald z = mu1 / u(mu1), u: HAC covariance and the setup's inputs (air)"
 # the speed law needs the decay's dependence on the amplitude: at least this many turning
 # points of the fitted motion (three half-swings) before mu0 and mu1 are told apart
 MIN_TURNING_POINTS = 2
@@ -58,102 +56,6 @@ _BOUNDS = {"mu": (0.0, 1.0, 1e-3), "theta0": (-math.pi / 2, math.pi / 2, 1e-3),
            "mu1": (-np.inf, np.inf, 1e-4)}
 NFEV = 100
 STEPS_PER_RADIAN = 200.0  # the integrator's step, as rollfric.fit.eom.solve
-
-
-@dataclasses.dataclass(frozen=True)
-class LawTest:
-    """The outcome of :func:`friction_law` (SI: mu1 in s/rad).
-
-    Attributes
-    ----------
-    selected : str or None
-        "coulomb" or "speed"; None when the track is too short to tell them apart.
-    p_value, z : float
-        The one-sided p-value of mu1 = 0 and the statistic.
-    mu0, mu0_u, mu1, mu1_u : float
-        The speed law's coefficients and their standard uncertainties (statistical and the
-        setup's inputs).
-    mu1_u_statistical, mu1_u_inputs : float
-        The two parts of u(mu1).
-    mu1_detectable : float
-        The smallest mu1 the recording detects at ``level`` with probability ``power``.
-    why : str
-        Why the test was not made ('' when it was).
-    """
-
-    selected: str | None
-    p_value: float = math.nan
-    z: float = math.nan
-    mu0: float = math.nan
-    mu0_u: float = math.nan
-    mu1: float = math.nan
-    mu1_u: float = math.nan
-    mu1_u_statistical: float = math.nan
-    mu1_u_inputs: float = math.nan
-    mu1_detectable: float = math.nan
-    level: float = LEVEL
-    power: float = POWER
-    rms_residual: float = math.nan
-    n_samples: int = 0
-    seconds: float = 0.0
-    why: str = ""
-    inputs: tuple = ()  # (source, u(mu1) of it)
-    curve: np.ndarray | None = dataclasses.field(default=None, repr=False)
-
-    def to_json(self) -> dict:
-        """fit.json's ``friction_law`` object.
-
-        Returns
-        -------
-        dict
-            ``selected``, ``p_value``, ``mu0``, ``mu0_u``, ``mu1`` (s/rad), ``mu1_u``,
-            ``mu1_detectable`` with ``detectable_power``, ``level``, ``statistic`` and the
-            details; ``why`` instead of the figures when the test was not made.
-        """
-        def num(v):
-            return float(v) if math.isfinite(v) else None
-
-        if self.selected is None:
-            return {"selected": None, "why": self.why, "level": self.level,
-                    "statistic": STATISTIC}
-        return {"selected": self.selected, "p_value": num(self.p_value), "z": num(self.z),
-                "mu0": num(self.mu0), "mu0_u": num(self.mu0_u), "mu1": num(self.mu1),
-                "mu1_u": num(self.mu1_u), "mu1_u_statistical": num(self.mu1_u_statistical),
-                "mu1_u_inputs": num(self.mu1_u_inputs),
-                "mu1_detectable": num(self.mu1_detectable), "detectable_power": self.power,
-                "level": self.level, "statistic": STATISTIC, "units": {"mu1": "s/rad"},
-                "rms_residual_rad": num(self.rms_residual), "n_samples": self.n_samples,
-                "inputs": [{"source": s, "u_mu1": num(u)} for s, u in self.inputs],
-                "seconds": self.seconds}
-
-    def line(self) -> str:
-        """The test in one line, as the commands print it."""
-        if self.selected is None:
-            return f"friction law: not tested ({self.why})"
-        return (f"friction law: {self.selected} (p = {self.p_value:.2g}; speed law mu0 = "
-                f"{self.mu0:.6f} +- {self.mu0_u:.2g}, mu1 = {self.mu1:.3g} +- {self.mu1_u:.2g}"
-                f" s/rad; detectable mu1 >= {self.mu1_detectable:.2g} s/rad at "
-                f"{100 * self.power:.0f} % power)")
-
-
-def detectable(u_mu1: float, level: float = LEVEL, power: float = POWER) -> float:
-    """The smallest mu1 a one-sided test at ``level`` detects with probability ``power``.
-
-    Parameters
-    ----------
-    u_mu1 : float
-        The standard uncertainty of the fitted mu1 (s/rad).
-    level : float
-        The test's level.
-    power : float
-        The probability of detection (0.5: the mu1 at the threshold itself).
-
-    Returns
-    -------
-    float
-        (z_(1-level) + z_power) u_mu1, s/rad.
-    """
-    return float((stats.norm.isf(level) + stats.norm.ppf(power)) * u_mu1)
 
 
 def _turning_points(curve: np.ndarray) -> int:
