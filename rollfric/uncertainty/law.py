@@ -40,12 +40,10 @@ from rollfric.fit.lsq import NOISE_FLOOR
 from rollfric.uncertainty import quality
 from rollfric.uncertainty.asbuilt import TILT, tilted_motion
 from rollfric.uncertainty.budget import _contour_centre_as_input
+from rollfric.uncertainty.law_outcome import LEVEL, POWER, STATISTIC, LawTest, detectable
 from rollfric.uncertainty.reasons import Reason
 from rollfric.uncertainty.sensitivity import fitted_mask, moved, setup_inputs, why_not
 
-LEVEL = 0.05
-POWER = 0.8  # of mu1_detectable
-STATISTIC = "one-sided Wald z = mu1 / u(mu1), u: HAC covariance and the setup's inputs (air)"
 # the speed law needs the decay's dependence on the amplitude: at least this many turning
 # points of the fitted motion (three half-swings) before mu0 and mu1 are told apart
 MIN_TURNING_POINTS = 2
@@ -58,102 +56,6 @@ _BOUNDS = {"mu": (0.0, 1.0, 1e-3), "theta0": (-math.pi / 2, math.pi / 2, 1e-3),
            "mu1": (-np.inf, np.inf, 1e-4)}
 NFEV = 100
 STEPS_PER_RADIAN = 200.0  # the integrator's step, as rollfric.fit.eom.solve
-
-
-@dataclasses.dataclass(frozen=True)
-class LawTest:
-    """The outcome of :func:`friction_law` (SI: mu1 in s/rad).
-
-    Attributes
-    ----------
-    selected : str or None
-        "coulomb" or "speed"; None when the track is too short to tell them apart.
-    p_value, z : float
-        The one-sided p-value of mu1 = 0 and the statistic.
-    mu0, mu0_u, mu1, mu1_u : float
-        The speed law's coefficients and their standard uncertainties (statistical and the
-        setup's inputs).
-    mu1_u_statistical, mu1_u_inputs : float
-        The two parts of u(mu1).
-    mu1_detectable : float
-        The smallest mu1 the recording detects at ``level`` with probability ``power``.
-    why : str
-        Why the test was not made ('' when it was).
-    """
-
-    selected: str | None
-    p_value: float = math.nan
-    z: float = math.nan
-    mu0: float = math.nan
-    mu0_u: float = math.nan
-    mu1: float = math.nan
-    mu1_u: float = math.nan
-    mu1_u_statistical: float = math.nan
-    mu1_u_inputs: float = math.nan
-    mu1_detectable: float = math.nan
-    level: float = LEVEL
-    power: float = POWER
-    rms_residual: float = math.nan
-    n_samples: int = 0
-    seconds: float = 0.0
-    why: str = ""
-    inputs: tuple = ()  # (source, u(mu1) of it)
-    curve: np.ndarray | None = dataclasses.field(default=None, repr=False)
-
-    def to_json(self) -> dict:
-        """fit.json's ``friction_law`` object.
-
-        Returns
-        -------
-        dict
-            ``selected``, ``p_value``, ``mu0``, ``mu0_u``, ``mu1`` (s/rad), ``mu1_u``,
-            ``mu1_detectable`` with ``detectable_power``, ``level``, ``statistic`` and the
-            details; ``why`` instead of the figures when the test was not made.
-        """
-        def num(v):
-            return float(v) if math.isfinite(v) else None
-
-        if self.selected is None:
-            return {"selected": None, "why": self.why, "level": self.level,
-                    "statistic": STATISTIC}
-        return {"selected": self.selected, "p_value": num(self.p_value), "z": num(self.z),
-                "mu0": num(self.mu0), "mu0_u": num(self.mu0_u), "mu1": num(self.mu1),
-                "mu1_u": num(self.mu1_u), "mu1_u_statistical": num(self.mu1_u_statistical),
-                "mu1_u_inputs": num(self.mu1_u_inputs),
-                "mu1_detectable": num(self.mu1_detectable), "detectable_power": self.power,
-                "level": self.level, "statistic": STATISTIC, "units": {"mu1": "s/rad"},
-                "rms_residual_rad": num(self.rms_residual), "n_samples": self.n_samples,
-                "inputs": [{"source": s, "u_mu1": num(u)} for s, u in self.inputs],
-                "seconds": self.seconds}
-
-    def line(self) -> str:
-        """The test in one line, as the commands print it."""
-        if self.selected is None:
-            return f"friction law: not tested ({self.why})"
-        return (f"friction law: {self.selected} (p = {self.p_value:.2g}; speed law mu0 = "
-                f"{self.mu0:.6f} +- {self.mu0_u:.2g}, mu1 = {self.mu1:.3g} +- {self.mu1_u:.2g}"
-                f" s/rad; detectable mu1 >= {self.mu1_detectable:.2g} s/rad at "
-                f"{100 * self.power:.0f} % power)")
-
-
-def detectable(u_mu1: float, level: float = LEVEL, power: float = POWER) -> float:
-    """The smallest mu1 a one-sided test at ``level`` detects with probability ``power``.
-
-    Parameters
-    ----------
-    u_mu1 : float
-        The standard uncertainty of the fitted mu1 (s/rad).
-    level : float
-        The test's level.
-    power : float
-        The probability of detection (0.5: the mu1 at the threshold itself).
-
-    Returns
-    -------
-    float
-        (z_(1-level) + z_power) u_mu1, s/rad.
-    """
-    return float((stats.norm.isf(level) + stats.norm.ppf(power)) * u_mu1)
 
 
 def _turning_points(curve: np.ndarray) -> int:
@@ -245,35 +147,9 @@ def friction_law(meas, result, *, level: float = LEVEL) -> LawTest:
     var_stat = np.maximum(np.diag(ordinary), np.diag(hac))
     if not np.all(np.isfinite(var_stat)):
         return LawTest(None, why="the speed law's fit is singular (mu0 and mu1 not apart)")
-    # each uncertain input moved by u: the change of the residuals at the fitted parameters
-    # (the model's where the input acts on it, the angles' or times' where on the data; L is
-    # fitted, so the track radius acts on neither), and the fit's Gauss-Newton shift
-    model_key = (coefficients_of(setup).tobytes(), setup.gravity)
-    changes, inputs = [], []
-    for source, field, comp, _, u, factor in setup_inputs(setup):
-        if u == 0.0 or why_not(meas, field, False):
-            continue
-        s = moved(setup, field, comp, u, factor)
-        tm, thm = meas.series(s)
-        tm, thm = tm[mask], thm[mask]
-        if np.array_equal(tm, t) and (coefficients_of(s).tobytes(), s.gravity) == model_key:
-            r = res + y - thm  # the model as it was, the angles moved
-        else:
-            r = model(sol.x, tm, s) - thm
-        if np.array_equal(r, res):
-            continue
-        changes.append(r - res)
-        inputs.append(source)
-    tilt = _tilt_change(setup, result, t)
-    if tilt is not None:
-        changes.append(tilt)
-        inputs.append(TILT)
     i0, i1 = names.index("mu"), names.index("mu1")
-    var_inputs = np.zeros(len(names))
-    if changes:
-        dx = -np.linalg.lstsq(jac, np.stack(changes, axis=1), rcond=None)[0]
-        var_inputs = np.sum(dx**2, axis=1)
-        inputs = [(s, abs(float(d))) for s, d in zip(inputs, dx[i1], strict=True)]
+    var_inputs, inputs = _inputs_variance(meas, result, model, sol.x, (t, y, mask),
+                                          res, jac, i1)
     mu0, mu1 = float(sol.x[i0]), float(sol.x[i1])
     u0 = math.sqrt(var_stat[i0] + var_inputs[i0])
     u1 = math.sqrt(var_stat[i1] + var_inputs[i1])
@@ -290,6 +166,66 @@ def friction_law(meas, result, *, level: float = LEVEL) -> LawTest:
                    mu1_detectable=detectable(u1, level), level=level,
                    rms_residual=float(np.sqrt(np.mean(res**2))), n_samples=int(res.size),
                    seconds=time.perf_counter() - start, inputs=tuple(inputs), curve=curve)
+
+
+def _inputs_variance(meas, result, model, x, samples, res, jac, i1):
+    """The setup's uncertain inputs through the speed law's fit.
+
+    Parameters
+    ----------
+    meas : rollfric.uncertainty.measured.Measurement
+        The measurement (its setup's ``K_u`` are the inputs).
+    result : rollfric.fit.result.FitResult
+        The Coulomb fit (the tilt's row remakes its motion).
+    model : callable
+        ``model(x, t, setup)``: the speed law's angles at the parameters ``x``.
+    x : numpy.ndarray
+        The speed law's fitted parameters.
+    samples : tuple
+        ``(t, y, mask)``: the fitted times, their angles and which samples of the series.
+    res, jac : numpy.ndarray
+        The fit's residuals and Jacobian at ``x``.
+    i1 : int
+        mu1's index in ``x``.
+
+    Returns
+    -------
+    var_inputs : numpy.ndarray
+        Each parameter's variance from the inputs.
+    inputs : list
+        ``(source, |shift of mu1|)`` of each input that moves the fit.
+    """
+    setup = meas.setup
+    t, y, mask = samples
+    # each uncertain input moved by u: the change of the residuals at the fitted parameters
+    # (the model's where the input acts on it, the angles' or times' where on the data; L is
+    # fitted, so the track radius acts on neither), and the fit's Gauss-Newton shift
+    model_key = (coefficients_of(setup).tobytes(), setup.gravity)
+    changes, inputs = [], []
+    for source, field, comp, _, u, factor in setup_inputs(setup):
+        if u == 0.0 or why_not(meas, field, False):
+            continue
+        s = moved(setup, field, comp, u, factor)
+        tm, thm = meas.series(s)
+        tm, thm = tm[mask], thm[mask]
+        if np.array_equal(tm, t) and (coefficients_of(s).tobytes(), s.gravity) == model_key:
+            r = res + y - thm  # the model as it was, the angles moved
+        else:
+            r = model(x, tm, s) - thm
+        if np.array_equal(r, res):
+            continue
+        changes.append(r - res)
+        inputs.append(source)
+    tilt = _tilt_change(setup, result, t)
+    if tilt is not None:
+        changes.append(tilt)
+        inputs.append(TILT)
+    var_inputs = np.zeros(len(x))
+    if changes:
+        dx = -np.linalg.lstsq(jac, np.stack(changes, axis=1), rcond=None)[0]
+        var_inputs = np.sum(dx**2, axis=1)
+        inputs = [(s, abs(float(d))) for s, d in zip(inputs, dx[i1], strict=True)]
+    return var_inputs, inputs
 
 
 def _tilt_change(setup, result, t):
