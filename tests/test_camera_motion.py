@@ -245,3 +245,27 @@ def test_what_the_first_pass_over_a_bumped_camera_warned_of_is_withdrawn(caplog)
     (moved,) = [w for w in info.warnings if "the camera moved" in w]
     assert "no longer holds: 3 dropped frame(s) found" in moved
     assert not any("dropped" in w for w in info.warnings if w != moved)
+
+
+def test_a_shift_that_fades_over_frames_is_no_bump(monkeypatch):
+    """A grazing light's long shadow of the ball at its release moved the first samples'
+    shift by 2.3 px, fading over 30 frames (a clean rendered recording read as a bump at
+    frame 25, then a timing reason): a bump is a step, the frames either side of it at the
+    two levels; a fade is not, and a real step there still is."""
+    n = 1200
+    rng = np.random.default_rng(2)
+    noise = rng.normal(0.0, 0.01, (n, 2))
+
+    def run(profile):
+        def fake_shift(frame, background, ball=None, r_px=0.0, *, level=0):
+            i = int(frame[0, 0])
+            return (profile(i) + noise[i, 0], noise[i, 1])
+
+        monkeypatch.setattr(cm, "frame_shift", fake_shift)
+        frames = [np.full((8, 8), i, dtype=np.float32) for i in range(n)]
+        return cm.find_motion(MemorySource(frames), np.zeros((8, 8)),
+                              np.full((n, 2), np.nan), 3.0)
+
+    assert run(lambda i: 2.3 * max(0.0, 1.0 - i / 30.0)).kind == "still"
+    m = run(lambda i: 2.3 if i < 25 else 0.0)
+    assert m.kind == "bump" and m.frame == 25

@@ -289,8 +289,24 @@ def _step(shift, idx, s, tol: float) -> CameraMotion | None:
         else:
             hi = mid
     size = after - before
+    # a bump is a step: the frames just before it at the level before, those just after at
+    # the level after (one of three each: a glitched frame may sit there). A shift that
+    # changes smoothly from frame to frame is the ball's doing (its long shadow under a
+    # grazing light moved the first samples by 2.3 px, fading over 30 frames)
+    near = max(tol, 0.25 * float(np.hypot(*size)))
+    n = len(shift.source)
+    if hi - lo == 1 and not (
+            _any_near(shift, range(max(0, lo - 2), lo + 1), before, near)
+            and _any_near(shift, range(hi, min(n, hi + 3)), after, near)):
+        return None
     return CameraMotion("bump", idx, s, frame=hi, size_px=(float(size[0]), float(size[1])),
                         before_px=(float(before[0]), float(before[1])))
+
+
+def _any_near(shift, frames, level, tol: float) -> bool:
+    """Whether any of ``frames``' shifts lies within ``tol`` px of ``level``."""
+    return any(np.isfinite(d).all() and np.hypot(*(d - level)) <= tol
+               for d in (shift(i) for i in frames))
 
 
 def correct_for_motion(source, bg, df, info, setup, angle, *, retrack=None):
