@@ -39,3 +39,17 @@ def test_a_ball_that_slows_to_rest_turns_or_is_released_is_not_stuck():
         assert not plausibility.stuck(*_noisy(sw, 0 * t), np.ones(200, bool)).any()
     for xs in (stop, held):
         assert not plausibility.stuck(*_noisy(xs, 0 * t), np.ones(200, bool)).any()
+
+
+def test_two_swapped_frames_near_a_turning_point_make_no_stuck_run():
+    # the rendered fault study: frames 1147 and 1149 swapped with later ones put the located
+    # ball 17 px away and back, three steps of 17 px that read as a steady motion "at full
+    # speed"; the slow frames at the turning point beside them (steps below 1.7 px) were
+    # flagged stuck, 212 of 1201 frames, the fit then suspect for its period
+    t = np.arange(1201) / 1000.0
+    x = 100.0 + 55.0 * np.cos(2 * np.pi * t / 0.68)
+    y = 30.0 + 0.002 * (x - 100.0) ** 2
+    x, y = _noisy(x, y, seed=3)
+    for i in (1147, 1149):
+        x[i], y[i] = x[i] + 17.0, y[i] + 1.0
+    assert not plausibility.stuck(x, y, np.ones(x.size, bool)).any()

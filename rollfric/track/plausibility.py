@@ -234,6 +234,11 @@ def stuck(x, y, ok) -> np.ndarray:
     tc = t - t.mean()
     weights = 1.0 / STUCK_LEAD + tc * (STUCK_LEAD - t.mean()) / float(tc @ tc)
     win = np.lib.stride_tricks.sliding_window_view(st, STUCK_LEAD)  # win[j] = st[j:j + LEAD]
+    # a lead goes one way: its steps' net displacement at least STUCK_KEEP of their length (a
+    # swapped frame's steps there and back, 17 px each, are no motion at full speed)
+    gaps = np.lib.stride_tricks.sliding_window_view(np.diff(idx), STUCK_LEAD)
+    net = np.hypot(px[STUCK_LEAD:] - px[:-STUCK_LEAD], py[STUCK_LEAD:] - py[:-STUCK_LEAD])
+    straight = net >= STUCK_KEEP * np.sum(win * gaps, axis=1)
     leads = {"before": (win @ weights, win.mean(axis=1), win.min(axis=1), win.max(axis=1)),
              "after": (win[:, ::-1] @ weights, win.mean(axis=1), win.min(axis=1),
                        win.max(axis=1))}
@@ -247,7 +252,8 @@ def stuck(x, y, ok) -> np.ndarray:
             v_all, mean, lo_, hi_ = leads[side]
             v = float(v_all[j])
             # a steady motion (no stuck place or jump among the lead's steps either)
-            if v < max(floor, STUCK_KEEP * float(mean[j])) or lo_[j] < STUCK_KEEP * hi_[j]:
+            if v < max(floor, STUCK_KEEP * float(mean[j])) or lo_[j] < STUCK_KEEP * hi_[j] \
+                    or not straight[j]:
                 continue
             if run_max < STUCK_FRAC * v:
                 # the whole still run: on while the steps stay below STUCK_FRAC v
