@@ -152,6 +152,26 @@ def test_a_clock_slip_next_to_a_repeated_frame_is_still_irregular():
         assert again[0][1] == pytest.approx(1.5, abs=0.01)
 
 
+def test_a_frame_swapped_with_an_earlier_one_is_no_timing_step():
+    # the rendered fault study (dim lighting, 1.5 % glitches): frame 361 swapped with frame
+    # 321, near a turning point, rejected as a jump; the step 360 -> 361 is a step back of -6 x
+    # the step, and confirm_irregular kept both frames of every irregular step (as after a
+    # slipped clock, a later frame) and named "timing". The located centres (rollfric.measure's
+    # of that recording, before the checks rejected any) and the checks' rejected and repeated
+    # frames are tests/data/swapped_frame_track.npz
+    from pathlib import Path
+
+    from rollfric.track import dropped_frames as timing
+
+    d = np.load(Path(__file__).parent / "data" / "swapped_frame_track.npz")
+    x, y, rejected, repeated = d["x"], d["y"], d["rejected"], d["repeated"]
+    found = np.ones(x.size, bool)
+    gaps = timing.find_gaps(x, y, found)
+    assert (360, -6) in [(k, round(r)) for k, r in gaps.irregular]
+    assert rejected[361] and not rejected[360]
+    assert timing.confirm_irregular(x, y, found, rejected, repeated, gaps.irregular) == ()
+
+
 def test_a_budget_whose_U_exceeds_mu_is_suspect_naming_its_key(tmp_path, capsys):
     # issue 33: center_px_u = 1e12 exited 0 "ok" with U 7.6 x mu
     import json

@@ -260,10 +260,10 @@ def confirm_irregular(x, y, found, rejected, repeated, irregular, sigma_px=None)
     ``HALF_WINDOW`` away; where the ball turns its steps are a few hundredths of a px, and a
     spoiled prediction there made clean steps "irregular" (1.1-1.4 x) next to a repeated
     frame, or hid a real one. The steps are judged again with the rejected frames left out,
-    the two frames of each irregular step kept (a frame after a slipped clock may be rejected
-    as a jump: that step stays) unless repeated. A step into or out of a ``repeated`` frame
-    (the same pixels as the frame before: a recording's glitch, the time base intact) is the
-    repeat's, not the timing's.
+    the two frames of each irregular step forward kept (a frame after a slipped clock may be
+    rejected as a jump: that step stays) unless repeated; a step back is a glitch's. A step
+    into or out of a ``repeated`` frame (the same pixels as the frame before: a recording's
+    glitch, the time base intact) is the repeat's, not the timing's.
 
     Parameters
     ----------
@@ -288,8 +288,11 @@ def confirm_irregular(x, y, found, rejected, repeated, irregular, sigma_px=None)
     found = np.asarray(found, dtype=bool)
     repeated = np.asarray(repeated, dtype=bool)
     keep = found & ~np.asarray(rejected, dtype=bool)
-    for k, _ in irregular:
-        keep[k:k + 2] = found[k:k + 2] & ~repeated[k:k + 2]
+    for k, ratio in irregular:
+        # a clock that slipped takes the frame late: a step forward of more than a period; a
+        # step back against the motion (a frame swapped with one 40 periods away) is no time's
+        if ratio > 0:
+            keep[k:k + 2] = found[k:k + 2] & ~repeated[k:k + 2]
     again = irregular if np.array_equal(keep, found) else find_gaps(x, y, keep, sigma_px).irregular
     return tuple((int(k), float(r)) for k, r in again
                  if not (repeated[k] or repeated[min(k + 1, len(repeated) - 1)]))
