@@ -1,6 +1,7 @@
 """The median background when the ball rests in one place for most of the recording."""
 
 import logging
+import re
 
 import numpy as np
 from measure_data import make_recording, messages
@@ -35,10 +36,17 @@ def test_a_ball_resting_in_most_frames_is_taken_out_of_the_median(caplog):
     found, err = _errors(df, rec)
     assert found.all()
     assert np.sqrt(np.mean(err ** 2)) < 0.05 and err.max() < 0.1
+    # the sampled frames at rest (from frame ~70, sampled every 6th) are left out of the
+    # median; the median background repairs what is left of a resting ball otherwise (below)
     assert "repaired" in info.background
-    assert any("resting ball" in m for m in info.warnings)
-    assert any(m.startswith("warning: the median background held a resting ball") for m in logs)
-    # the repaired disc is the backdrop again (noise aside)
+    said = [re.match(r"the median background is made from the (\d+) sampled frames in which "
+                     r"the ball moves, not the last (\d+) \(the ball at rest from frame (\d+)\)",
+                     m) for m in info.warnings]
+    (m,) = [m for m in said if m]
+    moving, still, start = (int(v) for v in m.groups())
+    assert moving + still == 41 and 70 <= start <= 84
+    assert any(x.startswith("warning: " + m.group(0)) for x in logs)
+    # the median of all the sampled frames, repaired: the disc is the backdrop again
     bg, _ = median_background(src, rec.scene.r_px)
     assert np.abs(bg.astype(int) - rec.background.astype(int))[disc].max() <= 4
 
@@ -57,3 +65,24 @@ def test_a_ball_that_never_moves_is_reported():
     src = _Plain([np.asarray(f) for f in rec.frames])
     _, notes = median_background(src, rec.scene.r_px)
     assert len(notes) == 1 and "give a background image" in notes[0]
+
+
+def test_still_runs_at_the_start_and_end_are_left_out_of_the_median():
+    # sampled frames of a held start (the ball at x 40 in samples 0-9), a swing and a rest
+    # (x 150 from sample 30 on), 41 in all, with noise and a 5 % flicker on every frame
+    from rollfric.io.background_choice import _moving
+
+    rng = np.random.default_rng(0)
+    yy, xx = np.mgrid[0:80, 0:200]
+    xs = np.r_[np.full(10, 40.0), 100 + 60 * np.sin(np.arange(20)), np.full(11, 150.0)]
+    stack = np.stack([(100.0 * (1 + 0.05 * rng.uniform(-1, 1))
+                       - 60.0 * (np.hypot(xx - x, yy - 40) < 10)
+                       + rng.normal(0, 2.0, xx.shape)) for x in xs]).astype(np.float32)
+    idx = np.arange(41) * 30
+    moving, note = _moving(idx, stack, 10.0)
+    assert moving[9:31].all() and not moving[:9].any() and not moving[31:].any()
+    assert "not the first 9 (a held start, frames 0-240) or the last 10 (the ball at rest " \
+           "from frame 930)" in note
+    # a ball that moves throughout: nothing left out
+    moving, note = _moving(idx[:20], stack[10:30], 10.0)
+    assert moving.all() and note == ""

@@ -10,6 +10,7 @@ a flat field at the backlight's level), made free of the ball where it goes
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,48 @@ from rollfric.io import readers as io
 from rollfric.io.background import repaired_median, sample
 
 logger = logging.getLogger(__name__)
+
+# sampled frames the same as the next (a held start, a ball at rest): fewer than this share of
+# the ball's area changed by more than STILL_SIGMAS robust sigmas of their difference (a
+# moving ball changes 1.5-2.5 x its area between two samples, a still one none)
+STILL_SHARE = 0.25
+STILL_SIGMAS = 6.0
+
+
+def _moving(idx, stack, r_px: float):
+    """The sampled frames to make a median of: all but a run at the start or end in which
+    nothing moves (a held start, a ball at rest: each frame the same as the next to the noise,
+    fewer than STILL_SHARE of the ball's area changed beyond STILL_SIGMAS robust sigmas), which
+    holds the ball in place and would put it in the median; all when fewer than a quarter
+    would be left. Returns (mask, note or '')."""
+    s = stack.astype(np.float32)
+    if s.ndim == 4:
+        s = s.mean(axis=3)
+    same = []
+    for a, b in zip(s[:-1], s[1:], strict=True):
+        d = a - b
+        d -= np.median(d)  # a flicker's or exposure's change of the whole frame
+        sigma = 1.4826 * float(np.median(np.abs(d)))
+        same.append(np.sum(np.abs(d) > max(STILL_SIGMAS * sigma, 1.0))
+                    < STILL_SHARE * math.pi * r_px * r_px)
+    same = np.array(same, dtype=bool)
+    k = len(s)
+    head = int(np.argmin(same)) if not same.all() else k - 1  # pairs still from the start
+    tail = int(np.argmin(same[::-1])) if not same.all() else k - 1
+    moving = np.ones(k, dtype=bool)
+    if head >= 2:  # frames 0 .. head - 1 still (the last of the run is where it moves off)
+        moving[:head] = False
+    if tail >= 2:
+        moving[k - tail:] = False
+    if moving.all() or moving.sum() < max(3, k // 4):
+        return np.ones(k, dtype=bool), ""
+    parts = ([f"the first {head} (a held start, frames {idx[0]}-{idx[head - 1]})"]
+             if not moving[0] else []) + \
+        ([f"the last {tail} (the ball at rest from frame {idx[k - tail]})"]
+         if not moving[-1] else [])
+    return moving, (f"the median background is made from the {int(moving.sum())} sampled "
+                    f"frames in which the ball moves, not {' or '.join(parts)}: a still ball "
+                    "would be in it")
 
 
 def _tiff_pages(path) -> int:
@@ -116,7 +159,11 @@ def resolve_background(source, background, *, r_px: float, median_frames: int = 
     else:
         logger.info(f"no background given: using the per-pixel median of {k} frames spread "
                     "over the recording")
+        moving, still_note = _moving(idx, stack, r_px)
+        if still_note:
+            stack, k = stack[moving], int(moving.sum())
         bg, notes, sources = repaired_median(stack, r_px, full_scale=full_scale)
+        notes = ([still_note] if still_note else []) + notes
         desc = f"per-pixel median of {k} frames" + (", repaired" if notes else "")
         bg, more = ballfree.check_ball_free(stack, bg, r_px, sources=sources,
                                             what=f"the per-pixel median of {k} frames",
