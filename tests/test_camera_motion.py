@@ -269,3 +269,31 @@ def test_a_shift_that_fades_over_frames_is_no_bump(monkeypatch):
     assert run(lambda i: 2.3 * max(0.0, 1.0 - i / 30.0)).kind == "still"
     m = run(lambda i: 2.3 if i < 25 else 0.0)
     assert m.kind == "bump" and m.frame == 25
+
+
+def test_a_step_where_the_ball_sits_is_checked_where_it_is_at_the_same_place():
+    """A dim scene's shifts are biased by where the ball hides the trough's arc: the release
+    frame, the ball at its held place, read 0.7 px off the later samples, a "bump" between
+    it and the next sample. The step is checked between frames with the ball at the same
+    place before and after it: a bias that goes with the ball's place is no camera's; a real
+    0.7 px bump at frame 408 is."""
+    n = 1200
+    t = np.arange(n) / 1000.0
+    x = 100.0 + 60.0 * np.cos(2 * np.pi * t / 0.68) * np.exp(-t)
+
+    class Fake:
+        centres = np.column_stack([x, np.full(n, 30.0)])
+        located = np.ones(n, bool)
+        r_px = 20.0
+
+        def __init__(self, camera):
+            self.camera = camera
+
+        def __call__(self, i):
+            return np.array([0.7 * (i == 0) + self.camera(i), 0.0])
+
+    after = np.array([408, 517, 735, 844, 1063])
+    size = np.array([-0.7, 0.0])  # the samples after, less the release frame's
+    assert not cm._seen_at_the_same_place(Fake(lambda i: 0.0), after, 408, size, 0.18)
+    assert cm._seen_at_the_same_place(Fake(lambda i: 0.7 * (i >= 408)), after, 408,
+                                      np.array([0.7, 0.0]), 0.18)

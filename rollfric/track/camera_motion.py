@@ -41,6 +41,13 @@ DRIFT_NOISE_FACTOR = 4.0
 # the quick look: a camera whose samples at reduced size stay within QUICK_STILL_PX of each
 # other is still (a quarter-size shift is good to ~0.01 px there)
 QUICK_STILL_PX = 0.05
+# a bump is checked on up to MATCHES samples after it against the frame before it with the
+# ball nearest to where it is, within MATCH_RADII ball radii
+MATCHES = 3
+MATCH_RADII = 0.1
+# the sampled frames whose shift the scene tells (scene_shift.SHIFT_MAX_SE_PX): at least this
+# share, else the motion is unknown
+MEASURED_SHARE = 0.8
 
 @dataclasses.dataclass(frozen=True)
 class CameraMotion:
@@ -155,8 +162,11 @@ def find_motion(source, background, centres, r_px: float, *, samples: int = SAMP
     idx = np.unique(pool[np.linspace(0, pool.size - 1, min(samples, pool.size)).round()
                          .astype(int)])
     s = np.array([shift(i) for i in idx])
-    ok = np.isfinite(s).all(axis=1) & ~_off_both_neighbours(s)
-    if ok.sum() < max(3, 0.5 * len(idx)):
+    finite = np.isfinite(s).all(axis=1)
+    ok = finite & ~_off_both_neighbours(s)
+    # a scene that tells the shift in some frames only is one whose structure the ball hides
+    # in the others: its shifts there are biased by where the ball is (a dim scene: 0.4-0.7 px)
+    if finite.sum() < MEASURED_SHARE * len(idx) or ok.sum() < max(3, 0.5 * len(idx)):
         return CameraMotion("unknown", idx, s)
     idx, s = idx[ok], s[ok]
     if _largest(s - s[0]) < (QUICK_STILL_PX if shift.level else MOTION_MIN_PX):
@@ -221,6 +231,7 @@ class _Shifts:
         # masked where its neighbours put it
         c = np.array(centres, dtype=float).reshape(-1, 2)
         ok = np.isfinite(c).all(axis=1)
+        self.located = ok  # the frames whose ball was located (not a glitch's)
         if ok.any() and not ok.all():
             idx = np.arange(len(c))
             c[~ok] = np.column_stack([np.interp(idx[~ok], idx[ok], c[ok, k]) for k in range(2)])
@@ -299,8 +310,34 @@ def _step(shift, idx, s, tol: float) -> CameraMotion | None:
             _any_near(shift, range(max(0, lo - 2), lo + 1), before, near)
             and _any_near(shift, range(hi, min(n, hi + 3)), after, near)):
         return None
+    if not _seen_at_the_same_place(shift, idx[j:], hi, size, near):
+        return None
     return CameraMotion("bump", idx, s, frame=hi, size_px=(float(size[0]), float(size[1])),
                         before_px=(float(before[0]), float(before[1])))
+
+
+def _seen_at_the_same_place(shift, after, frame: int, size, tol: float) -> bool:
+    """Whether the step of ``size`` px at ``frame`` is there where the ball is at the same
+    place before and after it: for up to MATCHES samples ``after`` it, the located frame before
+    ``frame`` with the ball nearest to where it is (within MATCH_RADII radii), their shifts'
+    difference within ``tol`` of ``size`` in most of the pairs. What the ball hides of the
+    scene biases a shift alike at one place, so the difference is the camera's alone (a dim
+    scene's release frame, the ball at its held place, read 0.7 px off the later samples).
+    True where no pair is found (a bump before the ball had been anywhere else)."""
+    c = shift.centres
+    before = np.flatnonzero(shift.located[:frame])
+    if not before.size:
+        return True
+    agree = []
+    for b in after[:: max(1, len(after) // MATCHES)][:MATCHES]:
+        dist = np.hypot(*(c[before] - c[b]).T)
+        k = int(np.argmin(dist))
+        if dist[k] > MATCH_RADII * shift.r_px:
+            continue
+        d = shift(int(b)) - shift(int(before[k]))
+        if np.isfinite(d).all():
+            agree.append(np.hypot(*(d - size)) <= tol)
+    return not agree or 2 * sum(agree) > len(agree)
 
 
 def _any_near(shift, frames, level, tol: float) -> bool:
@@ -348,9 +385,13 @@ def correct_for_motion(source, bg, df, info, setup, angle, *, retrack=None):
     xy = np.column_stack([df["x_px"].to_numpy(float), df["y_px"].to_numpy(float)])
     try:
         # frames the checks rejected (flash, repeated, ...) are not sampled
-        flags = df["flag"].astype(str).to_numpy()
-        motion = find_motion(source, bg, xy, info.ball_radius_px,
-                                usable=flags == "")
+        usable = df["flag"].astype(str).to_numpy() == ""
+        # nor frames of a held start or a rest: the fit leaves them out, and each shows the
+        # ball at one place, whose part of the scene it hides biases their shifts alike (a dim
+        # scene's rest read as a 0.35 px bump)
+        if "still" in df.columns:
+            usable &= df["still"].astype(str).to_numpy() == ""
+        motion = find_motion(source, bg, xy, info.ball_radius_px, usable=usable)
     except (RecordingError, ValueError) as exc:
         logger.info(f"the camera's motion was not looked for: {exc}")
         return df, info
