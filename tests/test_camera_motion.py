@@ -251,7 +251,7 @@ def test_a_shift_that_fades_over_frames_is_no_bump(monkeypatch):
     """A grazing light's long shadow of the ball at its release moved the first samples'
     shift by 2.3 px, fading over 30 frames (a clean rendered recording read as a bump at
     frame 25, then a timing reason): a bump is a step, the frames either side of it at the
-    two levels; a fade is not, and a real step there still is."""
+    two levels, seen in two samples on each side; a fade is not, and a real step is."""
     n = 1200
     rng = np.random.default_rng(2)
     noise = rng.normal(0.0, 0.01, (n, 2))
@@ -267,8 +267,10 @@ def test_a_shift_that_fades_over_frames_is_no_bump(monkeypatch):
                               np.full((n, 2), np.nan), 3.0)
 
     assert run(lambda i: 2.3 * max(0.0, 1.0 - i / 30.0)).kind == "still"
-    m = run(lambda i: 2.3 if i < 25 else 0.0)
-    assert m.kind == "bump" and m.frame == 25
+    assert run(lambda i: 2.3 * max(0.0, 1.0 - (i - 220) / 60.0) if i >= 220 else 2.3).kind \
+        != "bump"
+    m = run(lambda i: 2.3 if i < 250 else 0.0)
+    assert m.kind == "bump" and m.frame == 250
 
 
 def test_a_step_where_the_ball_sits_is_checked_where_it_is_at_the_same_place():

@@ -274,7 +274,9 @@ def _step(shift, idx, s, tol: float) -> CameraMotion | None:
     sample aside), if that is within ``tol`` px, its frame narrowed down by bisection; None
     otherwise."""
     best = None
-    for j in range(1, len(idx)):
+    # a step is seen in two samples on each side at least: one sample off its neighbours at
+    # an end of the recording is as likely where the ball was as where the camera went
+    for j in range(2, len(idx) - 1):
         left, right = s[:j], s[j:]
         dev = np.concatenate([np.abs(left - np.median(left, axis=0)).max(axis=1),
                               np.abs(right - np.median(right, axis=0)).max(axis=1)])
@@ -285,9 +287,9 @@ def _step(shift, idx, s, tol: float) -> CameraMotion | None:
         sc = float(top[-2]) if len(dev) >= 6 and top[-1] < 0.5 * step else float(top[-1])
         if best is None or sc < best[0]:
             best = (sc, j)
-    sc, j = best
-    if sc > tol:
+    if best is None or best[0] > tol:
         return None
+    sc, j = best
     before, after = np.median(s[:j], axis=0), np.median(s[j:], axis=0)
     lo, hi = int(idx[j - 1]), int(idx[j])  # lo like before, hi like after
     while hi - lo > 1:

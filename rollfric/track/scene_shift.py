@@ -25,12 +25,12 @@ BALL_MARGIN = 2.0  # the ball's disc and its shadow: this many ball radii masked
 ECC_STEPS = 30  # iterations of the ECC refinement at most
 # the whole-scene search (and the quick look): images halved up to this many times
 QUICK_LEVEL = 2
-# a shift is measured where its standard error (shift_precision) is at most the smallest
-# motion acted on (camera_motion.MOTION_MIN_PX): 0.001-0.005 px on drawn scenes with the
-# trough's walls in view, 0.02-0.06 px on small rendered frames; not on the dim lighting's
-# (0.23 px: its trough edge barely above the noise, where the ball's place biased the shifts
-# by 0.4-0.7 px and a still camera "moved") nor on a plain or evenly shaded backdrop
-SHIFT_MAX_SE_PX = 0.1
+# a shift is measured where its standard error (shift_precision) is at most this: 0.001-0.005
+# px on drawn scenes with the trough's walls in view, 0.02-0.06 px on small rendered frames,
+# 0.23 px on the dim lighting's (its trough edge barely above the noise: where the ball is
+# biases its shifts by up to 0.7 px, which camera_motion's tests of a motion stand against),
+# none on a plain or evenly shaded backdrop with noise
+SHIFT_MAX_SE_PX = 0.3
 # the ball's square filled in from the background is searched by the phase correlation while
 # it is at most this share of the image (the thesis camera's 10 mm ball: 2 %; a small
 # rendered frame's: 30-40 %, where the filled square held the peak at no shift)
