@@ -28,12 +28,14 @@ logger = logging.getLogger(__name__)
 # moving ball changes 1.5-2.5 x its area between two samples, a still one none)
 STILL_SHARE = 0.25
 STILL_SIGMAS = 6.0
+STILL_RUN_SHARE = 0.1  # of the sampled frames, at the least, in a still run left out
 
 
 def _moving(idx, stack, r_px: float):
     """The sampled frames to make a median of: all but a run at the start or end in which
     nothing moves (a held start, a ball at rest: each frame the same as the next to the noise,
-    fewer than STILL_SHARE of the ball's area changed beyond STILL_SIGMAS robust sigmas), which
+    fewer than STILL_SHARE of the ball's area changed beyond STILL_SIGMAS robust sigmas; a tenth
+    of the samples at least), which
     holds the ball in place and would put it in the median; all when fewer than a quarter
     would be left. Returns (mask, note or '')."""
     s = stack.astype(np.float32)
@@ -51,9 +53,12 @@ def _moving(idx, stack, r_px: float):
     head = int(np.argmin(same)) if not same.all() else k - 1  # pairs still from the start
     tail = int(np.argmin(same[::-1])) if not same.all() else k - 1
     moving = np.ones(k, dtype=bool)
-    if head >= 2:  # frames 0 .. head - 1 still (the last of the run is where it moves off)
+    # a run of a tenth of the samples at least: a ball released from rest moves less than a
+    # pixel between the first few samples of a short clip, and a median is not spoiled by them
+    least = max(2, math.ceil(STILL_RUN_SHARE * k))
+    if head >= least:  # frames 0 .. head - 1 still (the last of the run is where it moves off)
         moving[:head] = False
-    if tail >= 2:
+    if tail >= least:
         moving[k - tail:] = False
     if moving.all() or moving.sum() < max(3, k // 4):
         return np.ones(k, dtype=bool), ""
