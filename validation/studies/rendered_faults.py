@@ -82,9 +82,12 @@ THETA0_RANGE = (0.12, 0.3)  # rad
 CASES_PER_FAMILY = 25
 
 # fault -> sizes on the rendered frames: the drawn study's, the held start in frames at
-# 1000 Hz (0.1, 0.3 s), the camera's turn left out (it needs a new render)
+# 1000 Hz (0.1, 0.3 s); the camera's turn (TURNS) is rendered again
 SIZES = {**{k: v for k, v in drawn.SIZES.items() if k not in ("yaw", "pitch")},
          "held": (100, 300)}
+# the camera turned against the trough's axis (deg): the base rendered again by a camera
+# yawed or pitched so (synth.CameraModel), the lab's setup (its center_px) not knowing it
+TURNS = {k: drawn.SIZES[k] for k in ("yaw", "pitch")}
 # label -> (fault, sizes): the held or resting ball in the measurement's own (median)
 # background, no background frame given
 VARIANTS = {
@@ -187,8 +190,10 @@ class Base:
 
 
 @contextlib.contextmanager
-def rendered(case: Case):
-    """Simulate and render ``case``; yields its :class:`Base` (the store is removed after)."""
+def rendered(case: Case, *, yaw_deg: float = 0.0, pitch_deg: float = 0.0):
+    """Simulate and render ``case``, by a camera yawed or pitched by ``yaw_deg``,
+    ``pitch_deg`` against the trough's axis (the setup's center_px is the axis's image all the
+    same); yields its :class:`Base` (the store is removed after)."""
     d, m = BALLS[case.ball]
     scenario = sim.Scenario(mu=case.mu, theta0=case.theta0, duration=case.seconds, fps=FPS,
                             ball_diameter=d, ball_mass=m, pixel_size=PIXEL_SIZE,
@@ -196,7 +201,8 @@ def rendered(case: Case):
                             air_drag="law" if case.air_density else "constant")
     traj = sim.simulate(scenario)
     w, h, c = frame_geometry(d, case.theta0, scenario.cylinder_radius, margin=case.margin)
-    cam = synth.CameraModel(width=w, height=h, pixel_size=PIXEL_SIZE, center_px=c)
+    cam = synth.CameraModel(width=w, height=h, pixel_size=PIXEL_SIZE, center_px=c,
+                            yaw=math.radians(yaw_deg), pitch=math.radians(pitch_deg))
     scene = synth.SceneConfig(camera=cam, lighting=synth.lighting_preset(case.lighting))
     with tempfile.TemporaryDirectory(prefix="rollfric-rendered-faults-") as tmp:
         path = synth.render(traj, Path(tmp) / "rec.zarr", scene=scene,
@@ -281,6 +287,16 @@ def rendered_fault(base: Base, fault: str, magnitude: float, *, seed: int = 0,
                           magnitude=float(magnitude), truth=truth)
 
 
+def turned(case: Case, fault: str, degrees: float) -> Recording:
+    """``case`` rendered again by a camera turned by ``degrees`` (``fault`` "yaw" or
+    "pitch", :data:`TURNS`), with the renderer's setup (the lab's center_px, no turn)."""
+    with rendered(case, **{f"{fault}_deg": float(degrees)}) as base:
+        rec = base.recording()
+        # the frames and truth outlive the render's store (read into memory)
+        return dataclasses.replace(rec, fault=fault, magnitude=float(degrees),
+                                   truth={f"{fault}_deg": float(degrees)})
+
+
 def rest_from(theta, tol: float = 1e-9) -> int | None:
     """The frame from which the true angle ``theta`` no longer changes (the ball came to
     rest: tan theta <= mu at a turning point), None if it moves to the end."""
@@ -341,7 +357,7 @@ def run_study(*, cases: int = CASES_PER_FAMILY, fault_bases: int = 2, families=N
         ``errors`` (:func:`error_table`), ``fault_rows``, ``clean_rows``, ``what``.
     """
     fault_rows, clean_rows = [], []
-    labels = list(faults or list(SIZES) + list(VARIANTS))
+    labels = list(faults or list(SIZES) + list(VARIANTS) + list(TURNS))
     t0 = time.perf_counter()
     for fam in (families or FAMILIES):
         for i in range(cases):
@@ -357,6 +373,13 @@ def run_study(*, cases: int = CASES_PER_FAMILY, fault_bases: int = 2, families=N
                 if i >= fault_bases:
                     continue
                 for label in labels:
+                    if label in TURNS:
+                        for mag in TURNS[label]:
+                            row = run_one(turned(case, label, mag))
+                            row.update(fault=label, family=fam, **_describe(case))
+                            fault_rows.append(row)
+                            log(f"  [{fam} {i}] " + _line(row))
+                        continue
                     fault, mags = VARIANTS[label] if label in VARIANTS else (label, SIZES[label])
                     for mag in mags:
                         rec = rendered_fault(base, fault, mag, seed=case.seed,
@@ -430,7 +453,7 @@ def main(argv=None) -> int:
     p.add_argument("--fault-bases", type=int, default=2,
                    help="cases of each family made faulty (default 2)")
     p.add_argument("--families", nargs="*", choices=list(FAMILIES), help="families (all)")
-    p.add_argument("--faults", nargs="*", choices=list(SIZES) + list(VARIANTS),
+    p.add_argument("--faults", nargs="*", choices=list(SIZES) + list(VARIANTS) + list(TURNS),
                    help="faults (all)")
     p.add_argument("--seconds", type=float, default=SECONDS,
                    help=f"record length in s (default {SECONDS:g})")
