@@ -144,3 +144,18 @@ def test_study_smoke_tables_match_rows(tmp_path):
     assert s["n"] == 1 and s["named"] == int(bool(frow["named"]))
     # refuses to overwrite without --overwrite
     assert rf.main(["--out", str(tmp_path), "--cases", "0"]) == 2
+
+
+def test_a_turned_camera_compresses_the_ball_path_by_the_cosine_of_its_angle(base):
+    # the base rendered again by a camera yawed 8 deg (pitched 8 deg): the truth's centres
+    # span cos 8 deg of the square camera's across (along) the path, about the same axis
+    # point; the setup is the renderer's, its center_px unchanged (the lab does not know)
+    for fault, axis in (("yaw", 0), ("pitch", 1)):
+        rec = rf.turned(base.case, fault, 8.0)
+        assert rec.fault == fault and rec.magnitude == 8.0
+        assert rec.setup.center_px == base.setup.center_px
+        c0 = base.setup.center_px
+        seen = np.asarray(rec.centers, float)[:, axis] - c0[axis]
+        square = base.centers[:, axis] - c0[axis]
+        ratio = np.ptp(seen) / np.ptp(square)
+        assert ratio == pytest.approx(math.cos(math.radians(8.0)), abs=2e-3)
