@@ -208,3 +208,21 @@ def test_steadied_frames_are_the_unmoved_ones_and_a_region_reads_as_the_whole_fr
     for i, roi in ((399, (0, 20, 0, 30)), (250, (100, 180, 200, 260)),
                    (50, (260, 280, 450, 480))):
         np.testing.assert_array_equal(s.read(i, roi), s[i][roi[0]:roi[1], roi[2]:roi[3]])
+
+
+def test_a_path_the_setup_puts_elsewhere_is_asked_about_when_no_ball_is_found():
+    # the rendered study: a camera pitched 8 deg over a 3 px ball moved its path a radius off
+    # the one the setup's center_px and L put it on; "found in none of the frames" asked about
+    # the recording, background and size only. A setup's centre 60 px high does the same here
+    from rollfric.errors import InputError
+    from tests.measure_data import MemorySource, make_recording
+
+    rec = make_recording(100, noise=1.0, with_center=True)
+    setup = rec.setup.replace(center_px=(rec.setup.center_px[0], rec.setup.center_px[1] - 60))
+    with pytest.raises(InputError, match="found in none of the 100 frames") as err:
+        measure(MemorySource(rec.frames), setup, rec.background)
+    assert "cylinder.center_px and L = R - r put its path" in str(err.value)
+    # without a centre in the setup (found from the trough's contour) the question is not asked
+    df, info, res = measure(MemorySource(rec.frames), rec.setup.replace(center_px=None),
+                            rec.background)
+    assert df["found"].all()

@@ -132,10 +132,15 @@ def check_track_fits(df: pd.DataFrame, setup: Setup) -> None:
     """
     found = df["found"] == 1
     if not found.any():
+        # the ball is looked for along the path the setup's centre and L = R - r put it on: a
+        # camera pitched 8 deg moves a 3 px ball's path off it by its radius
+        where = ("; and does it run where cylinder.center_px and L = R - r put its path (a "
+                 "camera pitched or yawed against the trough moves the path off it)?"
+                 if setup.center_px is not None else "?")
         raise InputError(
             f"the ball was found in none of the {len(df)} frames: is it in the recording, is the "
             f"background right, and is its size right (setup: {ball_radius_px(setup):.1f}"
-            " px radius)?")
+            f" px radius){where}")
     rfit = df.loc[found, "r_px"].dropna()
     r_px = ball_radius_px(setup)
     if len(rfit) and abs(float(rfit.median()) - r_px) > 0.1 * r_px:
