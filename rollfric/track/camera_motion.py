@@ -127,6 +127,18 @@ def drift_line(frames, shifts):
     return at
 
 
+def drift_scatter(frames, shifts) -> tuple[np.ndarray, float]:
+    """The samples' scatter about their drift line (:func:`drift_line`): (sigma, Sxx), sigma
+    (2,) px the standard deviation of x and y about it (K - 2 degrees of freedom), Sxx the
+    frames' sum of squares about their mean (the line's slope has standard error sigma /
+    sqrt(Sxx))."""
+    f = np.asarray(frames, dtype=float)
+    s = np.asarray(shifts, dtype=float).reshape(-1, 2)
+    dev = s - drift_line(f, s)(f)
+    sigma = np.sqrt(np.sum(dev ** 2, axis=0) / max(1, len(f) - 2))
+    return sigma, float(np.sum((f - f.mean()) ** 2))
+
+
 def find_motion(source, background, centres, r_px: float, *, samples: int = SAMPLES,
                 usable=None) -> CameraMotion:
     """The camera's motion over ``source`` (:class:`CameraMotion`).
@@ -201,10 +213,8 @@ def find_motion(source, background, centres, r_px: float, *, samples: int = SAMP
     # a drift: the line through the samples must rise above its own standard error
     line = drift_line(idx, s)
     total = line(idx[-1:])[0] - line(idx[:1])[0]
-    dev = s - line(idx)
-    span = float(idx[-1] - idx[0])
-    se = math.sqrt(float(np.sum(dev ** 2)) / max(1, 2 * (len(idx) - 2))) * span / math.sqrt(
-        float(np.sum((idx - idx.mean()) ** 2)))
+    sigma, sxx = drift_scatter(idx, s)
+    se = math.sqrt(float(np.mean(sigma ** 2))) * float(idx[-1] - idx[0]) / math.sqrt(sxx)
     if math.hypot(*total) < DRIFT_NOISE_FACTOR * se:
         return CameraMotion("still", idx, s)
     return CameraMotion("drift", idx, s, size_px=(float(total[0]), float(total[1])))

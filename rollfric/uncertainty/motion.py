@@ -7,7 +7,7 @@ of a pixel on a large frame, up to a tenth or two on a small one); the correctio
 error into every centre, and a drift's slope into the decay of the swing, so into mu. The
 samples' scatter about the motion fitted to them measures it:
 
-- a drift: the line through the samples (:func:`rollfric.track.camera_motion.drift_line`);
+- a drift: the line through the samples (:func:`rollfric.track.camera_motion.drift_scatter`);
   its offset and slope have the standard errors of a straight-line fit of their scatter
   about it;
 - a bump: the two levels either side of the step; the step's size has the standard error of
@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from rollfric.track.camera_motion import drift_line
+from rollfric.track.camera_motion import drift_scatter
 from rollfric.uncertainty.measured import Measurement
 from rollfric.uncertainty.sensitivity import Refitter
 
@@ -58,12 +58,11 @@ def patterns(motion: dict, frames: np.ndarray) -> list[tuple[str, np.ndarray]]:
     if kind == "drift":
         if len(f) < 3:
             return []
-        fm, sxx = f.mean(), float(np.sum((f - f.mean()) ** 2))
-        dev = s - drift_line(f, s)(f)  # about the line the correction used
+        sigmas, sxx = drift_scatter(f, s)  # about the line the correction used
         for k, axis in enumerate("xy"):
-            sigma = math.sqrt(float(np.sum(dev[:, k] ** 2)) / (len(f) - 2))
+            sigma = float(sigmas[k])
             for what, p in (("offset", np.full(frames.shape, sigma / math.sqrt(len(f)))),
-                            ("slope", sigma / math.sqrt(sxx) * (frames - fm))):
+                            ("slope", sigma / math.sqrt(sxx) * (frames - f.mean()))):
                 out.append((f"{axis} {what}", _axis(p, k)))
         return out
     before, after = s[f < motion["frame"]], s[f >= motion["frame"]]
