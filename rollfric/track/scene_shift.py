@@ -172,8 +172,8 @@ def _search(f, b, mask) -> tuple[float, float]:
     (``cv2.phaseCorrelate``) of the frame with the square filled in from the background;
     where it is more, the masked normalised cross-correlation
     (``skimage.registration.phase_cross_correlation`` with masks), which leaves the square
-    out (filled in, it is the same in both images and pulls the peak to no shift) at ten
-    times the cost."""
+    out (filled in, it is the same in both images and pulls the peak to no shift) but costs
+    several FFTs of twice the image's size."""
     if np.mean(mask == 0) <= SQUARE_SHARE_MAX:
         filled = np.where(mask > 0, f, b).astype(np.float64)
         window = cv2.createHanningWindow((f.shape[1], f.shape[0]), cv2.CV_64F)
