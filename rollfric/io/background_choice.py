@@ -35,9 +35,8 @@ def _moving(idx, stack, r_px: float):
     """The sampled frames to make a median of: all but a run at the start or end in which
     nothing moves (a held start, a ball at rest: each frame the same as the next to the noise,
     fewer than STILL_SHARE of the ball's area changed beyond STILL_SIGMAS robust sigmas; a tenth
-    of the samples at least), which
-    holds the ball in place and would put it in the median; all when fewer than a quarter
-    would be left. Returns (mask, note or '')."""
+    of the samples at least), which holds the ball in place and would put it in the median;
+    all when fewer than a quarter would be left. Returns (mask, note or '')."""
     s = stack.astype(np.float32)
     if s.ndim == 4:
         s = s.mean(axis=3)

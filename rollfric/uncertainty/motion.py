@@ -34,7 +34,7 @@ SOURCE = "camera motion (its correction)"
 def patterns(motion: dict, frames: np.ndarray) -> list[tuple[str, np.ndarray]]:
     """The correction's error patterns at ``frames``: (what, (T, 2) px) each one standard
     uncertainty, for a bump or drift of ``motion`` (fit.json's ``camera_motion``); none for a
-    still camera or one whose samples do not say (fewer than three on a side of a bump, or
+    still camera or one whose samples do not say (fewer than two on a side of a bump, or
     three on a drift).
 
     Parameters
@@ -112,7 +112,8 @@ def motion_row(meas: Measurement, result, setup, mu: float, *,
     if not meas.from_centres or meas.camera_motion is None:
         return None, 0
     frames = meas.frames if meas.frames is not None else np.arange(len(meas.x), dtype=float)
-    pats = patterns(meas.camera_motion, frames)
+    # a pattern that moves nothing (an axis the samples agree on to the bit) needs no re-fit
+    pats = [(w, p) for w, p in patterns(meas.camera_motion, frames) if np.any(p)]
     if not pats:
         return None, 0
     changes, n = [], 0
