@@ -108,6 +108,22 @@ class ContourEllipse:
         px, py = a * a * nx / h - inset * nx, b * b * ny / h - inset * ny
         return math.hypot(px, py)
 
+    def tilt_bound_deg(self) -> float:
+        """The largest camera tilt the contour allows within one standard uncertainty:
+        acos(1 - (a - b + u(a - b)) / a), deg (90 where u(a - b) is not finite).
+
+        Examples
+        --------
+        >>> from rollfric.geometry.ellipse import ContourEllipse
+        >>> e = ContourEllipse(center=(0.0, 0.0), semi_axes=(500.0, 499.5), angle_deg=90.0,
+        ...                    rms_px=0.1, n_points=300, axes_diff_u_px=0.5)
+        >>> round(e.tilt_bound_deg(), 2)  # acos(1 - 1 / 500)
+        3.62
+        """
+        a, b = self.semi_axes
+        ratio = 1.0 - (a - b + self.axes_diff_u_px) / a
+        return math.degrees(math.acos(ratio)) if 0.0 <= ratio <= 1.0 else 90.0
+
     def to_dict(self) -> dict:
         """The fit.json form (px, deg)."""
         return {"center_px": list(self.center), "semi_axes_px": list(self.semi_axes),
@@ -115,7 +131,8 @@ class ContourEllipse:
                 "axis_ratio": self.semi_axes[1] / self.semi_axes[0], "rms_px": self.rms_px,
                 "n_points": self.n_points,
                 "axes_diff_u_px": self.axes_diff_u_px if math.isfinite(self.axes_diff_u_px)
-                else None, "significant": self.significant}
+                else None, "significant": self.significant,
+                "tilt_deg_bound": self.tilt_bound_deg()}
 
 
 def fit_ellipse(points: np.ndarray) -> ContourEllipse:

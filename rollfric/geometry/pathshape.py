@@ -57,7 +57,9 @@ class PathEllipse:
     q : tuple of float
         (Q11, Q12, Q22), 1/px^2.
     cov : numpy.ndarray
-        3 x 3 covariance of q (widened for correlated residuals).
+        3 x 3 covariance of q (widened for correlated residuals), the axis's share included.
+    center_cov : numpy.ndarray or None
+        The axis's share of ``cov`` (None: none).
     center : tuple of float
         The axis the path was fitted about (px).
     rms_px : float
@@ -71,6 +73,7 @@ class PathEllipse:
     center: tuple[float, float]
     rms_px: float
     n_points: int
+    center_cov: np.ndarray | None = dataclasses.field(default=None, repr=False)
 
     @property
     def matrix(self) -> np.ndarray:
@@ -138,13 +141,48 @@ class PathEllipse:
         a, b = self.semi_axes
         return math.degrees(math.acos(min(1.0, b / a)))
 
+    def tilt_bound_deg(self) -> float:
+        """The largest camera tilt the path allows within one standard uncertainty, deg.
+
+        The path's anisotropy s = |((Q11 - Q22) / 2, Q12)| / ((Q11 + Q22) / 2) (a tilt t
+        makes s = (1 - cos^2 t) / (1 + cos^2 t)) taken at its estimate plus the standard
+        uncertainty along the worst direction (the covariance's largest eigenvalue): a yaw or
+        pitch that the path cannot exclude. The axis's share of the covariance is left out: a
+        tilt hidden by an axis off its place (a yaw's narrowing undone by an axis nearer the
+        path) moves mu by half as much as that axis's own error, which the axis's budget rows
+        hold. 90 where the covariance is not finite.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from rollfric.geometry.pathshape import PathEllipse
+        >>> c = np.cos(np.radians(3.0))  # a 3 deg yaw squeezes x, known exactly
+        >>> e = PathEllipse(q=(1 / c**2, 0.0, 1.0), cov=np.zeros((3, 3)), center=(0.0, 0.0),
+        ...                 rms_px=0.0, n_points=100)
+        >>> round(e.tilt_bound_deg(), 6)
+        3.0
+        """
+        g = np.array([[0.5, 0.0, -0.5], [0.0, 1.0, 0.0]])
+        q = np.asarray(self.q, dtype=float)
+        d = g @ q
+        mean = 0.5 * (q[0] + q[2])
+        cov = self.cov if self.center_cov is None else self.cov - self.center_cov
+        cd = g @ cov @ g.T
+        if not (np.all(np.isfinite(cd)) and mean > 0):
+            return 90.0
+        s = (float(np.hypot(*d)) + math.sqrt(max(float(np.linalg.eigvalsh(cd)[-1]), 0.0))) \
+            / mean
+        if s >= 1.0:
+            return 90.0
+        return math.degrees(math.acos(math.sqrt((1.0 - s) / (1.0 + s))))
+
     def to_dict(self) -> dict:
         """The fit.json form (px, deg)."""
         a, b = self.semi_axes
         return {"center_px": list(self.center), "semi_axes_px": [a, b],
                 "angle_deg": self.angle_deg, "axis_ratio": b / a, "rms_px": self.rms_px,
                 "n_points": self.n_points, "chi2": self.chi2, "significant": self.significant,
-                "tilt_deg_if_camera": self.tilt_deg()}
+                "tilt_deg_if_camera": self.tilt_deg(), "tilt_deg_bound": self.tilt_bound_deg()}
 
 
 def fit_path(x, y, center, center_u=None) -> PathEllipse:
@@ -189,6 +227,7 @@ def fit_path(x, y, center, center_u=None) -> PathEllipse:
         cov = cov * (1.0 + rho) / (1.0 - rho)
     except np.linalg.LinAlgError:
         cov = np.full((3, 3), np.inf)
+    center_cov = np.zeros((3, 3))
     if center_u is not None:
         for k, uk in enumerate(np.ravel(center_u)[:2]):
             if uk and np.isfinite(uk):
@@ -196,11 +235,12 @@ def fit_path(x, y, center, center_u=None) -> PathEllipse:
                 d[k] = uk
                 moved = fit_path(x, y, (center[0] + d[0], center[1] + d[1]))
                 g = np.asarray(moved.q) - np.asarray(sol.x)  # q's change over one u
-                cov = cov + np.outer(g, g)
-    cov = cov + _smooth_error_cov(u, v, a, q0)
+                center_cov = center_cov + np.outer(g, g)
+    cov = cov + center_cov + _smooth_error_cov(u, v, a, q0)
     return PathEllipse(q=tuple(float(v) for v in sol.x), cov=cov,
                        center=(float(center[0]), float(center[1])),
-                       rms_px=float(np.sqrt(np.mean(sol.fun ** 2))), n_points=int(u.size))
+                       rms_px=float(np.sqrt(np.mean(sol.fun ** 2))), n_points=int(u.size),
+                       center_cov=center_cov)
 
 
 def _smooth_error_cov(u, v, a, q0) -> np.ndarray:

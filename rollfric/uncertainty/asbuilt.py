@@ -16,7 +16,12 @@ or seen by the images and read two ways):
   does; a diagonal axis moves only the bottom, which the offset takes).
 - **the camera yawed or pitched** against the trough's axis: seen as the same ellipse, else a
   stated tolerance ``camera.yaw_deg_u`` / ``pitch_deg_u``: the angles seen through the
-  compressed image fitted again (:func:`camera_tilt_bias`; quadratic and one-signed).
+  compressed image fitted again (:func:`camera_tilt_bias`; quadratic and one-signed). Where
+  the lab states neither (``yaw_deg_u = 0`` states a camera square on, exactly) and the
+  ball's path (or the trough's contour) is round within its noise, the tilt it cannot
+  exclude (:meth:`rollfric.geometry.pathshape.PathEllipse.tilt_bound_deg`) enters instead,
+  the worse of a yaw and a pitch (:data:`TURN`): a short arc tells a few degrees from none
+  only weakly, and a 4 deg yaw moves mu by -0.24 %.
 - **an ellipse seen** in the path (:mod:`rollfric.geometry.pathshape`) or the contour: the
   camera's and the bore's readings. Where the data cannot tell them apart, both enter: the two
   readings equally likely, u(mu) is the root mean square of mu's differences from them (a
@@ -51,7 +56,11 @@ YAW = "camera.yaw_deg"
 PITCH = "camera.pitch_deg"
 PATH = "as built: path ellipse"  # the ball's path read as a camera's tilt or a bore
 CONTOUR = "as built: contour ellipse"  # the trough's contour read alike
-SOURCES = (TILT, OVALITY, YAW, PITCH, PATH, CONTOUR)
+TURN = "as built: camera turn"  # the yaw or pitch a round path cannot exclude
+SOURCES = (TILT, OVALITY, YAW, PITCH, PATH, CONTOUR, TURN)
+
+# a path's bound beyond this is no bound: the budget's row takes the bias at this tilt
+MAX_TURN_DEG = 45.0
 
 TILT_NOTE = ("the ball also rolls along the tilted axis (from rest at the record's start); "
              "mu biased low, as tilt^2 and the record's length: not corrected, u(mu) the bias "
@@ -360,6 +369,37 @@ def _seen_rows(meas: Measurement, mu: float):
     return None
 
 
+def _turn_row(meas: Measurement, result, setup: Setup, params: dict, fit_length: bool):
+    """The row of the camera's yaw or pitch that a round path or contour cannot exclude (the
+    tighter of their bounds), and the re-fits made; None without one (neither fitted, or an
+    ellipse seen)."""
+    seen = meas.as_built or {}
+    pe, ce = seen.get("path_ellipse"), seen.get("contour_ellipse")
+    bounds = {}
+    if pe is not None and pe.get("verdict") == "round" and _finite(pe.get("tilt_deg_bound")):
+        bounds["ball's path"] = pe["tilt_deg_bound"]
+    if ce is not None and not ce.get("significant") and _finite(ce.get("tilt_deg_bound")):
+        bounds["trough's contour"] = ce["tilt_deg_bound"]  # a long arc: often the tighter
+    if not bounds:
+        return None
+    by = min(bounds, key=bounds.get)
+    bound = bounds[by]
+    angle = math.radians(min(bound, MAX_TURN_DEG))
+    biases = []
+    for pitch in (False, True):
+        try:
+            biases.append(camera_tilt_bias(meas, result, setup, params, angle, pitch=pitch,
+                                           fit_length=fit_length)[0])
+        except (ValueError, RuntimeError):
+            biases.append(math.nan)
+    worst = max(abs(b) for b in biases) if all(map(math.isfinite, biases)) else math.inf
+    note = (f"the {by} is round within its noise, so the camera may be yawed or pitched up "
+            f"to {bound:.2g} deg (its ellipse at one standard uncertainty): the worse of a yaw "
+            f"({100 * biases[0]:+.3g} %) and a pitch ({100 * biases[1]:+.3g} %), not "
+            "corrected; state camera.yaw_deg_u and pitch_deg_u to replace it")
+    return (TURN, None, bound, None, worst * params["mu"], note), 2
+
+
 def as_built_rows(meas: Measurement, result, refit: Refitter, setup: Setup, params: dict, *,
                   fit_length: bool = False) -> AsBuilt:
     """The budget's rows of the trough and camera as built (the module's docstring).
@@ -408,10 +448,17 @@ def as_built_rows(meas: Measurement, result, refit: Refitter, setup: Setup, para
                      f"({100 * hor:+.3g} %) and vertical ({100 * ver:+.3g} %), not corrected"))
     elif seen is None:
         exact.append(OVALITY)
+    # the lab's word on its camera, even 0 +- 0 (square on, exactly), replaces the path's bound
+    stated = [setup.u(f) is not None for f in ("camera_yaw", "camera_pitch")]
+    turn = None if seen is not None or any(stated) else _turn_row(meas, result, setup, params,
+                                                                  fit_length)
+    if turn is not None:
+        rows.append(turn[0])
+        n += turn[1]
     for field, source, pitch in (("camera_yaw", YAW, False), ("camera_pitch", PITCH, True)):
         value, u, bound = _stated(setup, field)
-        if seen is not None:
-            continue  # the ellipse seen holds the camera's tilt
+        if seen is not None or turn is not None:
+            continue  # the ellipse seen, or the round path's bound, holds the camera's tilt
         if bound == 0.0:
             exact.append(source)
             continue

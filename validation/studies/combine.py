@@ -117,8 +117,9 @@ def release_fit(case: dict, k: int, order: int = 1) -> dict:
 
 def rendered_release_fit(case: dict, k: int, order: int = 1) -> dict:
     """:func:`release_fit` of a release rendered by synth and measured by ``rollfric.measure``
-    (:mod:`validation.studies.rendered_faults`' small frames, 2 s, the renderer's exact setup:
-    the budget is the statistical part, the combination's independent part alone)."""
+    (:mod:`validation.studies.rendered_faults`' small frames, 2 s, the renderer's exact setup,
+    its camera stated square on (``yaw_deg_u = pitch_deg_u = 0``): the budget is the
+    statistical part, the combination's independent part alone)."""
     from rollfric.measurement import measure
     from rollfric.uncertainty.measured import measurement_from_track
     from validation.faults.recordings import ArraySource
@@ -128,9 +129,10 @@ def rendered_release_fit(case: dict, k: int, order: int = 1) -> dict:
                    theta0=math.radians(abs(case["theta0_deg"][k])), ball=case["ball"],
                    seconds=2.0)
     with rendered(release) as base:
-        df, info, res = measure(ArraySource(base.frames), base.setup, base.background)
+        setup = base.setup.replace(uncertainty=tuple(base.setup.uncertainty)
+                                   + (("camera_yaw", 0.0), ("camera_pitch", 0.0)))
+        df, info, res = measure(ArraySource(base.frames), setup, base.background)
         b = budget(measurement_from_track(df, info), res, order=order)
-        setup = base.setup
     return {"mu": b.mu, "method": res.method, "n_samples": res.n_samples, "u_mu": b.u_mu,
             "uncertainty_budget": [r.to_dict() for r in b.rows], "quality": res.quality,
             "quality_reasons": [{"code": r.code} for r in res.quality_reasons],

@@ -21,8 +21,10 @@ rendered frames themselves (the release frame, or the turning point's, again wit
 noise). The tables (:func:`validation.studies.faults.fault_summary`, ``clean_summary``) and a
 table of each reason by family go to ``DIR/rendered_faults.json``.
 
-The setups are the renderer's (exact geometry and center_px, no ``_u`` keys): U(mu) is the
-statistical part (the strictest yardstick), as in the drawn study.
+The setups are the renderer's (exact geometry and center_px, no ``_u`` keys), the camera
+stated square on exactly but where it is turned, as in the drawn study
+(:func:`validation.studies.faults.square_on`): U(mu) is the statistical part (the strictest
+yardstick), and the path's bound on a turned camera's turn.
 """
 
 from __future__ import annotations
@@ -394,7 +396,9 @@ def run_study(*, cases: int = CASES_PER_FAMILY, fault_bases: int = 2, families=N
                  f"trough's lower arc, {seconds:g} s at {FPS:g} Hz; mu log-uniform "
                  f"{MU_RANGE[0]:g}..{MU_RANGE[1]:g} and release angle {THETA0_RANGE[0]:g}.."
                  f"{THETA0_RANGE[1]:g} rad unless the family says otherwise; the renderer's "
-                 f"setup with its center_px, no _u keys: U(mu) is the statistical part); faults "
+                 f"setup with its center_px, no _u keys but the camera's, square on exactly, "
+                 f"except where it is turned: U(mu) is the statistical part, and the path's "
+                 f"bound on a turned camera's turn); faults "
                  f"on the first {fault_bases} cases of each family by "
                  f"validation.faults.recordings' transforms"),
         "families": {k: {kk: list(vv) for kk, vv in v.items()} for k, v in FAMILIES.items()},
