@@ -158,3 +158,43 @@ def test_a_locators_smooth_error_on_a_short_arc_is_no_tilted_camera():
     # a camera really yawed 8 deg is still seen on that arc, 3 deg on a swing of +-0.5 rad
     assert fit_path(*_arc(0.2, bulge_px=0.01, yaw_deg=8.0), (0.0, 0.0)).significant
     assert fit_path(*_arc(0.5, bulge_px=0.01, yaw_deg=3.0), (0.0, 0.0)).significant
+
+
+def test_the_period_is_fitted_where_the_fitted_curve_has_gaps():
+    """The fitted curve is NaN where frames were left out. Its first sample NaN made the
+    swing's length fit start from NaN ("Initial guess is outside of provided bounds"), and
+    the whole path reading was dropped: a rendered 1.58 mm ball filmed by a camera yawed
+    8 deg had no path_ellipse, no row and no reason."""
+    from rollfric.fit import eom
+    from rollfric.geometry.pathshape import fit_length
+    from rollfric.setup.model import thesis_setup
+
+    setup = thesis_setup("10mm")
+    t = np.arange(1500) / 1000.0
+    th, _, _ = eom.solve_reference(0.2, 0.0, MU, t, track_radius=setup.track_radius)
+    res = fit_mu(t, th, setup)
+    curve = np.asarray(res.curve, dtype=float).copy()
+    curve[:5] = np.nan
+    gaps = dataclasses.replace(res, curve=curve)
+    L, u = fit_length(t, th, setup, gaps, offset=False)
+    assert L == pytest.approx(setup.track_radius, rel=1e-5) and 0 < u < 1e-4
+
+
+def test_an_ellipse_with_one_reading_not_made_is_named_with_the_other():
+    """Where the bore's reading could not be fitted, the camera's alone says how far mu may
+    be off: beyond BIAS_WARN of mu it is the reason camera_orientation (its spread was NaN,
+    and NaN > BIAS_WARN is false: no reason)."""
+    from rollfric.geometry import pathshape
+
+    q = (1.0 / 500.0**2 / math.cos(math.radians(8.0)) ** 2, 0.0, 1.0 / 500.0**2)
+    path = pathshape.PathEllipse(q=q, cov=np.zeros((3, 3)), center=(0.0, 0.0), rms_px=0.1,
+                                 n_points=400)
+    lengths = {"L_period_m": math.nan, "L_period_u_m": math.inf, "L_nominal_m": 0.08,
+               "L_nominal_u_m": 0.0, "L_path_m": 0.07, "L_path_u_m": 1e-4,
+               "z_camera": math.nan, "z_trough": math.nan}
+    reading = pathshape.PathReading(path, "undecided", 0.0100, mu_camera=0.0101,
+                                    mu_trough=math.nan, lengths=lengths)
+    assert reading.spread == pytest.approx(0.01)
+    msg = reading.message()
+    assert "0.0101 (+1.00 %)" in msg and "not known (its fit failed)" in msg
+    assert "could not be fitted with L free" in msg and "nan" not in msg

@@ -286,8 +286,12 @@ def fit_length(t, theta, setup, result, offset: bool) -> tuple[float, float]:
     t, th = t[used], th[used]
     L0, g = setup.track_radius, setup.gravity
     rt, rc = np.asarray(result.t, dtype=float), np.asarray(result.curve, dtype=float)
+    keep = np.isfinite(rt) & np.isfinite(rc)  # the curve is NaN where frames were left out
+    rt, rc = rt[keep], rc[keep]
+    if rt.size < 2:
+        raise ValueError("the fitted curve has fewer than 2 finite samples")
     th0 = float(np.interp(t[0], rt, rc))
-    om0 = float(np.interp(t[0], rt, np.gradient(rc, rt))) if rt.size > 1 else 0.0
+    om0 = float(np.interp(t[0], rt, np.gradient(rc, rt)))
     x0 = [max(result.mu, 1e-6), th0 - result.offset, om0, L0] + ([result.offset] if offset
                                                                    else [])
 
@@ -354,9 +358,15 @@ class PathReading:
 
     @property
     def spread(self) -> float:
-        """|mu_camera - mu_trough| / mu (NaN when either is missing)."""
-        return abs(self.mu_camera - self.mu_trough) / abs(self.mu_as_measured) \
-            if self.mu_as_measured else math.nan
+        """|mu_camera - mu_trough| / mu; where one reading could not be made, the other's
+        difference from mu as measured (NaN when neither was made)."""
+        if not self.mu_as_measured:
+            return math.nan
+        cam, tr = self.mu_camera, self.mu_trough
+        if not math.isfinite(cam) or not math.isfinite(tr):
+            made = cam if math.isfinite(cam) else tr
+            return abs(made - self.mu_as_measured) / abs(self.mu_as_measured)
+        return abs(cam - tr) / abs(self.mu_as_measured)
 
     def kind(self) -> str:
         """"yawed" (the path squeezed sideways), "pitched" (squeezed vertically) or "turned"."""
@@ -381,11 +391,14 @@ class PathReading:
                  f"{2 * b:.2f} px, ratio {b / a:.5f}, major axis at {self.path.angle_deg:.1f} "
                  "deg)")
         lg = self.lengths
+        given = (f"R - r is {1e3 * lg['L_nominal_m']:.2f} mm, the path's bottom curvature "
+                 f"{1e3 * lg['L_path_m']:.2f} mm")
         period = (f"the swing's period gives L = {1e3 * lg['L_period_m']:.2f} +- "
-                  f"{1e3 * lg['L_period_u_m']:.2f} mm, R - r is {1e3 * lg['L_nominal_m']:.2f} "
-                  f"mm, the path's bottom curvature {1e3 * lg['L_path_m']:.2f} mm")
-        cam = f"{100 * (self.mu_camera / self.mu_as_measured - 1):+.2f} %"
-        trough = f"{100 * (self.mu_trough / self.mu_as_measured - 1):+.2f} %"
+                  f"{1e3 * lg['L_period_u_m']:.2f} mm, {given}"
+                  if math.isfinite(lg["L_period_m"]) else
+                  f"the swing's period could not be fitted with L free ({given})")
+        cam = _change(self.mu_camera, self.mu_as_measured)
+        trough = _change(self.mu_trough, self.mu_as_measured)
         tilt = f"{self.path.tilt_deg():.1f} deg"
         if self.verdict == "camera":
             return (f"{shape}: {period}, so the trough is round and the camera is "
@@ -399,14 +412,25 @@ class PathReading:
                     f"{trough} ({self.mu_trough:.6g}); left: the bore's shape beyond an "
                     "ellipse")
         return (f"{shape}: if the camera is {self.kind()} by {tilt} against the trough axis "
-                f"mu is {self.mu_camera:.6g} ({cam}), if the trough is out of round "
-                f"{self.mu_trough:.6g} ({trough}); {period}: the period cannot tell which. "
+                f"mu is {_reading(self.mu_camera, self.mu_as_measured)}, if the trough is out "
+                f"of round {_reading(self.mu_trough, self.mu_as_measured)}; {period}: the "
+                "period cannot tell which. "
                 "Nothing corrected; square the camera on the trough axis, or state "
                 "cylinder.radius_mm_u small enough for the period to decide")
 
 
 def _finite(v):
     return float(v) if v is not None and math.isfinite(v) else None
+
+
+def _change(mu, mu0) -> str:
+    return f"{100 * (mu / mu0 - 1):+.2f} %" if math.isfinite(mu) and mu0 else "?"
+
+
+def _reading(mu, mu0) -> str:
+    """A reading of mu with its change from ``mu0``, or that its fit failed."""
+    return f"{mu:.6g} ({_change(mu, mu0)})" if math.isfinite(mu) else \
+        "not known (its fit failed)"
 
 
 def read_path(x, y, center, t, theta, setup, result, *, offset: bool, refit,
@@ -451,7 +475,10 @@ def read_path(x, y, center, t, theta, setup, result, *, offset: bool, refit,
     # the camera's reading: the path mapped back onto a circle, the angles again
     mx, my = mapped_centres(x, y, center, path.round_map(L_px))
     th_cam = angle_of(mx, my)
-    res_cam = refit(t, th_cam, setup)
+    try:
+        res_cam = refit(t, th_cam, setup)
+    except ValueError:  # the mapped angles would not fit: no camera reading
+        res_cam = None
     # the trough's: the bore's curvature at the bottom sets the period, its slope the angles
     amp = swing_amplitude(result)
     a, b = path.semi_axes
@@ -467,8 +494,12 @@ def read_path(x, y, center, t, theta, setup, result, *, offset: bool, refit,
         mu_tr = res_tr.mu / f_b
     except ValueError:
         mu_tr = math.nan
-    # the period decides
-    L_fit, u_fit = fit_length(t, th_cam, setup, res_cam, offset)
+    # the period decides (not without the camera reading's fit to start from)
+    try:
+        L_fit, u_fit = fit_length(t, th_cam, setup, res_cam, offset) if res_cam is not None \
+            else (math.nan, math.inf)
+    except ValueError:
+        L_fit, u_fit = math.nan, math.inf
     uR, ud = setup.u("cylinder_radius"), setup.u("ball_diameter")
     u_nom = math.hypot(uR or 0.0, 0.5 * (ud or 0.0))
     up = setup.u("pixel_size")
@@ -476,14 +507,15 @@ def read_path(x, y, center, t, theta, setup, result, *, offset: bool, refit,
                         rho_path * (up or 0.0))
     z_cam = (L_fit - setup.track_radius) / max(math.hypot(u_fit, u_nom), 1e-300)
     z_tr = (L_fit - L_path) / max(math.hypot(u_fit, u_path), 1e-300)
-    if abs(z_cam) <= SEPARATE < abs(z_tr):
+    if abs(z_cam) <= SEPARATE < abs(z_tr) and res_cam is not None:
         verdict = "camera"
-    elif abs(z_tr) <= SEPARATE < abs(z_cam):
+    elif abs(z_tr) <= SEPARATE < abs(z_cam) and math.isfinite(mu_tr):
         verdict = "trough"
     else:
         verdict = "undecided"
     lengths = {"L_period_m": L_fit, "L_period_u_m": u_fit, "L_nominal_m": setup.track_radius,
                "L_nominal_u_m": u_nom, "L_path_m": L_path, "L_path_u_m": u_path,
                "z_camera": z_cam, "z_trough": z_tr}
-    return PathReading(path, verdict, mu, mu_camera=res_cam.mu, mu_trough=mu_tr,
+    return PathReading(path, verdict, mu, mu_camera=math.nan if res_cam is None else res_cam.mu,
+                       mu_trough=mu_tr,
                        result_camera=res_cam, theta_camera=th_cam, lengths=lengths)
