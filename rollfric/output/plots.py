@@ -87,8 +87,9 @@ def plot_budget(budget, path) -> Path:
     for i, v in enumerate(values):
         ax.text(v, i, f" {v:.3g}", va="center", fontsize=8)
     ax.set_xlabel(f"standard uncertainty of mu ({unit})")
-    ax.set_title(f"Uncertainty budget: mu = {budget.mu:.6g}, U = {budget.U_mu:.2g} (k = "
-                 f"{budget.coverage_factor:g})")
+    # over the whole figure: the axes are narrow beside long source names
+    fig.suptitle(f"Uncertainty budget: mu = {budget.mu:.6g}, U = {budget.U_mu:.2g} (k = "
+                 f"{budget.coverage_factor:g})", fontsize=11)
     ax.grid(axis="x", alpha=0.3)
     fig.tight_layout()
     path = Path(path)
