@@ -166,7 +166,7 @@ def test_the_period_is_fitted_where_the_fitted_curve_has_gaps():
     the whole path reading was dropped: a rendered 1.58 mm ball filmed by a camera yawed
     8 deg had no path_ellipse, no row and no reason."""
     from rollfric.fit import eom
-    from rollfric.geometry.pathshape import fit_length
+    from rollfric.geometry.pathreading import fit_length
     from rollfric.setup.model import thesis_setup
 
     setup = thesis_setup("10mm")
@@ -184,7 +184,7 @@ def test_an_ellipse_with_one_reading_not_made_is_named_with_the_other():
     """Where the bore's reading could not be fitted, the camera's alone says how far mu may
     be off: beyond BIAS_WARN of mu it is the reason camera_orientation (its spread was NaN,
     and NaN > BIAS_WARN is false: no reason)."""
-    from rollfric.geometry import pathshape
+    from rollfric.geometry import pathreading, pathshape
 
     q = (1.0 / 500.0**2 / math.cos(math.radians(8.0)) ** 2, 0.0, 1.0 / 500.0**2)
     path = pathshape.PathEllipse(q=q, cov=np.zeros((3, 3)), center=(0.0, 0.0), rms_px=0.1,
@@ -192,7 +192,7 @@ def test_an_ellipse_with_one_reading_not_made_is_named_with_the_other():
     lengths = {"L_period_m": math.nan, "L_period_u_m": math.inf, "L_nominal_m": 0.08,
                "L_nominal_u_m": 0.0, "L_path_m": 0.07, "L_path_u_m": 1e-4,
                "z_camera": math.nan, "z_trough": math.nan}
-    reading = pathshape.PathReading(path, "undecided", 0.0100, mu_camera=0.0101,
+    reading = pathreading.PathReading(path, "undecided", 0.0100, mu_camera=0.0101,
                                     mu_trough=math.nan, lengths=lengths)
     assert reading.spread == pytest.approx(0.01)
     msg = reading.message()

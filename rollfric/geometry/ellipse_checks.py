@@ -18,7 +18,7 @@ import numpy as np
 from rollfric.errors import InputError
 from rollfric.fit import estimate as fitmod
 from rollfric.geometry import ellipse as ell
-from rollfric.geometry import pathshape
+from rollfric.geometry import pathreading
 from rollfric.geometry.theta import angles
 
 logger = logging.getLogger(__name__)
@@ -85,7 +85,7 @@ def contour_check(ellipse, info, t_s, th, setup, result, offset, fit_method, fit
 
 
 def path_check(df, info, center, setup, result, offset, fit_method, fit_kwargs, angle):
-    """The ball's path as an ellipse (:mod:`rollfric.geometry.pathshape`).
+    """The ball's path as an ellipse (:mod:`rollfric.geometry.pathreading`).
 
     A tilted camera that the period singles out is corrected: the angles in ``df``
     (``theta_rad``) and the fit are replaced.
@@ -139,7 +139,7 @@ def path_check(df, info, center, setup, result, offset, fit_method, fit_kwargs, 
     # the centre's uncertainty: the lab's center_px_u, else the contour's
     u_c = setup.u("center_px") if setup.center_px is not None else info.center_u_px
     try:
-        reading = pathshape.read_path(x, y, center, t_s, th, setup, result, offset=offset,
+        reading = pathreading.read_path(x, y, center, t_s, th, setup, result, offset=offset,
                                       refit=refit, ball_radius_px=info.ball_radius_px,
                                       angle_of=angle_of, center_u=u_c)
     except (InputError, ValueError, np.linalg.LinAlgError) as exc:

@@ -106,7 +106,7 @@ class TrackInfo:
         "located_frames").
     path_ellipse : dict or None
         The ball's path fitted as an ellipse about the centre used and what it means
-        (:mod:`rollfric.geometry.pathshape`: the verdict, mu read as a tilted camera and as an
+        (:mod:`rollfric.geometry.pathreading`: the verdict, mu read as a tilted camera and as an
         out-of-round bore, the lengths the period and the path give); None without a fit.
     angle_map : tuple or None
         The 2 x 2 map about the centre applied to the centres before the angles (a tilted
@@ -243,7 +243,7 @@ class TrackInfo:
                      # (rollfric.geometry.ellipse)
                      "contour_ellipse": self.contour_ellipse,
                      # the ball's path as an ellipse and what it means
-                     # (rollfric.geometry.pathshape)
+                     # (rollfric.geometry.pathreading)
                      "path_ellipse": self.path_ellipse,
                      # the camera's motion from the static scene (rollfric.track.camera_motion)
                      "camera_motion": self.camera_motion,

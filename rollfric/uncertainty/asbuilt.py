@@ -22,7 +22,7 @@ or seen by the images and read two ways):
   exclude (:meth:`rollfric.geometry.pathshape.PathEllipse.tilt_bound_deg`) enters instead,
   the worse of a yaw and a pitch (:data:`TURN`): a short arc tells a few degrees from none
   only weakly, and a 4 deg yaw moves mu by -0.24 %.
-- **an ellipse seen** in the path (:mod:`rollfric.geometry.pathshape`) or the contour: the
+- **an ellipse seen** in the path (:mod:`rollfric.geometry.pathreading`) or the contour: the
   camera's and the bore's readings. Where the data cannot tell them apart, both enter: the two
   readings equally likely, u(mu) is the root mean square of mu's differences from them (a
   single reading: the whole difference). A camera the period singled out is corrected; its
@@ -45,7 +45,7 @@ from rollfric.fit import eom
 from rollfric.fit.air import coefficients_of
 from rollfric.fit.eom import drag_accel
 from rollfric.geometry import ellipse as ell
-from rollfric.geometry.pathshape import swing_amplitude
+from rollfric.geometry.pathreading import swing_amplitude
 from rollfric.setup.model import LAB_KEYS, Setup
 from rollfric.uncertainty.measured import Measurement
 from rollfric.uncertainty.sensitivity import Refitter

@@ -24,7 +24,7 @@ Reason codes:
   lost or got wrong: the located centres', not the timing's), ``swing_coverage`` (the located
   frames cover little of the outer half of the swing on one side of the bottom),
   ``camera_orientation`` (the ball's path is an ellipse that a tilted camera and an
-  out-of-round bore explain alike, with mu readings apart: :mod:`rollfric.geometry.pathshape`).
+  out-of-round bore explain alike, with mu readings apart: :mod:`rollfric.geometry.pathreading`).
 - ``uncertainty`` (``fit``, ``measure``: :func:`rollfric.uncertainty.report.budget_reason`): the
   budget's expanded uncertainty reaches mu.
 """

@@ -31,7 +31,7 @@ fps, pixel size with their ``_u``), room air where the truth has air (else
 ``air_density_kg_m3 = 0``), and the trough-as-built tolerances ``cylinder.tilt_deg_u``,
 ``cylinder.ovality_mm_u`` (rows of the budget: :mod:`rollfric.uncertainty.asbuilt`). The
 measurement runs rollfric's fit, the path-ellipse reading of a tilted camera
-(:func:`rollfric.geometry.pathshape.read_path`, as ``rollfric measure`` does: a "camera"
+(:func:`rollfric.geometry.pathreading.read_path`, as ``rollfric measure`` does: a "camera"
 verdict corrects the angles) and the budget. z = (mu - truth) / u_mu. Each case is also
 fitted on its **exact** centres (no noise, the exact as-built setup, the lab's air): that
 fit's error, ``bias_phys`` (relative) and ``z_phys`` (in the blind u_mu), is what the drawn
@@ -61,7 +61,7 @@ import pandas as pd
 from rollfric.errors import InputError
 from rollfric.fit.estimate import fit_mu
 from rollfric.geometry import ellipse as ell
-from rollfric.geometry import pathshape
+from rollfric.geometry import pathreading
 from rollfric.geometry.theta import angles
 from rollfric.output.atomic import replacing
 from rollfric.setup.model import setup_from_dict
@@ -181,7 +181,7 @@ def _path_reading(meas: Measurement, result, lab):
     L_px = lab.track_radius / lab.pixel_size
     t, th = meas.series(lab)
     try:
-        reading = pathshape.read_path(
+        reading = pathreading.read_path(
             meas.x, meas.y, center, t, th, lab, result, offset=False,
             refit=lambda tt, tth, s: fit_mu(tt, tth, s), ball_radius_px=lab.ball_radius
             / lab.pixel_size, angle_of=lambda xx, yy: angles(xx, yy, center,
