@@ -394,3 +394,31 @@ def test_a_reading_that_could_not_be_made_is_no_traceback():
     assert source == asbuilt.PATH and u_mu == pytest.approx(asbuilt.two_readings_u(
         0.01, [0.0101]))
     assert "? (not made)" in note
+
+
+def test_a_path_that_bounds_nothing_takes_the_turn_at_its_cap():
+    """A path whose anisotropy is not known at all (its bound 90 deg) takes the bias at
+    MAX_TURN_DEG, and the note says so; a bound within it is taken as it is."""
+    setup = thesis_setup("10mm")
+    t = np.arange(1500) / 1000.0
+    th, _, _ = eom.solve_reference(math.radians(20.0), 0.0, 0.0079, t,
+                                   track_radius=setup.track_radius)
+    res = fit_mu(t, th, setup)
+
+    def turn(bound):
+        path = {"verdict": "round", "tilt_deg_bound": bound}
+        b = budget(Measurement(setup=setup, t=t, theta=th, as_built={"path_ellipse": path}),
+                   res)
+        return next(r for r in b.rows if r.source == asbuilt.TURN), b.mu
+
+    row, mu = turn(90.0)
+    assert row.u == 90.0 and f"(taken at {asbuilt.MAX_TURN_DEG:g} deg)" in row.note
+    capped, _ = turn(asbuilt.MAX_TURN_DEG)
+    assert row.u_mu == pytest.approx(capped.u_mu, rel=1e-12)
+    small, _ = turn(2.0)
+    assert "taken at" not in small.note
+    # a pitch's compression, the worse of the two: 1 / cos - 1 at the bottom, less by the
+    # factor 1 - 2 sin^2 at the 20 deg turning points
+    bottom = 1.0 / math.cos(math.radians(2.0)) - 1.0
+    turning = bottom * (1.0 - 2.0 * math.sin(math.radians(20.0)) ** 2)
+    assert turning < small.u_mu / mu < bottom

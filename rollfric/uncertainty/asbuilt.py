@@ -393,9 +393,10 @@ def _turn_row(meas: Measurement, result, setup: Setup, params: dict, fit_length:
         except (ValueError, RuntimeError):
             biases.append(math.nan)
     worst = max(abs(b) for b in biases) if all(map(math.isfinite, biases)) else math.inf
+    at = "" if bound <= MAX_TURN_DEG else f" (taken at {MAX_TURN_DEG:g} deg)"
     note = (f"the {by} is round within its noise, so the camera may be yawed or pitched up "
             f"to {bound:.2g} deg (its ellipse at one standard uncertainty): the worse of a yaw "
-            f"({100 * biases[0]:+.3g} %) and a pitch ({100 * biases[1]:+.3g} %), not "
+            f"({100 * biases[0]:+.3g} %) and a pitch ({100 * biases[1]:+.3g} %){at}, not "
             "corrected; state camera.yaw_deg_u and pitch_deg_u to replace it")
     return (TURN, None, bound, None, worst * params["mu"], note), 2
 
