@@ -276,7 +276,7 @@ def read_path(x, y, center, t, theta, setup, result, *, offset: bool, refit,
                         rho_path * (up or 0.0))
     z_cam = (L_fit - setup.track_radius) / max(math.hypot(u_fit, u_nom), 1e-300)
     z_tr = (L_fit - L_path) / max(math.hypot(u_fit, u_path), 1e-300)
-    if abs(z_cam) <= SEPARATE < abs(z_tr) and res_cam is not None:
+    if abs(z_cam) <= SEPARATE < abs(z_tr):  # NaN without the camera's fit: never
         verdict = "camera"
     elif abs(z_tr) <= SEPARATE < abs(z_cam) and math.isfinite(mu_tr):
         verdict = "trough"

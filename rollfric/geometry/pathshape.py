@@ -29,6 +29,8 @@ MIN_POINTS = 20
 # 2.4 deg and "corrected" mu by +0.085 % (17 U); the path's anisotropy must now stand out
 # from an error of that size as from its noise
 LOCATOR_SMOOTH_PX = 0.01
+# q = (Q11, Q12, Q22) to the path's anisotropy ((Q11 - Q22) / 2, Q12): zero for a circle
+_ANISOTROPY = np.array([[0.5, 0.0, -0.5], [0.0, 1.0, 0.0]])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,7 +82,7 @@ class PathEllipse:
     @property
     def chi2(self) -> float:
         """Chi-square of the anisotropy ((Q11 - Q22) / 2, Q12) against 0 (2 dof)."""
-        g = np.array([[0.5, 0.0, -0.5], [0.0, 1.0, 0.0]])
+        g = _ANISOTROPY
         d = g @ np.asarray(self.q)
         try:
             return float(d @ np.linalg.solve(g @ self.cov @ g.T, d))
@@ -145,7 +147,7 @@ class PathEllipse:
         >>> round(e.tilt_bound_deg(), 6)
         3.0
         """
-        g = np.array([[0.5, 0.0, -0.5], [0.0, 1.0, 0.0]])
+        g = _ANISOTROPY
         q = np.asarray(self.q, dtype=float)
         d = g @ q
         mean = 0.5 * (q[0] + q[2])

@@ -123,14 +123,14 @@ def rendered_release_fit(case: dict, k: int, order: int = 1) -> dict:
     from rollfric.measurement import measure
     from rollfric.uncertainty.measured import measurement_from_track
     from validation.faults.recordings import ArraySource
+    from validation.studies.faults import square_on
     from validation.studies.rendered_faults import Case, rendered
 
     release = Case(family="combine", seed=case["seed"] * RELEASE_SEEDS + k, mu=case["mu"],
                    theta0=math.radians(abs(case["theta0_deg"][k])), ball=case["ball"],
                    seconds=2.0)
     with rendered(release) as base:
-        setup = base.setup.replace(uncertainty=tuple(base.setup.uncertainty)
-                                   + (("camera_yaw", 0.0), ("camera_pitch", 0.0)))
+        setup = square_on(base.setup)
         df, info, res = measure(ArraySource(base.frames), setup, base.background)
         b = budget(measurement_from_track(df, info), res, order=order)
     return {"mu": b.mu, "method": res.method, "n_samples": res.n_samples, "u_mu": b.u_mu,
