@@ -197,11 +197,17 @@ def _redeliver(previous):
     (an object's finalizer, e.g. llvmlite's as numba frees a function) is raised again a
     millisecond later from SIGALRM's handler (:func:`_on_alarm`), in the command's own code,
     instead of being printed and lost; any other goes to ``previous``. (Raising it from the
-    hook itself would land in the hook, where Python cannot raise either.)"""
+    hook itself would land in the hook, where Python cannot raise either.) Once a signal has
+    reached the command, any other error of a finalizer is not printed: a signal raised inside
+    an object's constructor leaves it half built, and its finalizer then fails (llvmlite's
+    ``OutputString`` without ``_owned`` when SIGTERM lands as numba compiles a kernel)."""
+    from rollfric.output.folder import signals_received
+
     def hook(unraisable):
         exc = unraisable.exc_value
         if not isinstance(exc, (KeyboardInterrupt, _Terminated)):
-            previous(unraisable)
+            if not signals_received:  # else the signal's echo: the command is ending on it
+                previous(unraisable)
             return
         _pending.append(signal.SIGTERM if isinstance(exc, _Terminated) else signal.SIGINT)
         if hasattr(signal, "setitimer"):
